@@ -1,0 +1,9 @@
+"""contactvisco: quasistatic frictional contact of viscoelastic bodies with long memory against
+a foundation with normal compliance and a unilateral constraint (Ouafik 2024), in DOLFINx.
+
+Modules: scene (parameters), material (A), memory (eq 19), contact (eqs 11-12, 20-21 in UFL),
+geometry (meshes), problem (forms), solver (SNES), run (time loop), output, figures, cli.
+PETSc-dependent modules are imported on use, so that the command line can hand its options to
+PETSc first.
+"""
+__version__ = "0.1.0"

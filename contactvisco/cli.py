@@ -1,0 +1,70 @@
+"""The `contactvisco` command.
+
+    contactvisco run SCENE [--out DIR] [--set key=value ...] [PETSc options]
+    contactvisco scenes
+    contactvisco show SCENE [--set key=value ...]
+
+SCENE is a built-in scene name or a TOML file. Arguments that start with a single dash and are
+not ours (-snes_monitor, -ksp_type gmres, ...) go to PETSc.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def _parser():
+    parser = argparse.ArgumentParser(prog="contactvisco", description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="solve a scene")
+    run.add_argument("scene", help="built-in scene name or TOML file")
+    run.add_argument("--out", default=None, help="output folder (default results/<scene name>)")
+    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scene value, e.g. --set time.steps=100")
+    run.add_argument("--quiet", action="store_true", help="no progress output")
+    sub.add_parser("scenes", help="list the built-in scenes")
+    show = sub.add_parser("show", help="print a scene with its defaults filled in")
+    show.add_argument("scene")
+    show.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    return parser
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    args, petsc_args = _parser().parse_known_args(argv)
+    bad = [a for a in petsc_args if a.startswith("--")]
+    if bad:
+        _parser().error(f"unrecognized arguments: {' '.join(bad)}")
+    # PETSc reads its command line only if told before anything imports it.
+    import petsc4py
+    petsc4py.init([sys.argv[0]] + petsc_args)
+
+    import logging
+    logging.getLogger("root").setLevel(logging.WARNING)   # FFCx logs every JIT compile at INFO
+    from . import scene as scene_module
+    try:
+        if args.command == "scenes":
+            for name in scene_module.builtin_names():
+                print(f"{name:12s} {scene_module.load(name)['description']}")
+            return 0
+        scene = scene_module.load(args.scene, args.set)
+        if args.command == "show":
+            print(json.dumps(scene, indent=2, default=str))
+            return 0
+        from .run import simulate
+        from .solver import NewtonFailure
+        out = args.out or f"results/{scene['name']}"
+        try:
+            simulate(scene, out, progress=not args.quiet)
+        except NewtonFailure as err:
+            print(f"contactvisco: {err}", file=sys.stderr)
+            return 3
+    except scene_module.SceneError as err:
+        print(f"contactvisco: scene error: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,206 @@
+"""What a run leaves behind: contact-node tables, probes, summary.json, CSV and XDMF.
+
+Everything is gathered by owned dofs and coordinates, so the output does not depend on the rank
+count (dof numbering does). Files are written step by step: a run that stops early leaves
+readable output for the steps it finished.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import pathlib
+
+import numpy as np
+from dolfinx import geometry as dgeometry
+from dolfinx import io
+
+STATUSES = ("separated", "compliance", "bound")
+
+
+def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
+    """Values at the contact nodes of the whole mesh, on every rank, sorted by position.
+
+    Keys: x (n, d), normal (n, d), u_nu, u_tau (2D: along t = (-nu_y, nu_x); 3D: |u_tau|),
+    lambda_nu, p_nu (compliance traction p_nu(min(u_nu, g))), reaction_nu (-sigma_nu),
+    reaction_tau (sigma_tau, same convention as u_tau), radius (mu p_nu), status (0, 1, 2 as
+    in STATUSES).
+    """
+    nodes = problem.nodes
+    if nodes is None:
+        return None
+    contact = problem.scene["contact"]
+    d = problem.geometry.mesh.geometry.dim
+    own = nodes.nodes[nodes.owned]
+    normals = nodes.normals[nodes.owned]
+    # Node values of u (P1: node i of the multiplier spaces is dof block i of V).
+    u = _nodal_displacement(problem)[own]
+    u_nu = np.einsum("ij,ij->i", u, normals)
+    u_tau_vec = u - u_nu[:, None] * normals
+    g = contact["g"]
+    p_nu = (contact["stiffness"] * np.maximum(0.0, np.minimum(u_nu, g))
+            if g > 0 else np.zeros_like(u_nu))
+    lam_nu = (problem.lambda_nu.x.array[own] if problem.lambda_nu is not None
+              else np.zeros_like(u_nu))
+    if problem.lambda_tau is not None:
+        sig_tau = problem.lambda_tau.x.array.reshape(-1, d)[own]
+    else:
+        sig_tau = np.zeros_like(u)
+    if d == 2:
+        t = nodes.tangents[nodes.owned]
+        u_tau = np.einsum("ij,ij->i", u_tau_vec, t)
+        r_tau = np.einsum("ij,ij->i", sig_tau, t)
+    else:
+        u_tau = np.linalg.norm(u_tau_vec, axis=1)
+        r_tau = np.linalg.norm(sig_tau - np.einsum("ij,ij->i", sig_tau, normals)[:, None]
+                               * normals, axis=1)
+    x = problem.Q_coordinates[own][:, :d]
+    local = dict(x=x, normal=normals, u_nu=u_nu, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
+                 reaction_nu=p_nu - lam_nu, reaction_tau=r_tau, radius=contact["mu"] * p_nu,
+                 u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau)
+    gathered = comm.allgather(local)
+    table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
+    order = np.lexsort(table["x"].T[::-1])
+    table = {key: value[order] for key, value in table.items()}
+    table["status"] = classify(table["u_nu"], g, problem.length_scale)
+    return table
+
+
+def classify(u_nu: np.ndarray, g: float, length: float) -> np.ndarray:
+    """0 separated (u_nu <= 0: no force), 1 compliance (0 < u_nu < g), 2 bound (u_nu = g),
+    with a tolerance of 1e-9 times g (or the body's size when g is 0 or infinite)."""
+    tol = 1e-9 * (g if 0 < g < math.inf else length)
+    status = np.where(u_nu > tol, 1, 0)
+    if math.isfinite(g):
+        status = np.where(u_nu >= g - tol, 2, status)
+    return status
+
+
+def status_counts(table) -> dict[str, int]:
+    if table is None:
+        return {s: 0 for s in STATUSES}
+    return {name: int(np.sum(table["status"] == i)) for i, name in enumerate(STATUSES)}
+
+
+def _nodal_displacement(problem) -> np.ndarray:
+    d = problem.geometry.mesh.geometry.dim
+    if problem.u_p1 is None:
+        return problem.u.x.array.reshape(-1, d)
+    problem.u_p1.interpolate(problem.u)
+    return problem.u_p1.x.array.reshape(-1, d)
+
+
+class Probes:
+    """Point values of u; each point is evaluated on the rank that holds it."""
+
+    def __init__(self, mesh, points):
+        self.points = np.zeros((len(points), 3))
+        for i, p in enumerate(points):
+            self.points[i, :len(p)] = p
+        self.mesh = mesh
+        tree = dgeometry.BoundingBoxTree(mesh, mesh.topology.dim)
+        cells = dgeometry.compute_colliding_cells(
+            mesh, dgeometry.compute_collisions(tree, self.points), self.points)
+        self.cells = [cells.links(i)[0] if len(cells.links(i)) else -1
+                      for i in range(len(points))]
+
+    def values(self, u, comm) -> list[dict]:
+        d = self.mesh.geometry.dim
+        local = [None if c < 0 else u.eval(p, c)[:d].tolist()
+                 for p, c in zip(self.points, self.cells)]
+        found = comm.allgather(local)
+        out = []
+        for i, p in enumerate(self.points):
+            value = next((part[i] for part in found if part[i] is not None), None)
+            out.append({"x": p[:d].tolist(), "u": value})
+        return out
+
+
+class Writer:
+    """summary.json, contact_nodes.csv and solution.xdmf in one output folder."""
+
+    def __init__(self, folder, problem, comm, xdmf=True):
+        self.folder = pathlib.Path(folder)
+        self.comm = comm
+        self.rank = comm.rank
+        if self.rank == 0:
+            self.folder.mkdir(parents=True, exist_ok=True)
+        comm.barrier()
+        self.summary = {"scene": problem.scene, "unknowns": problem.count_unknowns(),
+                        "ranks": comm.size, "steps": [], "final": None}
+        self.csv = None
+        if self.rank == 0 and problem.nodes is not None:
+            self.csv_file = open(self.folder / "contact_nodes.csv", "w", newline="")
+            self.csv = csv.writer(self.csv_file)
+            d = problem.geometry.mesh.geometry.dim
+            self.csv.writerow(["step", "t"] + ["xyz"[i] for i in range(d)]
+                              + ["u_nu", "u_tau", "reaction_nu", "reaction_tau", "status"])
+        self.xdmf = None
+        if xdmf:
+            self.xdmf = io.XDMFFile(comm, str(self.folder / "solution.xdmf"), "w")
+            self.xdmf.write_mesh(problem.geometry.mesh)
+
+    def step(self, record: dict, table, fields=()):
+        self.summary["steps"].append(record)
+        if self.xdmf is not None:
+            for f in fields:
+                self.xdmf.write_function(f, record["t"])
+        if self.rank != 0:
+            return
+        if self.csv is not None and table is not None:
+            for i in range(len(table["u_nu"])):
+                self.csv.writerow([record["step"], repr(record["t"])]
+                                  + [repr(float(c)) for c in table["x"][i]]
+                                  + [repr(float(table[key][i])) for key in
+                                     ("u_nu", "u_tau", "reaction_nu", "reaction_tau")]
+                                  + [STATUSES[table["status"][i]]])
+            self.csv_file.flush()
+        self._write_summary()
+
+    def finish(self, final: dict):
+        self.summary["final"] = final
+        if self.xdmf is not None:
+            self.xdmf.close()
+        if self.rank == 0:
+            if self.csv is not None:
+                self.csv_file.close()
+            self._write_summary()
+
+    def _write_summary(self):
+        path = self.folder / "summary.json"
+        tmp = path.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(self.summary, indent=1, default=_jsonable))
+        os.replace(tmp, path)      # a crash never leaves a half-written summary
+
+
+def _jsonable(value):
+    if isinstance(value, float) and math.isinf(value):
+        return "inf"
+    if isinstance(value, (np.integer, np.floating)):
+        return value.item()
+    raise TypeError(f"not JSON serializable: {type(value)}")
+
+
+def gather_mesh(problem, comm):
+    """(points (n, d), triangles (m, 3), displacement (n, d)) of a P1 2D mesh on rank 0 (None
+    elsewhere), in a numbering independent of the rank count."""
+    V = problem.V
+    d = problem.geometry.mesh.geometry.dim
+    imap = V.dofmap.index_map
+    n_own = imap.size_local
+    x = V.tabulate_dof_coordinates()[:n_own, :d]
+    u = problem.u.x.array.reshape(-1, d)[:n_own]
+    global_index = imap.local_range[0] + np.arange(n_own)
+    n_cells = problem.geometry.mesh.topology.index_map(d).size_local
+    cell_dofs = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[:n_cells, :d + 1]
+    cells = imap.local_to_global(cell_dofs.ravel()).reshape(-1, d + 1)
+    parts = comm.gather((global_index, x, u, cells), root=0)
+    if comm.rank != 0:
+        return None
+    size = imap.size_global
+    points, disp = np.zeros((size, d)), np.zeros((size, d))
+    for gi, xi, ui, _ in parts:
+        points[gi], disp[gi] = xi, ui
+    triangles = np.concatenate([p[3] for p in parts])
+    return points, triangles, disp

@@ -1,0 +1,334 @@
+"""The discrete problem (20)-(21) of a scene: spaces, unknowns, UFL residual and Jacobian.
+
+Only the terms a scene needs are built: no lambda_tau without friction, no lambda_nu without a
+finite bound g, no compliance term when g = 0 (pure Signorini), no history without memory.
+
+Residual, with sigma_n = A eps(u_n) + H_n (H_n the history stress of eq 19) and
+R_nu = (lambda_nu - r (u_nu - g))_-, sigma_tau = P_B(lambda_tau - r u_tau), B of radius
+mu p_nu(u_nu):
+
+    F_u   = (sigma_n, eps(v)) - (f, v) + int_C (p_nu(u_nu) + R_nu) v_nu - int_C sigma_tau . v_tau
+    F_nu  = -1/r int_C (lambda_nu + R_nu) gamma_nu
+    F_tau = -1/r int_C (lambda_tau - sigma_tau) . gamma_tau
+
+lambda_nu and lambda_tau are P1 fields whose dofs off Gamma_C are fixed to zero (DOLFINx 0.5 has
+no boundary-only spaces). With the nodal (trapezoid) quadrature on Gamma_C the conditions hold
+node by node; F_tau uses the full vector gamma_tau, which also forces lambda_tau . nu = 0.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem.petsc import assemble_vector
+from petsc4py import PETSc
+
+from . import contact as law
+from .geometry import Geometry
+from .material import elasticity, lame_constants, strain
+from .memory import History
+from .scene import SceneError, memory_terms
+
+NODAL = {"quadrature_rule": "GLL", "quadrature_degree": 1}   # trapezoid rule on each facet
+
+
+@dataclass
+class ContactNodes:
+    """Nodes of Gamma_C in the P1 node numbering (local, ghosts included)."""
+    nodes: np.ndarray          # local P1 node indices on Gamma_C
+    owned: np.ndarray          # bool: owned by this rank
+    normals: np.ndarray        # (len(nodes), d) unit nodal normals
+    tangents: np.ndarray | None  # (len(nodes), d) unit tangent (2D only)
+
+
+@dataclass
+class Problem:
+    scene: dict
+    geometry: Geometry
+    V: fem.FunctionSpace                      # displacement
+    u: fem.Function
+    lambda_nu: fem.Function | None
+    lambda_tau: fem.Function | None
+    F: list
+    J: list
+    bcs: list
+    constants: dict
+    history: History | None = None
+    H: fem.Function | None = None             # history stress (DG, tensor)
+    eps_function: fem.Function | None = None
+    eps_expression: fem.Expression | None = None
+    sigma_expression: fem.Expression | None = None
+    T: fem.FunctionSpace | None = None
+    nodes: ContactNodes | None = None
+    Q_coordinates: np.ndarray | None = None   # P1 node coordinates (contact node positions)
+    u_p1: fem.Function | None = None          # u interpolated to P1 nodes (degree > 1 only)
+    length_scale: float = 1.0
+
+    @property
+    def unknowns(self) -> list[fem.Function]:
+        return [f for f in (self.u, self.lambda_nu, self.lambda_tau) if f is not None]
+
+    def count_unknowns(self) -> dict:
+        """Global dof counts per unknown."""
+        out = {}
+        for name, f in (("u", self.u), ("lambda_nu", self.lambda_nu),
+                        ("lambda_tau", self.lambda_tau)):
+            if f is not None:
+                imap = f.function_space.dofmap.index_map
+                out[name] = imap.size_global * f.function_space.dofmap.index_map_bs
+        return out
+
+    def update_history(self):
+        """Take the converged eps(u_n) into the history; set H_{n+1}."""
+        if self.history is None:
+            return
+        self.eps_function.interpolate(self.eps_expression)
+        self.H.x.array[:] = self.history.advance(self.eps_function.x.array)
+
+
+def _scalar(mesh, value):
+    return fem.Constant(mesh, PETSc.ScalarType(value))
+
+
+def _block_jacobian(F, unknowns, spaces):
+    """J[i][j] = dF_i/dw_j, None where the block is empty."""
+    J = []
+    for Fi in F:
+        row = []
+        for w, space in zip(unknowns, spaces):
+            a = ufl.algorithms.expand_derivatives(
+                ufl.derivative(Fi, w, ufl.TrialFunction(space)))
+            row.append(None if a.empty() else a)
+        J.append(row)
+    return J
+
+
+def build(scene: dict, geometry: Geometry) -> Problem:
+    mesh = geometry.mesh
+    d = mesh.geometry.dim
+    disc = scene["discretization"]
+    degree = disc["degree"]
+    mat = scene["material"]
+    contact = scene["contact"]
+    time = scene["time"]
+    k = time["T"] / time["steps"]
+
+    V = fem.VectorFunctionSpace(mesh, ("CG", degree))
+    u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
+    lmbda, mu = lame_constants(mat["model"], mat["E"], mat["nu"])
+    constants = {"lambda": _scalar(mesh, lmbda), "mu": _scalar(mesh, mu)}
+    sigma = elasticity(strain(u), constants["lambda"], constants["mu"])
+
+    # Memory: the history stress H (eq 19) enters as a known DG field.
+    problem_memory = {}
+    terms = memory_terms(scene)
+    if terms:
+        T = fem.TensorFunctionSpace(mesh, ("DG", degree - 1))
+        H = fem.Function(T, name="history_stress")
+        eps_function = fem.Function(T)
+        points = T.element.interpolation_points()
+        problem_memory = dict(history=History(terms, k), H=H, eps_function=eps_function,
+                              eps_expression=fem.Expression(strain(u), points), T=T)
+        sigma = sigma + H
+
+    dx = ufl.dx
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
+    F_u = ufl.inner(sigma, strain(v)) * dx
+
+    body = scene["body_force"]["value"]
+    if body is not None:
+        if len(body) != d:
+            raise SceneError(f"body_force.value has {len(body)} components, the mesh is {d}D")
+        constants["f0"] = fem.Constant(mesh, PETSc.ScalarType(tuple(body)))
+        F_u -= ufl.dot(constants["f0"], v) * dx
+    for i, traction in enumerate(scene["traction"]):
+        if len(traction["value"]) != d:
+            raise SceneError(f"traction[{i}].value has {len(traction['value'])} components, "
+                             f"the mesh is {d}D")
+        geometry.facets(traction["boundary"])   # checks the name
+        fN = fem.Constant(mesh, PETSc.ScalarType(tuple(traction["value"])))
+        constants[f"fN{i}"] = fN
+        F_u -= ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]])
+
+    bcs, fixed_components = _dirichlet(scene, geometry, V)
+
+    unknowns, spaces = [u], [V]
+    F_extra = []
+    lambda_nu = lambda_tau = None
+    nodes = None
+    if contact is not None:
+        if disc["contact_quadrature"] == "nodal":
+            if degree != 1:
+                raise SceneError("discretization.contact_quadrature = 'nodal' needs degree 1; "
+                                 "use 'gauss' for degree 2")
+            if d != 2:
+                raise SceneError("the nodal contact quadrature is available in 2D only with "
+                                 "DOLFINx 0.5 (no GLL rule on triangles); use 'gauss' in 3D")
+            metadata = NODAL
+        else:
+            metadata = {"quadrature_degree": 2 * degree + 2}
+        tag = geometry.names.get(contact["boundary"])
+        geometry.facets(contact["boundary"])      # checks the name
+        dsc = ds(tag, metadata=metadata)
+        n = ufl.FacetNormal(mesh)
+        u_nu = law.normal_part(u, n)
+        u_tau = law.tangential_part(u, n)
+        g = contact["g"]
+        bounded = math.isfinite(g)
+        c = constants
+        c["r"] = _scalar(mesh, contact["augmentation"])
+        normal_force = 0
+        p_nu = None
+        if contact["stiffness"] > 0 and g > 0:
+            c["stiffness"] = _scalar(mesh, contact["stiffness"])
+            c["g"] = _scalar(mesh, g) if bounded else None
+            p_nu = law.p_nu(u_nu, c["stiffness"], c["g"])
+            normal_force = p_nu
+        elif bounded:
+            c["g"] = _scalar(mesh, g)
+
+        Q = W = None
+        if bounded or (contact["mu"] > 0 and p_nu is not None):
+            Q = fem.FunctionSpace(mesh, ("CG", 1))
+            # Its own space object, even for P1: block assembly keys boundary conditions and
+            # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
+            W = fem.VectorFunctionSpace(mesh, ("CG", 1))
+            nodes = _contact_nodes(mesh, Q, W, dsc)
+            if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
+                                               W.tabulate_dof_coordinates()):
+                raise RuntimeError("displacement and multiplier node numberings differ")
+        if bounded:
+            lambda_nu = fem.Function(Q, name="lambda_nu")
+            gamma = ufl.TestFunction(Q)
+            R_nu = law.unilateral_reaction(lambda_nu, u_nu, c["g"], c["r"])
+            normal_force = normal_force + R_nu
+            F_extra.append(-1.0 / c["r"] * (lambda_nu + R_nu) * gamma * dsc)
+            unknowns.append(lambda_nu)
+            spaces.append(Q)
+        if not isinstance(normal_force, int):
+            F_u += normal_force * law.normal_part(v, n) * dsc
+        if contact["mu"] > 0 and p_nu is not None:
+            c["friction"] = _scalar(mesh, contact["mu"])
+            radius = c["friction"] * p_nu
+            lambda_tau = fem.Function(W, name="lambda_tau")
+            gamma = ufl.TestFunction(lambda_tau.function_space)
+            sigma_tau = law.friction_force(lambda_tau, u_tau, n, radius, c["r"])
+            F_u -= ufl.dot(sigma_tau, law.tangential_part(v, n)) * dsc
+            F_extra.append(-1.0 / c["r"] * ufl.dot(lambda_tau - sigma_tau, gamma) * dsc)
+            unknowns.append(lambda_tau)
+            spaces.append(lambda_tau.function_space)
+        bcs += _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed_components, d)
+
+    F = [F_u] + F_extra
+    J = _block_jacobian(F, unknowns, spaces)
+    # Multiplier dofs off Gamma_C have no entry in the ds blocks: a zero dx mass term gives
+    # them a diagonal in the sparsity pattern for the Dirichlet rows.
+    zero = _scalar(mesh, 0.0)
+    for i in range(1, len(unknowns)):
+        mass = zero * ufl.inner(ufl.TrialFunction(spaces[i]), ufl.TestFunction(spaces[i])) * dx
+        J[i][i] = mass if J[i][i] is None else J[i][i] + mass
+
+    problem = Problem(scene=scene, geometry=geometry, V=V, u=u, lambda_nu=lambda_nu,
+                      lambda_tau=lambda_tau, F=F, J=J, bcs=bcs, constants=constants,
+                      nodes=nodes, **problem_memory)
+    if nodes is not None:
+        problem.Q_coordinates = Q.tabulate_dof_coordinates()
+        if degree > 1:
+            problem.u_p1 = fem.Function(W)
+    extent = np.array(scene["geometry"]["upper"]) - np.array(scene["geometry"]["lower"])
+    problem.length_scale = float(np.max(np.abs(extent)))
+    T_out = problem.T or fem.TensorFunctionSpace(mesh, ("DG", degree - 1))
+    problem.T = T_out
+    problem.sigma_expression = fem.Expression(sigma, T_out.element.interpolation_points())
+    return problem
+
+
+def _dirichlet(scene, geometry, V):
+    """Dirichlet conditions and, per displacement dof, whether it is prescribed (0/1 array,
+    consistent over ranks, ghosts included)."""
+    mesh = geometry.mesh
+    d = mesh.geometry.dim
+    fdim = d - 1
+    bcs = []
+    fixed = fem.Function(V)
+    for i, item in enumerate(scene["dirichlet"]):
+        facets = geometry.facets(item["boundary"])
+        comps = item.get("components", "all")
+        value = item.get("value", 0.0)
+        if comps == "all":
+            vals = value if isinstance(value, (list, tuple)) else [value] * d
+            if len(vals) != d:
+                raise SceneError(f"dirichlet[{i}].value needs {d} components, got {vals}")
+            dofs = fem.locate_dofs_topological(V, fdim, facets)
+            bcs.append(fem.dirichletbc(np.array(vals, dtype=PETSc.ScalarType), dofs, V))
+            fixed.x.array[(dofs[:, None] * d + np.arange(d)).ravel()] = 1.0
+        else:
+            vals = value if isinstance(value, (list, tuple)) else [value] * len(comps)
+            for comp, val in zip(comps, vals):
+                if not (isinstance(comp, int) and 0 <= comp < d):
+                    raise SceneError(f"dirichlet[{i}].components: {comp} is not a component "
+                                     f"of a {d}D displacement (0..{d - 1})")
+                dofs = fem.locate_dofs_topological(V.sub(comp), fdim, facets)
+                bcs.append(fem.dirichletbc(PETSc.ScalarType(val), dofs, V.sub(comp)))
+                fixed.x.array[dofs] = 1.0
+    # A rank may hold a prescribed node as a ghost without the facet that prescribes it.
+    fixed.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    fixed.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    return bcs, fixed.x.array.reshape(-1, V.dofmap.index_map_bs)
+
+
+def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:
+    """Nodes of Gamma_C with their normals, found by assembly so that every rank knows every
+    contact node it holds, ghosts included."""
+    d = mesh.geometry.dim
+    q, w = ufl.TestFunction(Q), ufl.TestFunction(W)
+    n = ufl.FacetNormal(mesh)
+    weight = assemble_vector(fem.form(q * dsc))
+    normal = assemble_vector(fem.form(ufl.dot(n, w) * dsc))
+    for vec in (weight, normal):
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    with weight.localForm() as wl, normal.localForm() as nl:
+        weights = wl.array.copy()
+        normals = nl.array.copy().reshape(-1, d)
+    if not np.allclose(Q.tabulate_dof_coordinates(),
+                       W.tabulate_dof_coordinates()):
+        raise RuntimeError("scalar and vector P1 node numberings differ")
+    nodes = np.flatnonzero(weights > 0)
+    normals = normals[nodes]
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    tangents = np.column_stack([-normals[:, 1], normals[:, 0]]) if d == 2 else None
+    owned = nodes < Q.dofmap.index_map.size_local
+    return ContactNodes(nodes=nodes, owned=owned, normals=normals, tangents=tangents)
+
+
+def _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed, d):
+    """Fix multiplier dofs to zero off Gamma_C, and where the displacement they act on is
+    prescribed (their Newton rows would be empty: MUMPS then stops with INFOG(1) = -3)."""
+    bcs = []
+    if nodes is None:
+        return bcs
+    zero = PETSc.ScalarType(0.0)
+    if lambda_nu is not None:
+        Q = lambda_nu.function_space
+        n_local = Q.dofmap.index_map.size_local + Q.dofmap.index_map.num_ghosts
+        free = np.zeros(n_local, dtype=bool)
+        # u_nu is prescribed when every component that nu involves is.
+        involved = np.abs(nodes.normals) > 1e-8
+        prescribed = np.all(~involved | (fixed[nodes.nodes] > 0), axis=1)
+        free[nodes.nodes[~prescribed]] = True
+        dofs = np.flatnonzero(~free).astype(np.int32)
+        bcs.append(fem.dirichletbc(zero, dofs, Q))
+    if lambda_tau is not None:
+        L = lambda_tau.function_space
+        n_local = L.dofmap.index_map.size_local + L.dofmap.index_map.num_ghosts
+        free = np.zeros((n_local, d), dtype=bool)
+        free[nodes.nodes] = fixed[nodes.nodes] == 0
+        # One condition per component: on a sub-space, dofs are unrolled parent indices.
+        for comp in range(d):
+            dofs = (np.flatnonzero(~free[:, comp]) * d + comp).astype(np.int32)
+            bcs.append(fem.dirichletbc(zero, dofs, L.sub(comp)))
+    return bcs

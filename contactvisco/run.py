@@ -1,0 +1,103 @@
+"""The time loop of eqs (20)-(21): t_0 = 0 (no history yet), then n = 1..N with k = T/N."""
+from __future__ import annotations
+
+import pathlib
+import sys
+import time as clock
+from dataclasses import dataclass, field
+
+from dolfinx import fem
+from mpi4py import MPI
+
+from . import geometry as geometry_module
+from . import output
+from .problem import Problem, build
+from .solver import BlockSNES
+
+
+@dataclass
+class Result:
+    problem: Problem
+    steps: list = field(default_factory=list)        # the summary.json step records
+    tables: list = field(default_factory=list)       # contact_table per step (every rank)
+
+
+def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
+             keep_tables=False) -> Result:
+    """Solve a resolved scene; write results into folder `out` when given."""
+    started = clock.perf_counter()
+    geometry = geometry_module.build(scene, comm)
+    problem = build(scene, geometry)
+    snes = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, comm,
+                     scene["solver"]["petsc_options"])
+    setup_s = clock.perf_counter() - started
+    opts = scene["output"]
+    probes = output.Probes(geometry.mesh, opts["probes"]) if opts["probes"] else None
+    sigma = fem.Function(problem.T, name="sigma")
+    writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"]) if out else None
+    T, N = scene["time"]["T"], scene["time"]["steps"]
+    k = T / N
+    figure_steps = {min(N, max(0, round(t / k))) for t in opts["figure_times"]} | {N}
+    snapshots = []
+    result = Result(problem)
+    say = _printer(comm, progress)
+    say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), unknowns "
+        + ", ".join(f"{k_}={v}" for k_, v in problem.count_unknowns().items())
+        + f"; set-up (incl. JIT) {setup_s:.2f} s")
+
+    table = None
+    for n in range(N + 1):
+        t = n * k
+        tick = clock.perf_counter()
+        iterations = snes.solve()
+        problem.update_history()
+        wall = clock.perf_counter() - tick
+        table = output.contact_table(problem, comm)
+        counts = output.status_counts(table)
+        record = {"step": n, "t": t, "newton_iterations": iterations,
+                  "residual": snes.residuals[-1] if snes.residuals else 0.0,
+                  "residual_history": snes.residuals, "wall_s": wall,
+                  "status_counts": counts,
+                  "probes": probes.values(problem.u, comm) if probes else []}
+        result.steps.append(record)
+        if keep_tables:
+            result.tables.append(table)
+        if writer is not None:
+            fields = [problem.u]
+            if writer.xdmf is not None:
+                sigma.interpolate(problem.sigma_expression)
+                fields.append(sigma)
+            writer.step(record, table, fields)
+            if n in figure_steps and opts["figures"] and geometry.mesh.geometry.dim == 2:
+                gathered = output.gather_mesh(problem, comm)
+                if gathered is not None:
+                    snapshots.append((t,) + gathered)
+        say(f"step {n:4d}/{N}  t = {t:.4g}  Newton {iterations:2d}  "
+            f"|F| = {record['residual']:.2e}  "
+            + " ".join(f"{key} {value}" for key, value in counts.items())
+            + f"  {wall:.3f} s")
+
+    final = {"t": T, "status_counts": output.status_counts(table),
+             "wall_s": clock.perf_counter() - started, "setup_s": setup_s}
+    if writer is not None:
+        writer.finish(final)
+        if comm.rank == 0 and opts["figures"]:
+            _figures(pathlib.Path(out), snapshots, table, T, scene)
+    say(f"done in {final['wall_s']:.2f} s; at t = {T:g}: "
+        + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
+    return result
+
+
+def _figures(folder, snapshots, table, T, scene):
+    from . import figures
+    if snapshots:
+        figures.deformed_meshes(snapshots, folder / "deformed_mesh.png")
+    if table is not None:
+        figures.contact_profiles(table, T, scene["contact"]["g"], folder)
+
+
+def _printer(comm, enabled):
+    def say(text):
+        if enabled and comm.rank == 0:
+            print(text, file=sys.stdout, flush=True)
+    return say
