@@ -7,3 +7,10 @@ PETSc-dependent modules are imported on use, so that the command line can hand i
 PETSc first.
 """
 __version__ = "0.1.0"
+
+import logging as _logging
+
+# A JIT compile of a form makes setuptools' distutils lower the root logger to INFO and log
+# every compiler command line; keep those out of the user's console.
+_logging.getLogger().addFilter(
+    lambda record: record.levelno >= _logging.WARNING or "distutils" not in record.pathname)

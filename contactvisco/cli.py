@@ -40,8 +40,6 @@ def main(argv=None):
     import petsc4py
     petsc4py.init([sys.argv[0]] + petsc_args)
 
-    import logging
-    logging.getLogger("root").setLevel(logging.WARNING)   # FFCx logs every JIT compile at INFO
     from . import scene as scene_module
     try:
         if args.command == "scenes":

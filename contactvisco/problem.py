@@ -82,7 +82,7 @@ class Problem:
         return out
 
     def update_history(self):
-        """Take the converged eps(u_n) into the history; set H_{n+1}."""
+        """Take eps(u_n) of the current (converged) u into the history; set H_{n+1}."""
         if self.history is None:
             return
         self.eps_function.interpolate(self.eps_expression)
@@ -180,7 +180,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         bounded = math.isfinite(g)
         c = constants
         c["r"] = _scalar(mesh, contact["augmentation"])
-        normal_force = 0
+        normal_force = None
         p_nu = None
         if contact["stiffness"] > 0 and g > 0:
             c["stiffness"] = _scalar(mesh, contact["stiffness"])
@@ -190,25 +190,24 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         elif bounded:
             c["g"] = _scalar(mesh, g)
 
-        Q = W = None
-        if bounded or (contact["mu"] > 0 and p_nu is not None):
-            Q = fem.FunctionSpace(mesh, ("CG", 1))
-            # Its own space object, even for P1: block assembly keys boundary conditions and
-            # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
-            W = fem.VectorFunctionSpace(mesh, ("CG", 1))
-            nodes = _contact_nodes(mesh, Q, W, dsc)
-            if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
-                                               W.tabulate_dof_coordinates()):
-                raise RuntimeError("displacement and multiplier node numberings differ")
+        # P1 spaces for the multipliers and for the node tables of the output.
+        Q = fem.FunctionSpace(mesh, ("CG", 1))
+        # Its own space object, even for P1: block assembly keys boundary conditions and
+        # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
+        W = fem.VectorFunctionSpace(mesh, ("CG", 1))
+        nodes = _contact_nodes(mesh, Q, W, dsc)
+        if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
+                                           W.tabulate_dof_coordinates()):
+            raise RuntimeError("displacement and multiplier node numberings differ")
         if bounded:
             lambda_nu = fem.Function(Q, name="lambda_nu")
             gamma = ufl.TestFunction(Q)
             R_nu = law.unilateral_reaction(lambda_nu, u_nu, c["g"], c["r"])
-            normal_force = normal_force + R_nu
+            normal_force = R_nu if normal_force is None else normal_force + R_nu
             F_extra.append(-1.0 / c["r"] * (lambda_nu + R_nu) * gamma * dsc)
             unknowns.append(lambda_nu)
             spaces.append(Q)
-        if not isinstance(normal_force, int):
+        if normal_force is not None:
             F_u += normal_force * law.normal_part(v, n) * dsc
         if contact["mu"] > 0 and p_nu is not None:
             c["friction"] = _scalar(mesh, contact["mu"])

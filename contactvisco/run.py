@@ -49,8 +49,9 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     for n in range(N + 1):
         t = n * k
         tick = clock.perf_counter()
+        if n > 0:
+            problem.update_history()     # H_n from u_0 .. u_{n-1} (eq 19)
         iterations = snes.solve()
-        problem.update_history()
         wall = clock.perf_counter() - tick
         table = output.contact_table(problem, comm)
         counts = output.status_counts(table)

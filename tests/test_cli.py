@@ -1,0 +1,59 @@
+"""The command line: a short paper run writes every promised file; bad input exits non-zero
+with a message and no traceback. Subprocesses are started only on a single rank."""
+import csv
+import json
+import subprocess
+import sys
+
+import pytest
+from mpi4py import MPI
+
+pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
+                                reason="starts its own processes; run on one rank")
+
+
+def cli(*args):
+    return subprocess.run([sys.executable, "-m", "contactvisco", *args], capture_output=True,
+                          text=True, timeout=600)
+
+
+def test_run_writes_results(tmp_path):
+    out = tmp_path / "paper"
+    proc = cli("run", "paper", "--out", str(out), "--set", "geometry.cells=[8, 8]",
+               "--set", "time.steps=2", "-snes_max_it", "30")
+    assert proc.returncode == 0, proc.stderr
+    assert "step    2/2" in proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert [s["t"] for s in summary["steps"]] == [0.0, 0.5, 1.0]
+    for step in summary["steps"]:
+        assert set(step) >= {"t", "newton_iterations", "residual", "wall_s", "status_counts",
+                             "probes"}
+        assert set(step["status_counts"]) == {"separated", "compliance", "bound"}
+        assert sum(step["status_counts"].values()) == 9     # 9 nodes on an 8-cell edge
+        assert len(step["probes"]) == 4 and all(len(p["u"]) == 2 for p in step["probes"])
+    assert summary["final"]["t"] == 1.0
+    rows = list(csv.DictReader(open(out / "contact_nodes.csv")))
+    assert len(rows) == 3 * 9
+    assert {r["status"] for r in rows} <= {"separated", "compliance", "bound"}
+    for name in ("solution.xdmf", "solution.h5", "deformed_mesh.png",
+                 "contact_reactions.png", "contact_displacements.png"):
+        assert (out / name).stat().st_size > 0, name
+
+
+def test_petsc_options_reach_snes(tmp_path):
+    proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
+               "--set", "time.steps=1", "--quiet", "-snes_monitor")
+    assert proc.returncode == 0, proc.stderr
+    assert "SNES Function norm" in proc.stdout
+
+
+@pytest.mark.parametrize("args, words", [
+    (("run", "paper", "--set", "contact.stifness=3"), "did you mean 'stiffness'"),
+    (("run", "nothing-here"), "not a built-in scene"),
+    (("run", "paper", "--set", "material.nu=1.5"), "material.nu must lie in"),
+])
+def test_bad_input_exits_cleanly(tmp_path, args, words):
+    proc = cli(*args, "--out", str(tmp_path))
+    assert proc.returncode == 2
+    assert words in proc.stderr
+    assert "Traceback" not in proc.stderr

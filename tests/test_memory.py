@@ -1,0 +1,64 @@
+"""The incremental history of eq (19) against its direct sum."""
+import math
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from contactvisco import geometry, problem as problem_module, scene as scene_module
+from contactvisco.memory import History, direct_sum
+from contactvisco.solver import BlockSNES
+
+KERNELS = {
+    "constant": [(100.0, math.inf)],
+    "exponential": [(30.0, 0.25)],
+    "prony": [(30.0, 0.05), (5.0, 2.0), (1.0, math.inf)],
+}
+
+
+@pytest.mark.parametrize("name", KERNELS)
+@pytest.mark.parametrize("k", [0.1, 0.013])
+def test_incremental_equals_direct_sum(name, k):
+    terms = KERNELS[name]
+    rng = np.random.default_rng(7)
+    strains = [rng.standard_normal(12) for _ in range(40)]
+    history = History(terms, k)
+    for n in range(1, len(strains) + 1):
+        incremental = history.advance(strains[n - 1])     # H_n from eps_0 .. eps_{n-1}
+        exact = direct_sum(terms, k, strains[:n])
+        assert np.max(np.abs(incremental - exact)) <= 1e-12 * np.max(np.abs(exact))
+
+
+def test_weights_of_eq19():
+    """k/2 on eps_0, k on eps_1..eps_{n-2}, 3k/2 on eps_{n-1} (constant kernel, alpha = 1);
+    k on eps_0 at n = 1."""
+    k = 0.1
+    history = History([(1.0, math.inf)], k)
+    unit = np.eye(5)
+    assert np.allclose(history.advance(unit[0]), k * unit[0])
+    for n in range(2, 6):
+        H = history.advance(unit[n - 1])
+        expected = np.array([k / 2] + [k] * (n - 2) + [1.5 * k] + [0.0] * (5 - n))
+        assert np.allclose(H, expected, atol=1e-15)
+
+
+def test_history_function_in_a_run():
+    """The DG0 history stress Function after n steps of the paper scene equals the direct sum
+    of eq (19) over the strains of the converged steps."""
+    scene = scene_module.load("paper", ["geometry.cells=[8, 8]", "time.steps=5",
+                                        "memory.kernel='exponential'", "memory.alpha=[80.0]",
+                                        "memory.tau=[0.3]"])
+    geo = geometry.build(scene, MPI.COMM_WORLD)
+    problem = problem_module.build(scene, geo)
+    snes = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, MPI.COMM_WORLD)
+    terms = scene_module.memory_terms(scene)
+    k = scene["time"]["T"] / scene["time"]["steps"]
+    strains = []
+    for n in range(scene["time"]["steps"] + 1):
+        if n > 0:
+            problem.update_history()
+            strains.append(problem.eps_function.x.array.copy())
+            exact = direct_sum(terms, k, strains)
+            assert np.max(np.abs(problem.H.x.array - exact)) <= 1e-12 * np.max(np.abs(exact))
+        snes.solve()
+    assert len(strains) == 5 and np.max(np.abs(strains[-1])) > 1e-3

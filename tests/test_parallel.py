@@ -1,0 +1,30 @@
+"""The same scene on all ranks (distributed mesh) and on one rank (MPI.COMM_SELF) gives the same
+contact-boundary values. Runs only under mpirun with more than one rank."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from contactvisco import scene as scene_module
+from contactvisco.run import simulate
+
+pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="needs mpirun -n 2 or more")
+
+KEYS = ("x", "u_nu", "u_tau", "reaction_nu", "reaction_tau", "lambda_nu")
+
+
+@pytest.mark.parametrize("overrides", [[], ["contact.g=inf"], ["geometry.diagonal='crossed'",
+                                                               "contact.mu=0.5"]])
+def test_ranks_agree(overrides):
+    scene = scene_module.load("paper", ["geometry.cells=[24, 16]", "time.steps=4"] + overrides)
+    world = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
+    single = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
+    assert world.problem.geometry.mesh.topology.index_map(2).size_local < \
+        single.problem.geometry.mesh.topology.index_map(2).size_local   # really distributed
+    for a, b in zip(world.tables, single.tables):
+        for key in KEYS:
+            assert np.max(np.abs(a[key] - b[key])) < 1e-10, key
+        assert np.array_equal(a["status"], b["status"])
+    for a, b in zip(world.steps, single.steps):
+        assert a["status_counts"] == b["status_counts"]
+        for pa, pb in zip(a["probes"], b["probes"]):
+            assert np.max(np.abs(np.array(pa["u"]) - np.array(pb["u"]))) < 1e-10

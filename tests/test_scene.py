@@ -1,0 +1,75 @@
+"""Scenes: defaults, overrides, clear errors, and only the unknowns a scene needs."""
+import math
+
+import pytest
+from mpi4py import MPI
+
+from contactvisco import geometry, problem as problem_module, scene as scene_module
+
+
+def build(overrides):
+    scene = scene_module.load("paper", ["geometry.cells=[4, 4]"] + overrides)
+    return problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
+
+
+def test_paper_scene_values():
+    scene = scene_module.load("paper")
+    assert scene["material"] == {"model": "plane_stress", "E": 100.0, "nu": 0.3}
+    assert scene["contact"]["g"] == 0.05 and scene["contact"]["mu"] == 0.2
+    assert scene["contact"]["augmentation"] == 100.0       # defaults to the stiffness
+    assert scene_module.memory_terms(scene) == [(100.0, math.inf)]
+    assert scene["time"] == {"T": 1.0, "steps": 10}
+
+
+def test_set_overrides():
+    scene = scene_module.load("paper", ["time.steps=40", "contact.g=inf",
+                                        "contact.augmentation=1e4", "material.model=plane_strain"])
+    assert scene["time"]["steps"] == 40 and math.isinf(scene["contact"]["g"])
+    assert scene["contact"]["augmentation"] == 1e4
+    assert scene["material"]["model"] == "plane_strain"
+
+
+@pytest.mark.parametrize("override, words", [
+    ("contact.stiffnes=3", "did you mean 'stiffness'"),
+    ("time.steps=0", "time.steps must be an integer >= 1"),
+    ("material.nu=1.2", "material.nu must lie in (-1, 1.0) for plane_stress"),
+    ("contact.mu=-1", "contact.mu must be a finite number >= 0"),
+    ("contact.g=-0.05", "contact.g must be >= 0"),
+    ("material.E=0", "material.E must be > 0"),
+    ("time.T=-1", "time.T must be > 0"),
+])
+def test_bad_values_are_named(override, words):
+    with pytest.raises(scene_module.SceneError) as err:
+        scene_module.load("paper", [override])
+    assert words in str(err.value)
+
+
+def test_poisson_ratio_limit_depends_on_the_model():
+    with pytest.raises(scene_module.SceneError, match=r"\(-1, 0.5\) for plane_strain"):
+        scene_module.load("paper", ["material.model=plane_strain", "material.nu=0.5"])
+
+
+def test_unknown_scene():
+    with pytest.raises(scene_module.SceneError, match="not a built-in scene"):
+        scene_module.load("no-such-scene")
+
+
+def test_unknown_boundary_is_named():
+    with pytest.raises(scene_module.SceneError, match="no boundary named 'floor'"):
+        build(["contact.boundary='floor'"])
+
+
+@pytest.mark.parametrize("overrides, unknowns, history", [
+    ([], {"u", "lambda_nu", "lambda_tau"}, True),
+    (["contact.mu=0"], {"u", "lambda_nu"}, True),
+    (["contact.g=inf"], {"u", "lambda_tau"}, True),
+    (["contact.g=inf", "contact.mu=0", "memory.kernel='none'"], {"u"}, False),
+    (["memory.alpha=0"], {"u", "lambda_nu", "lambda_tau"}, False),
+])
+def test_only_needed_terms_are_built(overrides, unknowns, history):
+    problem = build(overrides)
+    assert set(problem.count_unknowns()) == unknowns
+    assert (problem.history is not None) == history
+    assert (problem.H is not None) == history
+    # the residual depends on exactly these unknowns
+    assert len(problem.F) == len(unknowns)
