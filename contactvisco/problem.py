@@ -32,7 +32,18 @@ from .material import elasticity, lame_constants, strain
 from .memory import History
 from .scene import SceneError, memory_terms
 
-NODAL = {"quadrature_rule": "GLL", "quadrature_degree": 1}   # trapezoid rule on each facet
+
+
+def nodal_rule(d: int) -> dict:
+    """Quadrature metadata for the vertex rule on a facet (trapezoid rule for intervals): the
+    contact conditions then hold node by node. FFCx 0.5's own "vertex" rule fails on
+    intervals, so the rule is given as a custom one (tuples keep the form signature exact)."""
+    if d == 2:
+        points, weights = ((0.0,), (1.0,)), (0.5, 0.5)
+    else:
+        points, weights = ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)), (1 / 6, 1 / 6, 1 / 6)
+    return {"quadrature_rule": "custom", "quadrature_points": points,
+            "quadrature_weights": weights}
 
 
 @dataclass
@@ -164,10 +175,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
             if degree != 1:
                 raise SceneError("discretization.contact_quadrature = 'nodal' needs degree 1; "
                                  "use 'gauss' for degree 2")
-            if d != 2:
-                raise SceneError("the nodal contact quadrature is available in 2D only with "
-                                 "DOLFINx 0.5 (no GLL rule on triangles); use 'gauss' in 3D")
-            metadata = NODAL
+            metadata = nodal_rule(d)
         else:
             metadata = {"quadrature_degree": 2 * degree + 2}
         tag = geometry.names.get(contact["boundary"])
