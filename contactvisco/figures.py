@@ -3,13 +3,11 @@ from __future__ import annotations
 
 import pathlib
 
-import matplotlib
+import numpy as np
+# Figures without pyplot: no global backend switch, so notebooks keep their inline backend.
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from .output import STATUSES  # noqa: E402
+from .output import STATUSES
 
 ZONE_COLOURS = {"separated": "#dddddd", "compliance": "#9ecae1", "bound": "#fdae6b"}
 
@@ -17,8 +15,8 @@ ZONE_COLOURS = {"separated": "#dddddd", "compliance": "#9ecae1", "bound": "#fdae
 def deformed_meshes(snapshots, path: pathlib.Path, scale: float = 1.0):
     """Figure 2: the deformed mesh at each snapshot (t, points, triangles, displacement),
     over the undeformed outline."""
-    fig, axes = plt.subplots(1, len(snapshots), figsize=(4.2 * len(snapshots), 4.2),
-                             squeeze=False)
+    fig = Figure(figsize=(4.2 * len(snapshots), 4.2))
+    axes = fig.subplots(1, len(snapshots), squeeze=False)
     for ax, (t, points, triangles, disp) in zip(axes[0], snapshots):
         ax.triplot(points[:, 0], points[:, 1], triangles, color="0.85", lw=0.4)
         moved = points + scale * disp
@@ -28,8 +26,7 @@ def deformed_meshes(snapshots, path: pathlib.Path, scale: float = 1.0):
         ax.set_xlabel("x")
         ax.set_ylabel("y")
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    fig.savefig(path, dpi=110)
 
 
 def _shade_zones(ax, s, status):
@@ -53,7 +50,8 @@ def contact_profiles(table, t: float, g: float, folder: pathlib.Path):
                            ("reaction_tau", "tangential reaction $\\sigma_\\tau$"),
                            ("radius", "friction bound $\\mu p_\\nu(u_\\nu)$")), "traction"),
             ("displacements", (("u_nu", "$u_\\nu$"), ("u_tau", "$u_\\tau$")), "displacement")):
-        fig, ax = plt.subplots(figsize=(6.4, 3.8))
+        fig = Figure(figsize=(6.4, 3.8))
+        ax = fig.subplots()
         _shade_zones(ax, s, table["status"])
         for i, (key, label) in enumerate(keys):
             style = dict(ls="--", color="k", lw=0.9) if key == "radius" else dict(
@@ -70,4 +68,3 @@ def contact_profiles(table, t: float, g: float, folder: pathlib.Path):
         ax.legend(fontsize=8, loc="best")
         fig.tight_layout()
         fig.savefig(folder / f"contact_{name}.png", dpi=130)
-        plt.close(fig)

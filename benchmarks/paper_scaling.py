@@ -1,0 +1,122 @@
+"""Benchmark: the paper scene at 32, 64 and 128 cells per side (run by hand: make benchmark).
+
+For each mesh: Newton iterations per step, wall time per step and per Newton iteration, and
+the cost of one linear-elastic assembly + MUMPS solve on the same mesh (the floor a Newton
+iteration cannot go below). Writes benchmarks/results/paper_scaling.{json,md}.
+
+    python benchmarks/paper_scaling.py [--sizes 32 64 128] [--repeat 3]
+"""
+import argparse
+import json
+import pathlib
+import statistics
+import time
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem.petsc import assemble_matrix, assemble_vector, apply_lifting, set_bc
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import contactvisco  # noqa: F401
+from contactvisco import geometry, scene as scene_module
+from contactvisco.material import elasticity, lame_constants, strain
+from contactvisco.run import simulate
+
+HERE = pathlib.Path(__file__).parent
+
+
+def linear_elastic_solve(scene, repeat):
+    """Seconds for one assembly (matrix + vector) and one MUMPS factorization + solve of the
+    memoryless, contactless elasticity problem on the scene's mesh (best of `repeat`)."""
+    geo = geometry.build(scene, MPI.COMM_WORLD)
+    mesh = geo.mesh
+    V = fem.VectorFunctionSpace(mesh, ("CG", 1))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    lmbda, mu = lame_constants(scene["material"]["model"], scene["material"]["E"],
+                               scene["material"]["nu"])
+    a = fem.form(ufl.inner(elasticity(strain(u), lmbda, mu), strain(v)) * ufl.dx)
+    f = fem.Constant(mesh, PETSc.ScalarType((0.0, -10.0)))
+    L = fem.form(ufl.dot(f, v) * ufl.dx)
+    dofs = fem.locate_dofs_topological(V, 1, geo.facets("left"))
+    bcs = [fem.dirichletbc(np.zeros(2, dtype=PETSc.ScalarType), dofs, V)]
+    times = []
+    for _ in range(repeat):
+        tick = time.perf_counter()
+        A = assemble_matrix(a, bcs=bcs)
+        A.assemble()
+        b = assemble_vector(L)
+        apply_lifting(b, [a], [bcs])
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        set_bc(b, bcs)
+        ksp = PETSc.KSP().create(mesh.comm)
+        ksp.setOperators(A)
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType("mumps")
+        x = b.duplicate()
+        ksp.solve(b, x)
+        times.append(time.perf_counter() - tick)
+        ksp.destroy()
+        A.destroy()
+    return min(times)
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--sizes", type=int, nargs="+", default=[32, 64, 128])
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    comm = MPI.COMM_WORLD
+    rows = []
+    for n in args.sizes:
+        scene = scene_module.load("paper", [f"geometry.cells=[{n}, {n}]"])
+        scene["output"]["probes"] = []
+        best = None
+        for _ in range(args.repeat):
+            tick = time.perf_counter()
+            result = simulate(scene, comm=comm, progress=False)
+            total = time.perf_counter() - tick
+            if best is None or total < best[0]:
+                best = (total, result)
+        total, result = best
+        steps = result.steps
+        iterations = [s["newton_iterations"] for s in steps]
+        step_time = [s["wall_s"] for s in steps]
+        per_iteration = sum(step_time) / sum(iterations)
+        linear = linear_elastic_solve(scene, args.repeat)
+        row = {"cells_per_side": n, "ranks": comm.size,
+               "unknowns": sum(result.problem.count_unknowns().values()),
+               "newton_per_step": iterations,
+               "mean_newton": statistics.mean(iterations),
+               "wall_per_step_s": statistics.mean(step_time),
+               "wall_per_newton_s": per_iteration,
+               "linear_elastic_solve_s": linear,
+               "newton_over_linear": per_iteration / linear,
+               "run_s": total,
+               "final_status": steps[-1]["status_counts"]}
+        rows.append(row)
+        if comm.rank == 0:
+            print(json.dumps(row), flush=True)
+    if comm.rank == 0:
+        out = HERE / "results"
+        out.mkdir(exist_ok=True)
+        name = f"paper_scaling_np{comm.size}"
+        (out / f"{name}.json").write_text(json.dumps(rows, indent=1))
+        lines = ["| cells/side | unknowns | Newton per step (t_0..t_10) | s/step | s/Newton it. | "
+                 "s/linear solve | ratio | run s | final status (sep/compl/bound) |",
+                 "|---|---|---|---|---|---|---|---|---|"]
+        for r in rows:
+            st = r["final_status"]
+            lines.append(f"| {r['cells_per_side']} | {r['unknowns']} | "
+                         f"{' '.join(map(str, r['newton_per_step']))} | "
+                         f"{r['wall_per_step_s']:.3f} | {r['wall_per_newton_s']:.4f} | "
+                         f"{r['linear_elastic_solve_s']:.4f} | {r['newton_over_linear']:.2f} | "
+                         f"{r['run_s']:.2f} | {st['separated']}/{st['compliance']}/{st['bound']} |")
+        (out / f"{name}.md").write_text("\n".join(lines) + "\n")
+        print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
