@@ -39,7 +39,7 @@ test-serial: install
 	$(PY) -m pytest -q tests
 
 test-parallel: install
-	$(MPIRUN) $(PY) -m pytest -q tests
+	$(MPIRUN) $(PY) -m pytest -q --color=no tests
 
 benchmark: install
 	$(PY) benchmarks/paper_scaling.py

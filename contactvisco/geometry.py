@@ -59,4 +59,9 @@ def build(scene: dict, comm=MPI.COMM_WORLD) -> Geometry:
     # A corner facet cannot lie on two faces of a box, so indices are unique.
     order = np.argsort(indices)
     tags = dmesh.meshtags(mesh, fdim, indices[order], values[order])
+    angle = np.deg2rad(float(geo.get("rotation", 0.0)))
+    if angle != 0.0:
+        x = mesh.geometry.x
+        c, s = np.cos(angle), np.sin(angle)
+        x[:, 0], x[:, 1] = c * x[:, 0] - s * x[:, 1], s * x[:, 0] + c * x[:, 1]
     return Geometry(mesh, tags, names)

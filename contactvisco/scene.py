@@ -24,6 +24,8 @@ DEFAULTS: dict = {
         "upper": [1.0, 1.0],
         "cells": [32, 32],
         "diagonal": "right",      # 2D triangle diagonal: left, right, crossed, ...
+        "rotation": 0.0,          # degrees about the z axis through the origin, applied after
+                                  # the boundaries are named (tilted contact boundaries)
     },
     "material": {
         "model": "plane_strain",  # plane_stress | plane_strain | 3d
@@ -204,6 +206,9 @@ def check(scene: dict) -> None:
              f"contact.g must be >= 0 (inf: no bound), got {contact['g']}")
         need(contact["stiffness"] > 0 or math.isfinite(contact["g"]),
              "a contact boundary needs a compliance stiffness > 0 or a finite bound g")
+        need(contact["mu"] == 0 or (contact["stiffness"] > 0 and contact["g"] > 0),
+             f"contact.mu = {contact['mu']} has no effect: the friction bound mu p_nu(u_nu) is "
+             "zero without a compliance stiffness > 0 and a layer g > 0; set contact.mu = 0")
     need(scene["discretization"]["contact_quadrature"] in ("nodal", "gauss"),
          "discretization.contact_quadrature must be nodal or gauss")
     need(scene["discretization"]["degree"] in (1, 2), "discretization.degree must be 1 or 2")

@@ -68,7 +68,6 @@ class BlockSNES:
         self.snes.setJacobian(self._jacobian, self.A)
         self.snes.setMonitor(lambda snes, it, norm: self.residuals.append(float(norm)))
         self.snes.setFromOptions()
-        self.snes.getKSP().setFromOptions()
         for key in inserted:
             opts.delValue(key)
 

@@ -37,6 +37,7 @@ def test_set_overrides():
     ("contact.g=-0.05", "contact.g must be >= 0"),
     ("material.E=0", "material.E must be > 0"),
     ("time.T=-1", "time.T must be > 0"),
+    ("contact.g=0", "contact.mu = 0.2 has no effect"),
 ])
 def test_bad_values_are_named(override, words):
     with pytest.raises(scene_module.SceneError) as err:
