@@ -19,7 +19,6 @@ from dolfinx.fem.petsc import assemble_matrix, assemble_vector, apply_lifting, s
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import contactvisco  # noqa: F401
 from contactvisco import geometry, scene as scene_module
 from contactvisco.material import elasticity, lame_constants, strain
 from contactvisco.run import simulate

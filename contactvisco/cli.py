@@ -48,7 +48,8 @@ def main(argv=None):
             return 0
         scene = scene_module.load(args.scene, args.set)
         if args.command == "show":
-            print(json.dumps(scene, indent=2, default=str))
+            from .output import jsonable
+            print(json.dumps(jsonable(scene), indent=2))
             return 0
         from .run import simulate
         from .solver import NewtonFailure

@@ -170,16 +170,22 @@ class Writer:
     def _write_summary(self):
         path = self.folder / "summary.json"
         tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(self.summary, indent=1, default=_jsonable))
+        tmp.write_text(json.dumps(jsonable(self.summary), indent=1, allow_nan=False))
         os.replace(tmp, path)      # a crash never leaves a half-written summary
 
 
-def _jsonable(value):
-    if isinstance(value, float) and math.isinf(value):
-        return "inf"
+def jsonable(value):
+    """value with non-finite floats as the strings "inf", "-inf", "nan" (strict JSON has
+    none) and numpy scalars as Python numbers."""
+    if isinstance(value, dict):
+        return {k: jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
     if isinstance(value, (np.integer, np.floating)):
-        return value.item()
-    raise TypeError(f"not JSON serializable: {type(value)}")
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    return value
 
 
 def gather_mesh(problem, comm):

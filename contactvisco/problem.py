@@ -33,7 +33,6 @@ from .memory import History
 from .scene import SceneError, memory_terms
 
 
-
 def nodal_rule(d: int) -> dict:
     """Quadrature metadata for the vertex rule on a facet (trapezoid rule for intervals): the
     contact conditions then hold node by node. FFCx 0.5's own "vertex" rule fails on

@@ -41,7 +41,6 @@ import pathlib
 import matplotlib.pyplot as plt
 from mpi4py import MPI
 
-import contactvisco  # noqa: F401
 from contactvisco import scene as scene_module
 from contactvisco.run import simulate
 

@@ -1,13 +1,8 @@
-import logging
-
 import pytest
 from mpi4py import MPI
 
-import contactvisco  # noqa: F401  (installs the JIT log filter)
 from contactvisco import scene as scene_module
 from contactvisco.run import simulate
-
-logging.getLogger("UFL").setLevel(logging.WARNING)
 
 
 @pytest.fixture(scope="session")

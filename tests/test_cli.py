@@ -40,6 +40,16 @@ def test_run_writes_results(tmp_path):
         assert (out / name).stat().st_size > 0, name
 
 
+def test_summary_is_strict_json_without_a_bound(tmp_path):
+    proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
+               "--set", "time.steps=1", "--set", "contact.g=inf", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    text = (tmp_path / "summary.json").read_text()
+    summary = json.loads(text, parse_constant=lambda name: pytest.fail(f"{name} in JSON"))
+    assert summary["scene"]["contact"]["g"] == "inf"
+    assert summary["final"]["status_counts"]["bound"] == 0
+
+
 def test_petsc_options_reach_snes(tmp_path):
     proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
                "--set", "time.steps=1", "--quiet", "-snes_monitor")

@@ -1,7 +1,6 @@
 """The paper's 2D test (section 4): discrete contact conditions at every step, Newton
 convergence, the zone counts reported in the paper, and the equilibrium residual."""
 import numpy as np
-import pytest
 from dolfinx import fem
 from contact_checks import assert_contact_conditions
 from dolfinx.fem.petsc import assemble_vector_block
