@@ -29,7 +29,7 @@ from petsc4py import PETSc
 from . import contact as law
 from .geometry import Geometry
 from .material import elasticity, lame_constants, strain
-from .memory import History
+from .memory import History, implicit_coefficient
 from .scene import SceneError, memory_terms
 
 
@@ -140,9 +140,14 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         H = fem.Function(T, name="history_stress")
         eps_function = fem.Function(T)
         points = T.element.interpolation_points()
-        problem_memory = dict(history=History(terms, k), H=H, eps_function=eps_function,
+        rule = time["rule"]
+        problem_memory = dict(history=History(terms, k, rule), H=H, eps_function=eps_function,
                               eps_expression=fem.Expression(strain(u), points), T=T)
         sigma = sigma + H
+        if rule == "trapezoid":
+            # k/2 R(0) eps(u_n): the implicit end of the trapezoid rule
+            constants["memory_implicit"] = _scalar(mesh, implicit_coefficient(terms, k, rule))
+            sigma = sigma + constants["memory_implicit"] * strain(u)
 
     dx = ufl.dx
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)

@@ -1,6 +1,7 @@
 """The time loop of eqs (20)-(21): t_0 = 0 (no history yet), then n = 1..N with k = T/N."""
 from __future__ import annotations
 
+import math
 import pathlib
 import sys
 import time as clock
@@ -11,6 +12,7 @@ from mpi4py import MPI
 
 from . import geometry as geometry_module
 from . import output
+from . import scene as scene_module
 from .problem import Problem, build
 from .solver import BlockSNES
 
@@ -44,6 +46,16 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), unknowns "
         + ", ".join(f"{k_}={v}" for k_, v in problem.count_unknowns().items())
         + f"; set-up (incl. JIT) {setup_s:.2f} s")
+
+    b = scene_module.stability_number(scene)
+    if scene["time"]["rule"] == "paper" and b >= 1.0:
+        warning = (f"warning: the paper's time rule is unstable here: k R(0) (1 + nu) / E = "
+                   f"{b:.3g} >= 1; use more steps (time.steps > {math.ceil(N * b)}) or "
+                   "time.rule = 'trapezoid'")
+        if comm.rank == 0:
+            print(f"contactvisco: {warning}", file=sys.stderr, flush=True)
+        if writer is not None:
+            writer.summary["warnings"] = [warning]
 
     table = None
     for n in range(N + 1):

@@ -41,7 +41,12 @@ DEFAULTS: dict = {
     "body_force": {"value": None},
     "traction": [],               # list of {boundary, value}
     "contact": None,              # {boundary, stiffness, g, mu, augmentation}
-    "time": {"T": 1.0, "steps": 10},
+    "time": {
+        "T": 1.0,
+        "steps": 10,
+        "rule": "paper",          # memory quadrature on the last sub-interval: paper (eq 19,
+                                  # left point, explicit) | trapezoid (implicit, always stable)
+    },
     "discretization": {
         "degree": 1,
         "contact_quadrature": "nodal",  # nodal (trapezoid: conditions hold node by node) | gauss
@@ -196,6 +201,8 @@ def check(scene: dict) -> None:
     need(finite(time["T"]) and time["T"] > 0, f"time.T must be > 0, got {time['T']}")
     need(isinstance(time["steps"], int) and time["steps"] >= 1,
          f"time.steps must be an integer >= 1, got {time['steps']}")
+    need(time["rule"] in ("paper", "trapezoid"),
+         f"time.rule must be paper or trapezoid, got '{time['rule']}'")
     contact = scene["contact"]
     if contact is not None:
         for key in ("stiffness", "mu", "augmentation"):
@@ -229,3 +236,14 @@ def memory_terms(scene: dict) -> list[tuple[float, float]]:
         return [(alpha, math.inf)] if alpha != 0.0 else []
     return [(float(a), float(t)) for a, t in zip(_as_list(mem["alpha"]), _as_list(mem["tau"]))
             if float(a) != 0.0]
+
+
+def stability_number(scene: dict) -> float:
+    """b = k R(0) / (2 mu): the paper's rule is stable for b < 1 (NOTES: the scalar analogue
+    u_{n+1} = (1 - 3b/2) u_n + b/2 u_{n-1}); 2 mu = E / (1 + nu) is the deviatoric modulus."""
+    terms = memory_terms(scene)
+    if not terms:
+        return 0.0
+    k = scene["time"]["T"] / scene["time"]["steps"]
+    mat = scene["material"]
+    return k * sum(a for a, _ in terms) * (1.0 + mat["nu"]) / mat["E"]

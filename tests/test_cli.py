@@ -50,6 +50,19 @@ def test_summary_is_strict_json_without_a_bound(tmp_path):
     assert summary["final"]["status_counts"]["bound"] == 0
 
 
+def test_unstable_time_step_is_warned(tmp_path):
+    """k alpha (1 + nu) / E = 2.6 >= 1 with the paper's rule: warned before the first step."""
+    proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
+               "--set", "time.T=10", "--set", "time.steps=5", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    assert "unstable here" in proc.stderr and "2.6" in proc.stderr
+    assert "unstable" in json.loads((tmp_path / "summary.json").read_text())["warnings"][0]
+    proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
+               "--set", "time.T=10", "--set", "time.steps=5", "--set", "time.rule=trapezoid",
+               "--quiet")
+    assert proc.returncode == 0 and "unstable" not in proc.stderr
+
+
 def test_petsc_options_reach_snes(tmp_path):
     proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
                "--set", "time.steps=1", "--quiet", "-snes_monitor")
