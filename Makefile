@@ -35,11 +35,14 @@ demo: install
 
 test: test-serial test-parallel
 
+# A deadlock between ranks must fail the run, not hang it.
+TEST_TIMEOUT ?= 1800
+
 test-serial: install
-	$(PY) -m pytest -q tests
+	timeout $(TEST_TIMEOUT) $(PY) -m pytest -q tests
 
 test-parallel: install
-	$(MPIRUN) $(PY) -m pytest -q --color=no tests
+	timeout $(TEST_TIMEOUT) $(MPIRUN) $(PY) -m pytest -q --color=no tests
 
 benchmark: install
 	$(PY) benchmarks/paper_scaling.py

@@ -1,13 +1,22 @@
-"""Meshes and named boundaries of a scene."""
+"""Meshes and named boundaries of a scene: a structured box made in memory, or a gmsh mesh
+(a script in meshes/ run on first use and cached, or a .msh file) with named physical groups."""
 from __future__ import annotations
 
+import hashlib
+import importlib.util
+import json
+import os
+import pathlib
 from dataclasses import dataclass
 
 import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from .scene import SceneError
+from .scene import SceneError, dimension
+
+MESH_DIR = pathlib.Path(__file__).resolve().parents[1] / "meshes"
+CACHE_DIR = pathlib.Path(os.environ.get("CONTACTVISCO_MESH_CACHE", MESH_DIR / ".cache"))
 
 #: Boundary names of the built-in box: the faces x = lower/upper, y = ..., z = ...
 BOX_FACES_2D = {"left": (0, 0), "right": (0, 1), "bottom": (1, 0), "top": (1, 1)}
@@ -30,8 +39,16 @@ class Geometry:
 
 def build(scene: dict, comm=MPI.COMM_WORLD) -> Geometry:
     geo = scene["geometry"]
-    if geo["type"] != "box":
-        raise SceneError(f"geometry.type must be 'box', got '{geo['type']}'")
+    geometry = _box(geo, comm) if geo["type"] == "box" else _gmsh(geo, dimension(scene), comm)
+    angle = np.deg2rad(float(geo.get("rotation", 0.0)))
+    if angle != 0.0:
+        x = geometry.mesh.geometry.x
+        c, s = np.cos(angle), np.sin(angle)
+        x[:, 0], x[:, 1] = c * x[:, 0] - s * x[:, 1], s * x[:, 0] + c * x[:, 1]
+    return geometry
+
+
+def _box(geo, comm) -> Geometry:
     lower, upper, cells = geo["lower"], geo["upper"], geo["cells"]
     d = len(lower)
     if d == 2:
@@ -59,9 +76,75 @@ def build(scene: dict, comm=MPI.COMM_WORLD) -> Geometry:
     # A corner facet cannot lie on two faces of a box, so indices are unique.
     order = np.argsort(indices)
     tags = dmesh.meshtags(mesh, fdim, indices[order], values[order])
-    angle = np.deg2rad(float(geo.get("rotation", 0.0)))
-    if angle != 0.0:
-        x = mesh.geometry.x
-        c, s = np.cos(angle), np.sin(angle)
-        x[:, 0], x[:, 1] = c * x[:, 0] - s * x[:, 1], s * x[:, 0] + c * x[:, 1]
     return Geometry(mesh, tags, names)
+
+
+def mesh_file(geo) -> pathlib.Path:
+    """The .msh file of a gmsh geometry; a script's mesh is made on first use (rank 0 only,
+    written atomically) and cached under a hash of the script and its parameters."""
+    if geo["file"] is not None:
+        path = pathlib.Path(geo["file"])
+        if not path.is_file():
+            raise SceneError(f"geometry.file: no mesh file '{path}'")
+        return path
+    script = MESH_DIR / f"{geo['script']}.py"
+    if not script.is_file():
+        names = sorted(p.stem for p in MESH_DIR.glob("*.py"))
+        raise SceneError(f"geometry.script: no mesh script '{geo['script']}' in {MESH_DIR} "
+                         f"(there are: {', '.join(names)})")
+    key = hashlib.sha1(script.read_bytes()
+                       + json.dumps(geo["parameters"], sort_keys=True).encode()).hexdigest()
+    return CACHE_DIR / f"{geo['script']}-{key[:12]}.msh"
+
+
+def _generate(geo, path: pathlib.Path, d: int):
+    import gmsh
+    script = MESH_DIR / f"{geo['script']}.py"
+    spec = importlib.util.spec_from_file_location(f"contactvisco_mesh_{geo['script']}", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add(geo["script"])
+        try:
+            module.build(gmsh, **geo["parameters"])
+        except TypeError as err:
+            raise SceneError(f"geometry.parameters do not fit meshes/{geo['script']}.py: "
+                             f"{err}") from None
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.msh")
+        gmsh.write(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        gmsh.finalize()
+
+
+def _gmsh(geo, d: int, comm) -> Geometry:
+    from dolfinx.io import gmshio
+    import gmsh
+    path = mesh_file(geo)
+    error = None
+    if comm.rank == 0 and not path.exists():
+        try:
+            _generate(geo, path, d)
+        except SceneError as err:
+            error = str(err)
+    error = comm.bcast(error, root=0)
+    if error:
+        raise SceneError(error)
+    names = None
+    if comm.rank == 0:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.merge(str(path))
+        names = {gmsh.model.getPhysicalName(d - 1, tag): tag
+                 for _, tag in gmsh.model.getPhysicalGroups(d - 1)}
+    names = comm.bcast(names, root=0)
+    mesh, _, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=d)
+    if comm.rank == 0:
+        gmsh.finalize()
+    if not names:
+        raise SceneError(f"{path}: the mesh has no named physical groups of dimension {d - 1} "
+                         "(the boundaries a scene refers to)")
+    return Geometry(mesh, facet_tags, names)

@@ -22,8 +22,9 @@ STATUSES = ("separated", "compliance", "bound")
 def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     """Values at the contact nodes of the whole mesh, on every rank, sorted by position.
 
-    Keys: x (n, d), normal (n, d), u_nu, u_tau (2D: along t = (-nu_y, nu_x); 3D: |u_tau|),
-    lambda_nu, p_nu (compliance traction p_nu(min(u_nu, g))), reaction_nu (-sigma_nu),
+    Keys: x (n, d), normal (n, d), u_nu, gap (h), penetration (s = u_nu - h),
+    u_tau (2D: along t = (-nu_y, nu_x); 3D: |u_tau|),
+    lambda_nu, p_nu (compliance traction p_nu(min(s, g))), reaction_nu (-sigma_nu),
     reaction_tau (sigma_tau, same convention as u_tau), radius (mu p_nu), status (0, 1, 2 as
     in STATUSES).
     """
@@ -38,8 +39,10 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     u = _nodal_displacement(problem)[own]
     u_nu = np.einsum("ij,ij->i", u, normals)
     u_tau_vec = u - u_nu[:, None] * normals
+    gap = problem.gap.x.array[own]
+    penetration = u_nu - gap
     g = contact["g"]
-    p_nu = (contact["stiffness"] * np.maximum(0.0, np.minimum(u_nu, g))
+    p_nu = (contact["stiffness"] * np.maximum(0.0, np.minimum(penetration, g))
             if g > 0 else np.zeros_like(u_nu))
     lam_nu = (problem.lambda_nu.x.array[own] if problem.lambda_nu is not None
               else np.zeros_like(u_nu))
@@ -56,24 +59,25 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
         r_tau = np.linalg.norm(sig_tau - np.einsum("ij,ij->i", sig_tau, normals)[:, None]
                                * normals, axis=1)
     x = problem.Q_coordinates[own][:, :d]
-    local = dict(x=x, normal=normals, u_nu=u_nu, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
+    local = dict(x=x, normal=normals, u_nu=u_nu, gap=gap, penetration=penetration, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
                  reaction_nu=p_nu - lam_nu, reaction_tau=r_tau, radius=contact["mu"] * p_nu,
                  u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau)
     gathered = comm.allgather(local)
     table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
     order = np.lexsort(table["x"].T[::-1])
     table = {key: value[order] for key, value in table.items()}
-    table["status"] = classify(table["u_nu"], g, problem.length_scale)
+    table["status"] = classify(table["penetration"], g, problem.length_scale)
     return table
 
 
-def classify(u_nu: np.ndarray, g: float, length: float) -> np.ndarray:
-    """0 separated (u_nu <= 0: no force), 1 compliance (0 < u_nu < g), 2 bound (u_nu = g),
-    with a tolerance of 1e-9 times g (or the body's size when g is 0 or infinite)."""
+def classify(s: np.ndarray, g: float, length: float) -> np.ndarray:
+    """From the penetration s = u_nu - h: 0 separated (s <= 0: no force), 1 compliance
+    (0 < s < g), 2 bound (s = g), with a tolerance of 1e-9 times g (or the body's size when
+    g is 0 or infinite)."""
     tol = 1e-9 * (g if 0 < g < math.inf else length)
-    status = np.where(u_nu > tol, 1, 0)
+    status = np.where(s > tol, 1, 0)
     if math.isfinite(g):
-        status = np.where(u_nu >= g - tol, 2, status)
+        status = np.where(s >= g - tol, 2, status)
     return status
 
 
@@ -135,7 +139,8 @@ class Writer:
             self.csv = csv.writer(self.csv_file)
             d = problem.geometry.mesh.geometry.dim
             self.csv.writerow(["step", "t"] + ["xyz"[i] for i in range(d)]
-                              + ["u_nu", "u_tau", "reaction_nu", "reaction_tau", "status"])
+                              + ["u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
+                                 "status"])
         self.xdmf = None
         if xdmf:
             self.xdmf = io.XDMFFile(comm, str(self.folder / "solution.xdmf"), "w")
@@ -153,7 +158,7 @@ class Writer:
                 self.csv.writerow([record["step"], repr(record["t"])]
                                   + [repr(float(c)) for c in table["x"][i]]
                                   + [repr(float(table[key][i])) for key in
-                                     ("u_nu", "u_tau", "reaction_nu", "reaction_tau")]
+                                     ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau")]
                                   + [STATUSES[table["status"][i]]])
             self.csv_file.flush()
         self._write_summary()

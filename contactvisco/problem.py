@@ -18,19 +18,21 @@ node by node; F_tau uses the full vector gamma_tau, which also forces lambda_tau
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import contact as law
 from .geometry import Geometry
 from .material import elasticity, lame_constants, strain
-from .memory import History, implicit_coefficient
-from .scene import SceneError, memory_terms
+from .expressions import Context
+from .memory import DirectHistory, History, implicit_weights, table_kernel
+from .scene import SceneError, memory_table, memory_terms
 
 
 def nodal_rule(d: int) -> dict:
@@ -76,6 +78,9 @@ class Problem:
     Q_coordinates: np.ndarray | None = None   # P1 node coordinates (contact node positions)
     u_p1: fem.Function | None = None          # u interpolated to P1 nodes (degree > 1 only)
     length_scale: float = 1.0
+    context: Context | None = None            # x and t of the scene's expressions
+    updates: list = field(default_factory=list)   # callables run at each new time
+    gap: fem.Function | None = None           # initial gap h at the P1 nodes
 
     @property
     def unknowns(self) -> list[fem.Function]:
@@ -90,6 +95,12 @@ class Problem:
                 imap = f.function_space.dofmap.index_map
                 out[name] = imap.size_global * f.function_space.dofmap.index_map_bs
         return out
+
+    def set_time(self, t: float):
+        """Move time-dependent data (loads, Dirichlet values, gap) to time t."""
+        self.context.t.value = t
+        for update in self.updates:
+            update()
 
     def update_history(self):
         """Take eps(u_n) of the current (converged) u into the history; set H_{n+1}."""
@@ -125,55 +136,33 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     contact = scene["contact"]
     time = scene["time"]
     k = time["T"] / time["steps"]
+    context = Context(mesh)
+    updates = []                               # run at each new time
 
     V = fem.VectorFunctionSpace(mesh, ("CG", degree))
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
     lmbda, mu = lame_constants(mat["model"], mat["E"], mat["nu"])
-    constants = {"lambda": _scalar(mesh, lmbda), "mu": _scalar(mesh, mu)}
+    constants = {"lambda": _scalar(mesh, lmbda), "mu": _scalar(mesh, mu), "t": context.t}
     sigma = elasticity(strain(u), constants["lambda"], constants["mu"])
-
-    # Memory: the history stress H (eq 19) enters as a known DG field.
-    problem_memory = {}
-    terms = memory_terms(scene)
-    if terms:
-        T = fem.TensorFunctionSpace(mesh, ("DG", degree - 1))
-        H = fem.Function(T, name="history_stress")
-        eps_function = fem.Function(T)
-        points = T.element.interpolation_points()
-        rule = time["rule"]
-        problem_memory = dict(history=History(terms, k, rule), H=H, eps_function=eps_function,
-                              eps_expression=fem.Expression(strain(u), points), T=T)
-        sigma = sigma + H
-        if rule == "trapezoid":
-            # k/2 R(0) eps(u_n): the implicit end of the trapezoid rule
-            constants["memory_implicit"] = _scalar(mesh, implicit_coefficient(terms, k, rule))
-            sigma = sigma + constants["memory_implicit"] * strain(u)
+    sigma, problem_memory = _memory(scene, mesh, u, sigma, k, constants)
 
     dx = ufl.dx
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
     F_u = ufl.inner(sigma, strain(v)) * dx
-
     body = scene["body_force"]["value"]
     if body is not None:
-        if len(body) != d:
-            raise SceneError(f"body_force.value has {len(body)} components, the mesh is {d}D")
-        constants["f0"] = fem.Constant(mesh, PETSc.ScalarType(tuple(body)))
-        F_u -= ufl.dot(constants["f0"], v) * dx
+        F_u -= ufl.dot(context.vector(body, "body_force.value", d), v) * dx
     for i, traction in enumerate(scene["traction"]):
-        if len(traction["value"]) != d:
-            raise SceneError(f"traction[{i}].value has {len(traction['value'])} components, "
-                             f"the mesh is {d}D")
         geometry.facets(traction["boundary"])   # checks the name
-        fN = fem.Constant(mesh, PETSc.ScalarType(tuple(traction["value"])))
-        constants[f"fN{i}"] = fN
+        fN = context.vector(traction["value"], f"traction[{i}].value", d)
         F_u -= ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]])
 
-    bcs, fixed_components = _dirichlet(scene, geometry, V)
+    bcs, fixed_components = _dirichlet(scene, geometry, V, context, updates)
 
     unknowns, spaces = [u], [V]
     F_extra = []
     lambda_nu = lambda_tau = None
-    nodes = None
+    nodes = Q = W = gap_function = None
     if contact is not None:
         if disc["contact_quadrature"] == "nodal":
             if degree != 1:
@@ -182,25 +171,21 @@ def build(scene: dict, geometry: Geometry) -> Problem:
             metadata = nodal_rule(d)
         else:
             metadata = {"quadrature_degree": 2 * degree + 2}
-        tag = geometry.names.get(contact["boundary"])
         geometry.facets(contact["boundary"])      # checks the name
-        dsc = ds(tag, metadata=metadata)
+        dsc = ds(geometry.names[contact["boundary"]], metadata=metadata)
         n = ufl.FacetNormal(mesh)
-        u_nu = law.normal_part(u, n)
+        gap = context.scalar(contact["gap"], "contact.gap")
+        s_nu = law.normal_part(u, n) - gap        # penetration into the layer
         u_tau = law.tangential_part(u, n)
         g = contact["g"]
         bounded = math.isfinite(g)
         c = constants
         c["r"] = _scalar(mesh, contact["augmentation"])
-        normal_force = None
-        p_nu = None
+        c["g"] = _scalar(mesh, g) if bounded else None
+        normal_force = p_nu = None
         if contact["stiffness"] > 0 and g > 0:
             c["stiffness"] = _scalar(mesh, contact["stiffness"])
-            c["g"] = _scalar(mesh, g) if bounded else None
-            p_nu = law.p_nu(u_nu, c["stiffness"], c["g"])
-            normal_force = p_nu
-        elif bounded:
-            c["g"] = _scalar(mesh, g)
+            p_nu = normal_force = law.p_nu(s_nu, c["stiffness"], c["g"])
 
         # P1 spaces for the multipliers and for the node tables of the output.
         Q = fem.FunctionSpace(mesh, ("CG", 1))
@@ -211,10 +196,15 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
                                            W.tabulate_dof_coordinates()):
             raise RuntimeError("displacement and multiplier node numberings differ")
+        gap_function = fem.Function(Q, name="gap")
+        gap_update = _interpolator(gap_function, gap, Q)
+        gap_update()
+        if context.depends_on_time(contact["gap"]):
+            updates.append(gap_update)
         if bounded:
             lambda_nu = fem.Function(Q, name="lambda_nu")
             gamma = ufl.TestFunction(Q)
-            R_nu = law.unilateral_reaction(lambda_nu, u_nu, c["g"], c["r"])
+            R_nu = law.unilateral_reaction(lambda_nu, s_nu, c["g"], c["r"])
             normal_force = R_nu if normal_force is None else normal_force + R_nu
             F_extra.append(-1.0 / c["r"] * (lambda_nu + R_nu) * gamma * dsc)
             unknowns.append(lambda_nu)
@@ -223,14 +213,13 @@ def build(scene: dict, geometry: Geometry) -> Problem:
             F_u += normal_force * law.normal_part(v, n) * dsc
         if contact["mu"] > 0 and p_nu is not None:
             c["friction"] = _scalar(mesh, contact["mu"])
-            radius = c["friction"] * p_nu
             lambda_tau = fem.Function(W, name="lambda_tau")
-            gamma = ufl.TestFunction(lambda_tau.function_space)
-            sigma_tau = law.friction_force(lambda_tau, u_tau, n, radius, c["r"])
+            gamma = ufl.TestFunction(W)
+            sigma_tau = law.friction_force(lambda_tau, u_tau, n, c["friction"] * p_nu, c["r"])
             F_u -= ufl.dot(sigma_tau, law.tangential_part(v, n)) * dsc
             F_extra.append(-1.0 / c["r"] * ufl.dot(lambda_tau - sigma_tau, gamma) * dsc)
             unknowns.append(lambda_tau)
-            spaces.append(lambda_tau.function_space)
+            spaces.append(W)
         bcs += _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed_components, d)
 
     F = [F_u] + F_extra
@@ -244,47 +233,115 @@ def build(scene: dict, geometry: Geometry) -> Problem:
 
     problem = Problem(scene=scene, geometry=geometry, V=V, u=u, lambda_nu=lambda_nu,
                       lambda_tau=lambda_tau, F=F, J=J, bcs=bcs, constants=constants,
-                      nodes=nodes, **problem_memory)
+                      nodes=nodes, context=context, updates=updates, gap=gap_function,
+                      **problem_memory)
     if nodes is not None:
         problem.Q_coordinates = Q.tabulate_dof_coordinates()
         if degree > 1:
             problem.u_p1 = fem.Function(W)
-    extent = np.array(scene["geometry"]["upper"]) - np.array(scene["geometry"]["lower"])
-    problem.length_scale = float(np.max(np.abs(extent)))
+    x = mesh.geometry.x[:, :d]
+    upper, lower = np.empty(d), np.empty(d)
+    mesh.comm.Allreduce(x.max(axis=0), upper, op=MPI.MAX)
+    mesh.comm.Allreduce(x.min(axis=0), lower, op=MPI.MIN)
+    problem.length_scale = float(np.max(upper - lower))
     T_out = problem.T or fem.TensorFunctionSpace(mesh, ("DG", degree - 1))
     problem.T = T_out
     problem.sigma_expression = fem.Expression(sigma, T_out.element.interpolation_points())
     return problem
 
 
-def _dirichlet(scene, geometry, V):
+def _memory(scene, mesh, u, sigma, k, constants):
+    """Add the history stress H (eq 19), a known DG field, and for the trapezoid rule the
+    implicit k/2 R(0) P eps(u) to sigma. Nothing is built without memory."""
+    terms, table = memory_terms(scene), memory_table(scene)
+    if not terms and table is None:
+        return sigma, {}
+    rule = scene["time"]["rule"]
+    d = mesh.geometry.dim
+    T = fem.TensorFunctionSpace(mesh, ("DG", scene["discretization"]["degree"] - 1))
+    H = fem.Function(T, name="history_stress")
+    if table is not None:
+        history = DirectHistory(table_kernel(*table), k, rule)
+        implicit = {"full": 0.5 * k * table[1][0]} if rule == "trapezoid" else {}
+    else:
+        history = History(terms, k, rule, d)
+        implicit = implicit_weights(terms, k, rule)
+    eps = strain(u)
+    parts = {"full": eps, "deviatoric": ufl.dev(eps),
+             "volumetric": ufl.tr(eps) / d * ufl.Identity(d)}
+    sigma = sigma + H
+    for part, weight in implicit.items():
+        constants[f"memory_implicit_{part}"] = _scalar(mesh, weight)
+        sigma = sigma + constants[f"memory_implicit_{part}"] * parts[part]
+    memory = dict(history=history, H=H, eps_function=fem.Function(T),
+                  eps_expression=fem.Expression(eps, T.element.interpolation_points()), T=T)
+    return sigma, memory
+
+
+def _interpolator(function, value, space):
+    """A callable that sets `function` to the UFL value or Constant `value`."""
+    if isinstance(value, fem.Constant):
+        return lambda: function.x.array.__setitem__(slice(None), value.value)
+    expression = fem.Expression(value, space.element.interpolation_points())
+    return lambda: function.interpolate(expression)
+
+
+def _dirichlet(scene, geometry, V, context, updates):
     """Dirichlet conditions and, per displacement dof, whether it is prescribed (0/1 array,
-    consistent over ranks, ghosts included)."""
+    consistent over ranks, ghosts included). Values may depend on x and t."""
     mesh = geometry.mesh
     d = mesh.geometry.dim
     fdim = d - 1
     bcs = []
     fixed = fem.Function(V)
     for i, item in enumerate(scene["dirichlet"]):
+        where = f"dirichlet[{i}]"
+        unknown = set(item) - {"boundary", "components", "value"}
+        if unknown or "boundary" not in item:
+            raise SceneError(f"{where} needs 'boundary' and may have 'components', 'value'; "
+                             f"got {sorted(item)}")
         facets = geometry.facets(item["boundary"])
         comps = item.get("components", "all")
         value = item.get("value", 0.0)
         if comps == "all":
             vals = value if isinstance(value, (list, tuple)) else [value] * d
-            if len(vals) != d:
-                raise SceneError(f"dirichlet[{i}].value needs {d} components, got {vals}")
             dofs = fem.locate_dofs_topological(V, fdim, facets)
-            bcs.append(fem.dirichletbc(np.array(vals, dtype=PETSc.ScalarType), dofs, V))
+            vector = context.vector(vals, f"{where}.value", d)
+            if isinstance(vector, fem.Constant):
+                bcs.append(fem.dirichletbc(vector.value, dofs, V))
+            else:
+                g = fem.Function(V)
+                update = _interpolator(g, vector, V)
+                update()
+                if context.depends_on_time(vals):
+                    updates.append(update)
+                bcs.append(fem.dirichletbc(g, dofs))
             fixed.x.array[(dofs[:, None] * d + np.arange(d)).ravel()] = 1.0
-        else:
-            vals = value if isinstance(value, (list, tuple)) else [value] * len(comps)
-            for comp, val in zip(comps, vals):
-                if not (isinstance(comp, int) and 0 <= comp < d):
-                    raise SceneError(f"dirichlet[{i}].components: {comp} is not a component "
-                                     f"of a {d}D displacement (0..{d - 1})")
+            continue
+        if not isinstance(comps, list):
+            raise SceneError(f"{where}.components must be 'all' or a list, got {comps!r}")
+        vals = value if isinstance(value, (list, tuple)) else [value] * len(comps)
+        if len(vals) != len(comps):
+            raise SceneError(f"{where}.value needs one entry per component, got {vals}")
+        for comp, val in zip(comps, vals):
+            if not (isinstance(comp, int) and 0 <= comp < d):
+                raise SceneError(f"{where}.components: {comp} is not a component "
+                                 f"of a {d}D displacement (0..{d - 1})")
+            scalar = context.scalar(val, f"{where}.value")
+            if isinstance(scalar, fem.Constant):
                 dofs = fem.locate_dofs_topological(V.sub(comp), fdim, facets)
-                bcs.append(fem.dirichletbc(PETSc.ScalarType(val), dofs, V.sub(comp)))
-                fixed.x.array[dofs] = 1.0
+                bcs.append(fem.dirichletbc(scalar.value, dofs, V.sub(comp)))
+            else:
+                Vc, _ = V.sub(comp).collapse()
+                g = fem.Function(Vc)
+                update = _interpolator(g, scalar, Vc)
+                update()
+                if context.depends_on_time(val):
+                    updates.append(update)
+                pair = fem.locate_dofs_topological((V.sub(comp), Vc), fdim, facets)
+                bcs.append(fem.dirichletbc(g, pair, V.sub(comp)))
+                dofs = pair[0]
+            fixed.x.array[dofs] = 1.0
     # A rank may hold a prescribed node as a ghost without the facet that prescribes it.
     fixed.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     fixed.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)

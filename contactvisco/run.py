@@ -61,6 +61,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     for n in range(N + 1):
         t = n * k
         tick = clock.perf_counter()
+        problem.set_time(t)
         if n > 0:
             problem.update_history()     # H_n from u_0 .. u_{n-1} (eq 19)
         iterations = snes.solve()

@@ -19,7 +19,11 @@ DEFAULTS: dict = {
     "name": "unnamed",
     "description": "",
     "geometry": {
-        "type": "box",            # built-in structured box mesh (2D: triangles, 3D: tetrahedra)
+        "type": "box",            # box: structured mesh made in memory (2D triangles, 3D tets)
+                                  # gmsh: a mesh script from meshes/ (or a .msh file)
+        "script": None,           # gmsh: script name in meshes/ (meshes/<script>.py)
+        "file": None,             # gmsh: a .msh file instead of a script
+        "parameters": {},         # gmsh: keyword arguments of the script
         "lower": [0.0, 0.0],
         "upper": [1.0, 1.0],
         "cells": [32, 32],
@@ -29,13 +33,19 @@ DEFAULTS: dict = {
     },
     "material": {
         "model": "plane_strain",  # plane_stress | plane_strain | 3d
-        "E": 1.0,
-        "nu": 0.3,
+        "E": 1.0,                 # Young's modulus (or give lambda and mu instead of E, nu)
+        "nu": 0.3,                # Poisson ratio
+        "lambda": None,           # Lame constants (3D values; plane stress reduces them)
+        "mu": None,
     },
     "memory": {
-        "kernel": "none",         # none | constant | exponential
-        "alpha": 0.0,             # kernel amplitude(s): R(t) = sum_i alpha_i exp(-t/tau_i) I
-        "tau": [],                # relaxation times (exponential kernel only)
+        "kernel": "none",         # none | constant | exponential | prony | table
+        "alpha": 0.0,             # constant: R = alpha I; exponential: list, with tau
+        "tau": [],                # exponential: R = sum_i alpha_i exp(-t/tau_i) I
+        "terms": [],              # prony: [{alpha, tau (default inf), part = full |
+                                  #   deviatoric | volumetric}]
+        "times": [],              # table: R(t) = r(t) I, r linear between (times, values)
+        "values": [],
     },
     "dirichlet": [],              # list of {boundary, components = "all" | [i, ...], value}
     "body_force": {"value": None},
@@ -65,6 +75,8 @@ DEFAULTS: dict = {
 #: Defaults of the [contact] table, used when a scene has one.
 CONTACT_DEFAULTS = {
     "boundary": "bottom",
+    "gap": 0.0,              # initial gap h(x) >= 0 (number or expression): the penetration
+                             # into the layer is u_nu - h
     "stiffness": 0.0,        # compliance stiffness c_nu in p_nu(s) = c_nu max(0, s)
     "g": math.inf,           # layer thickness (bound on u_nu); inf: no unilateral bound
     "mu": 0.0,               # friction coefficient, p_tau = mu p_nu
@@ -134,10 +146,15 @@ def _apply_set(scene: dict, path: list[str], value) -> None:
 def resolve(raw: dict, overrides: list[str] = ()) -> dict:
     """Fill defaults into a raw scene dict and apply ``key=value`` overrides."""
     scene = _merge(DEFAULTS, {k: v for k, v in raw.items() if k != "contact"})
+    material = {k: v for k, v in raw.get("material", {}).items() if v is not None}
+    if "lambda" in material or "mu" in material:
+        if "E" in material or "nu" in material:
+            raise SceneError("material: give either E and nu or lambda and mu, not both")
     if raw.get("contact") is not None:
         scene["contact"] = _merge(CONTACT_DEFAULTS, raw["contact"], "contact.")
     for text in overrides:
         _apply_set(scene, *parse_assignment(text))
+    _lame_to_young(scene["material"])
     contact = scene["contact"]
     if contact is not None:
         if isinstance(contact["g"], str):
@@ -163,8 +180,19 @@ def load(name_or_path: str, overrides: list[str] = ()) -> dict:
     return resolve(raw, overrides)
 
 
+def _lame_to_young(material: dict) -> None:
+    lam, mu = material["lambda"], material["mu"]
+    if lam is None and mu is None:
+        return
+    if lam is None or mu is None or not (mu > 0 and lam + mu > 0):
+        raise SceneError(f"material.lambda and material.mu must both be given with mu > 0 and "
+                         f"lambda + mu > 0, got lambda = {lam}, mu = {mu}")
+    material["E"] = mu * (3 * lam + 2 * mu) / (lam + mu)
+    material["nu"] = lam / (2 * (lam + mu))
+
+
 def dimension(scene: dict) -> int:
-    return len(scene["geometry"]["lower"])
+    return 3 if scene["material"]["model"] == "3d" else 2
 
 
 def check(scene: dict) -> None:
@@ -178,26 +206,58 @@ def check(scene: dict) -> None:
 
     geo, mat, mem, time = scene["geometry"], scene["material"], scene["memory"], scene["time"]
     d = dimension(scene)
-    need(d in (2, 3), f"geometry.lower must have 2 or 3 coordinates, got {geo['lower']}")
-    need(len(geo["upper"]) == d and len(geo["cells"]) == d,
-         "geometry.lower, geometry.upper and geometry.cells must have the same length")
-    need(all(isinstance(n, int) and n >= 1 for n in geo["cells"]),
-         f"geometry.cells must be positive integers, got {geo['cells']}")
     need(mat["model"] in ("plane_stress", "plane_strain", "3d"),
          f"material.model must be plane_stress, plane_strain or 3d, got '{mat['model']}'")
-    need((mat["model"] == "3d") == (d == 3),
-         f"material.model '{mat['model']}' does not fit a {d}D geometry")
+    need(geo["type"] in ("box", "gmsh"), f"geometry.type must be box or gmsh, got '{geo['type']}'")
+    if geo["type"] == "box":
+        need(len(geo["lower"]) == d and len(geo["upper"]) == d and len(geo["cells"]) == d,
+             f"geometry.lower, upper and cells need {d} entries for material.model = "
+             f"'{mat['model']}', got {geo['lower']}, {geo['upper']}, {geo['cells']}")
+        need(all(isinstance(n, int) and not isinstance(n, bool) and n >= 1
+                 for n in geo["cells"]),
+             f"geometry.cells must be positive integers, got {geo['cells']}")
+        need(all(finite(a) and finite(b) and b > a for a, b in zip(geo["lower"], geo["upper"])),
+             f"geometry.upper must exceed geometry.lower, got {geo['lower']}, {geo['upper']}")
+    else:
+        need((geo["script"] is None) != (geo["file"] is None),
+             "geometry.type = 'gmsh' needs exactly one of geometry.script or geometry.file")
     need(finite(mat["E"]) and mat["E"] > 0, f"material.E must be > 0, got {mat['E']}")
     upper_nu = 1.0 if mat["model"] == "plane_stress" else 0.5
     need(finite(mat["nu"]) and -1.0 < mat["nu"] < upper_nu,
          f"material.nu must lie in (-1, {upper_nu}) for {mat['model']}, got {mat['nu']}")
-    need(mem["kernel"] in ("none", "constant", "exponential"),
-         f"memory.kernel must be none, constant or exponential, got '{mem['kernel']}'")
+    need(mem["kernel"] in ("none", "constant", "exponential", "prony", "table"),
+         f"memory.kernel must be none, constant, exponential, prony or table, "
+         f"got '{mem['kernel']}'")
+    if mem["kernel"] == "constant":
+        need(finite(mem["alpha"]), f"memory.alpha must be a number, got {mem['alpha']}")
     if mem["kernel"] == "exponential":
         alphas, taus = _as_list(mem["alpha"]), _as_list(mem["tau"])
         need(len(alphas) == len(taus) and len(taus) > 0,
              "memory.alpha and memory.tau must have the same (non-zero) length")
         need(all(finite(t) and t > 0 for t in taus), f"memory.tau must be > 0, got {taus}")
+        need(all(finite(a) for a in alphas), f"memory.alpha must be numbers, got {alphas}")
+    if mem["kernel"] == "prony":
+        need(isinstance(mem["terms"], list) and len(mem["terms"]) > 0,
+             "memory.kernel = 'prony' needs memory.terms = [{alpha, tau, part}, ...]")
+        for i, term in enumerate(mem["terms"]):
+            need(isinstance(term, dict) and set(term) <= {"alpha", "tau", "part"}
+                 and "alpha" in term,
+                 f"memory.terms[{i}] must be a table with alpha and optional tau, part; "
+                 f"got {term}")
+            need(finite(term["alpha"]), f"memory.terms[{i}].alpha must be a number")
+            tau = term.get("tau", math.inf)
+            need(isinstance(tau, (int, float)) and tau > 0,
+                 f"memory.terms[{i}].tau must be > 0 (inf: constant), got {tau}")
+            need(term.get("part", "full") in ("full", "deviatoric", "volumetric"),
+                 f"memory.terms[{i}].part must be full, deviatoric or volumetric")
+    if mem["kernel"] == "table":
+        times, values = mem["times"], mem["values"]
+        need(len(times) == len(values) and len(times) >= 1,
+             "memory.times and memory.values must have the same (non-zero) length")
+        need(all(finite(v) for v in list(times) + list(values)),
+             "memory.times and memory.values must be finite numbers")
+        need(all(b > a for a, b in zip(times, times[1:])),
+             "memory.times must increase")
     need(finite(time["T"]) and time["T"] > 0, f"time.T must be > 0, got {time['T']}")
     need(isinstance(time["steps"], int) and time["steps"] >= 1,
          f"time.steps must be an integer >= 1, got {time['steps']}")
@@ -225,25 +285,45 @@ def _as_list(x):
     return list(x) if isinstance(x, (list, tuple)) else [x]
 
 
-def memory_terms(scene: dict) -> list[tuple[float, float]]:
-    """The kernel as Prony terms [(alpha_i, tau_i)], tau = inf for the constant kernel;
-    empty when the scene has no memory."""
+def memory_terms(scene: dict) -> list[tuple[float, float, str]]:
+    """A Prony kernel as terms [(alpha_i, tau_i, part_i)], tau = inf for the constant kernel;
+    empty without memory and for a table kernel (see :func:`memory_table`)."""
     mem = scene["memory"]
-    if mem["kernel"] == "none":
-        return []
     if mem["kernel"] == "constant":
         alpha = float(mem["alpha"])
-        return [(alpha, math.inf)] if alpha != 0.0 else []
-    return [(float(a), float(t)) for a, t in zip(_as_list(mem["alpha"]), _as_list(mem["tau"]))
-            if float(a) != 0.0]
+        return [(alpha, math.inf, "full")] if alpha != 0.0 else []
+    if mem["kernel"] == "exponential":
+        return [(float(a), float(t), "full")
+                for a, t in zip(_as_list(mem["alpha"]), _as_list(mem["tau"])) if a != 0]
+    if mem["kernel"] == "prony":
+        return [(float(t["alpha"]), float(t.get("tau", math.inf)), t.get("part", "full"))
+                for t in mem["terms"] if t["alpha"] != 0]
+    return []
+
+
+def memory_table(scene: dict):
+    """(times, values) of a table kernel, else None."""
+    mem = scene["memory"]
+    if mem["kernel"] == "table" and any(v != 0 for v in mem["values"]):
+        return list(map(float, mem["times"])), list(map(float, mem["values"]))
+    return None
+
+
+def memory_R0(scene: dict) -> dict[str, float]:
+    """R(0) per part: the instantaneous stiffness the memory adds."""
+    table = memory_table(scene)
+    if table is not None:
+        return {"full": table[1][0]}
+    out: dict[str, float] = {}
+    for a, _, part in memory_terms(scene):
+        out[part] = out.get(part, 0.0) + a
+    return out
 
 
 def stability_number(scene: dict) -> float:
-    """b = k R(0) / (2 mu): the paper's rule is stable for b < 1 (NOTES: the scalar analogue
+    """b = k |R(0)| / (2 mu): the paper's rule is stable for b < 1 (NOTES: the scalar analogue
     u_{n+1} = (1 - 3b/2) u_n + b/2 u_{n-1}); 2 mu = E / (1 + nu) is the deviatoric modulus."""
-    terms = memory_terms(scene)
-    if not terms:
-        return 0.0
+    R0 = sum(abs(a) for a in memory_R0(scene).values())
     k = scene["time"]["T"] / scene["time"]["steps"]
     mat = scene["material"]
-    return k * sum(a for a, _ in terms) * (1.0 + mat["nu"]) / mat["E"]
+    return k * R0 * (1.0 + mat["nu"]) / mat["E"]

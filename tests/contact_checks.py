@@ -4,7 +4,7 @@ import numpy as np
 
 def assert_contact_conditions(table, g, tol=1e-10, prescribed_tangential=None,
                               direction_tol=1e-8):
-    """u_nu <= g; R = -lambda_nu >= 0 and (g - u_nu) R = 0; the normal reaction is p_nu + R;
+    """s <= g (s = u_nu - h the penetration); R = -lambda_nu >= 0 and (g - s) R = 0; the normal reaction is p_nu + R;
     |sigma_tau| <= mu p_nu(u_nu), sigma_tau tangential; on sliding nodes
     sigma_tau = -mu p_nu u_tau / |u_tau|. Returns the number of sliding nodes checked.
 
@@ -12,7 +12,7 @@ def assert_contact_conditions(table, g, tol=1e-10, prescribed_tangential=None,
     (their tangential reaction is carried by the Dirichlet condition).
     direction_tol: an error e in a node's friction equation turns sigma_tau by about
     e / (r |u_tau|), so the sliding direction gets a looser bound than the others."""
-    u_nu, R = table["u_nu"], -table["lambda_nu"]
+    u_nu, R = table["penetration"], -table["lambda_nu"]
     assert np.all(u_nu <= g + tol), np.max(u_nu - g)
     assert np.all(R >= -tol)
     if np.isfinite(g):

@@ -6,13 +6,15 @@ import pytest
 from mpi4py import MPI
 
 from contactvisco import geometry, problem as problem_module, scene as scene_module
-from contactvisco.memory import History, direct_sum
+from contactvisco.memory import History, direct_sum, prony
 from contactvisco.solver import BlockSNES
 
 KERNELS = {
-    "constant": [(100.0, math.inf)],
-    "exponential": [(30.0, 0.25)],
-    "prony": [(30.0, 0.05), (5.0, 2.0), (1.0, math.inf)],
+    "constant": [(100.0, math.inf, "full")],
+    "exponential": [(30.0, 0.25, "full")],
+    "prony": [(30.0, 0.05, "full"), (5.0, 2.0, "full"), (1.0, math.inf, "full")],
+    "prony-parts": [(30.0, 0.05, "deviatoric"), (5.0, 2.0, "volumetric"),
+                    (-2.0, math.inf, "deviatoric"), (1.0, 0.3, "full")],
 }
 
 
@@ -21,11 +23,11 @@ KERNELS = {
 def test_incremental_equals_direct_sum(name, k):
     terms = KERNELS[name]
     rng = np.random.default_rng(7)
-    strains = [rng.standard_normal(12) for _ in range(40)]
-    history = History(terms, k)
+    strains = [rng.standard_normal(12) for _ in range(40)]     # three 2 x 2 strain blocks
+    history = History(terms, k, "paper", d=2)
     for n in range(1, len(strains) + 1):
         incremental = history.advance(strains[n - 1])     # H_n from eps_0 .. eps_{n-1}
-        exact = direct_sum(terms, k, strains[:n])
+        exact = direct_sum(prony(terms, 2), k, strains[:n])
         assert np.max(np.abs(incremental - exact)) <= 1e-12 * np.max(np.abs(exact))
 
 
@@ -33,7 +35,7 @@ def test_weights_of_eq19():
     """k/2 on eps_0, k on eps_1..eps_{n-2}, 3k/2 on eps_{n-1} (constant kernel, alpha = 1);
     k on eps_0 at n = 1."""
     k = 0.1
-    history = History([(1.0, math.inf)], k)
+    history = History([(1.0, math.inf, "full")], k)
     unit = np.eye(5)
     assert np.allclose(history.advance(unit[0]), k * unit[0])
     for n in range(2, 6):
@@ -58,7 +60,7 @@ def test_history_function_in_a_run():
         if n > 0:
             problem.update_history()
             strains.append(problem.eps_function.x.array.copy())
-            exact = direct_sum(terms, k, strains)
+            exact = direct_sum(prony(terms, 2), k, strains)
             assert np.max(np.abs(problem.H.x.array - exact)) <= 1e-12 * np.max(np.abs(exact))
         snes.solve()
     assert len(strains) == 5 and np.max(np.abs(strains[-1])) > 1e-3

@@ -14,10 +14,11 @@ def build(overrides):
 
 def test_paper_scene_values():
     scene = scene_module.load("paper")
-    assert scene["material"] == {"model": "plane_stress", "E": 100.0, "nu": 0.3}
+    assert scene["material"] == {"model": "plane_stress", "E": 100.0, "nu": 0.3,
+                                 "lambda": None, "mu": None}
     assert scene["contact"]["g"] == 0.05 and scene["contact"]["mu"] == 0.2
     assert scene["contact"]["augmentation"] == 100.0       # defaults to the stiffness
-    assert scene_module.memory_terms(scene) == [(100.0, math.inf)]
+    assert scene_module.memory_terms(scene) == [(100.0, math.inf, "full")]
     assert scene["time"] == {"T": 1.0, "steps": 10, "rule": "paper"}
 
 
