@@ -10,6 +10,7 @@ expressions compiled into the forms, with `t` a Constant set at each step.
 """
 from __future__ import annotations
 
+import ast
 import math
 import numbers
 
@@ -37,7 +38,7 @@ class Context:
 
     def depends_on_time(self, value) -> bool:
         items = value if isinstance(value, (list, tuple)) else [value]
-        return any(isinstance(v, str) and "t" in _names(v) for v in items)
+        return any(isinstance(v, str) and "t" in _names(v, "value") for v in items)
 
     def scalar(self, value, where: str):
         """A number -> Constant; a string -> UFL expression."""
@@ -69,7 +70,7 @@ class Context:
         return float(value)
 
     def _evaluate(self, text: str, where: str):
-        unknown = _names(text) - set(NAMESPACE) - {"x", "t"}
+        unknown = _names(text, where) - set(NAMESPACE) - {"x", "t"}
         if unknown:
             raise SceneError(f"{where} = '{text}': unknown name(s) {', '.join(sorted(unknown))};"
                              f" allowed: x, t, {', '.join(sorted(NAMESPACE))}")
@@ -85,10 +86,9 @@ class Context:
         return result
 
 
-def _names(text: str) -> set[str]:
-    import ast
+def _names(text: str, where: str) -> set[str]:
     try:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as err:
-        raise SceneError(f"'{text}' is not a valid expression: {err.msg}") from None
+        raise SceneError(f"{where} = '{text}' is not a valid expression: {err.msg}") from None
     return {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}

@@ -11,9 +11,11 @@ mu p_nu(u_nu):
     F_nu  = -1/r int_C (lambda_nu + R_nu) gamma_nu
     F_tau = -1/r int_C (lambda_tau - sigma_tau) . gamma_tau
 
-lambda_nu and lambda_tau are P1 fields whose dofs off Gamma_C are fixed to zero (DOLFINx 0.5 has
-no boundary-only spaces). With the nodal (trapezoid) quadrature on Gamma_C the conditions hold
-node by node; F_tau uses the full vector gamma_tau, which also forces lambda_tau . nu = 0.
+Here u_nu = u . nu - h, the penetration past the initial gap h, and nu is the averaged nodal normal
+(a P1 field). lambda_nu and lambda_tau are P1 fields whose dofs off Gamma_C are fixed to zero,
+because DOLFINx 0.5 has no boundary-only spaces. With the vertex quadrature on Gamma_C the
+conditions hold node by node, on curved boundaries too. F_tau uses the full vector gamma_tau,
+which also forces lambda_tau . nu = 0.
 """
 from __future__ import annotations
 
@@ -173,7 +175,20 @@ def build(scene: dict, geometry: Geometry) -> Problem:
             metadata = {"quadrature_degree": 2 * degree + 2}
         geometry.facets(contact["boundary"])      # checks the name
         dsc = ds(geometry.names[contact["boundary"]], metadata=metadata)
-        n = ufl.FacetNormal(mesh)
+
+        # P1 spaces for the multipliers and for the node tables of the output.
+        Q = fem.FunctionSpace(mesh, ("CG", 1))
+        # Its own space object, even for P1: block assembly keys boundary conditions and
+        # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
+        W = fem.VectorFunctionSpace(mesh, ("CG", 1))
+        nodes = _contact_nodes(mesh, Q, W, dsc)
+        if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
+                                           W.tabulate_dof_coordinates()):
+            raise RuntimeError("displacement and multiplier node numberings differ")
+        # The averaged nodal normal, not the facet normal: where two facets of a curved
+        # boundary meet, each node then has one normal and its conditions hold exactly.
+        n = fem.Function(W, name="normal")
+        n.x.array.reshape(-1, d)[nodes.nodes] = nodes.normals
         gap = context.scalar(contact["gap"], "contact.gap")
         s_nu = law.normal_part(u, n) - gap        # penetration into the layer
         u_tau = law.tangential_part(u, n)
@@ -186,16 +201,6 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         if contact["stiffness"] > 0 and g > 0:
             c["stiffness"] = _scalar(mesh, contact["stiffness"])
             p_nu = normal_force = law.p_nu(s_nu, c["stiffness"], c["g"])
-
-        # P1 spaces for the multipliers and for the node tables of the output.
-        Q = fem.FunctionSpace(mesh, ("CG", 1))
-        # Its own space object, even for P1: block assembly keys boundary conditions and
-        # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
-        W = fem.VectorFunctionSpace(mesh, ("CG", 1))
-        nodes = _contact_nodes(mesh, Q, W, dsc)
-        if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
-                                           W.tabulate_dof_coordinates()):
-            raise RuntimeError("displacement and multiplier node numberings differ")
         gap_function = fem.Function(Q, name="gap")
         gap_update = _interpolator(gap_function, gap, Q)
         gap_update()

@@ -100,7 +100,8 @@ def _merge(base: dict, update: dict, where: str = "") -> dict:
             suggestion = f" (did you mean '{hint[0]}'?)" if hint else ""
             raise SceneError(f"unknown scene key '{where}{key}'{suggestion}; "
                              f"allowed here: {', '.join(sorted(base))}")
-        if isinstance(base[key], dict) and isinstance(value, dict):
+        # An empty default table is free-form (geometry.parameters, solver.petsc_options).
+        if isinstance(base[key], dict) and base[key] and isinstance(value, dict):
             out[key] = _merge(base[key], value, f"{where}{key}.")
         else:
             out[key] = copy.deepcopy(value)
@@ -136,7 +137,8 @@ def _apply_set(scene: dict, path: list[str], value) -> None:
     if isinstance(node, list):
         node[int(last)] = value
         return
-    if last not in node:
+    free_form = tuple(path[:-1]) in (("geometry", "parameters"), ("solver", "petsc_options"))
+    if last not in node and not free_form:
         hint = difflib.get_close_matches(last, list(node), n=1)
         suggestion = f" (did you mean '{hint[0]}'?)" if hint else ""
         raise SceneError(f"--set: unknown scene key '{'.'.join(path)}'{suggestion}")

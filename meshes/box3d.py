@@ -1,0 +1,25 @@
+"""A box [0, lx] x [0, ly] x [0, lz] of tetrahedra (3D).
+
+Boundaries: "left"/"right" (x), "front"/"back" (y), "bottom"/"top" (z).
+"""
+
+
+def build(gmsh, lx=1.0, ly=1.0, lz=0.5, h=0.125):
+    occ = gmsh.model.occ
+    volume = occ.addBox(0, 0, 0, lx, ly, lz)
+    occ.synchronize()
+    eps = 1e-3 * min(lx, ly, lz)     # OCC pads entity bounding boxes by its tolerance
+    faces = {"left": (0, 0), "right": (0, lx), "front": (1, 0), "back": (1, ly),
+             "bottom": (2, 0), "top": (2, lz)}
+    upper = (lx, ly, lz)
+    for name, (axis, value) in faces.items():
+        low = [-eps, -eps, -eps]
+        high = [u + eps for u in upper]
+        low[axis], high[axis] = value - eps, value + eps
+        found = gmsh.model.getEntitiesInBoundingBox(*low, *high, dim=2)
+        group = gmsh.model.addPhysicalGroup(2, [tag for _, tag in found])
+        gmsh.model.setPhysicalName(2, group, name)
+    gmsh.model.setPhysicalName(3, gmsh.model.addPhysicalGroup(3, [volume]), "body")
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", h)
+    gmsh.model.mesh.generate(3)
