@@ -56,6 +56,7 @@ class ContactNodes:
     owned: np.ndarray          # bool: owned by this rank
     normals: np.ndarray        # (len(nodes), d) unit nodal normals
     tangents: np.ndarray | None  # (len(nodes), d) unit tangent (2D only)
+    corners: np.ndarray | None = None  # nodes at corners of Gamma_C (facet normals used)
 
 
 @dataclass
@@ -173,8 +174,11 @@ def build(scene: dict, geometry: Geometry) -> Problem:
             metadata = nodal_rule(d)
         else:
             metadata = {"quadrature_degree": 2 * degree + 2}
-        geometry.facets(contact["boundary"])      # checks the name
-        dsc = ds(geometry.names[contact["boundary"]], metadata=metadata)
+        names = contact["boundary"]
+        names = [names] if isinstance(names, str) else list(names)
+        for name in names:
+            geometry.facets(name)                 # checks the name
+        dsc = ds(tuple(geometry.names[name] for name in names), metadata=metadata)
 
         # P1 spaces for the multipliers and for the node tables of the output.
         Q = fem.FunctionSpace(mesh, ("CG", 1))
@@ -185,10 +189,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
                                            W.tabulate_dof_coordinates()):
             raise RuntimeError("displacement and multiplier node numberings differ")
-        # The averaged nodal normal, not the facet normal: where two facets of a curved
-        # boundary meet, each node then has one normal and its conditions hold exactly.
-        n = fem.Function(W, name="normal")
-        n.x.array.reshape(-1, d)[nodes.nodes] = nodes.normals
+        n = _contact_normal(mesh, Q, W, dsc, nodes)
         gap = context.scalar(contact["gap"], "contact.gap")
         s_nu = law.normal_part(u, n) - gap        # penetration into the layer
         u_tau = law.tangential_part(u, n)
@@ -376,6 +377,32 @@ def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:
     tangents = np.column_stack([-normals[:, 1], normals[:, 0]]) if d == 2 else None
     owned = nodes < Q.dofmap.index_map.size_local
     return ContactNodes(nodes=nodes, owned=owned, normals=normals, tangents=tangents)
+
+
+def _contact_normal(mesh, Q, W, dsc, nodes, corner_angle=15.0):
+    """The normal nu of the contact terms: the averaged nodal normal (a P1 field), so that
+    where two facets of a curved boundary meet each node has one normal and its conditions
+    hold exactly; but the facet normal at corners of the contact boundary (adjacent facet
+    normals more than corner_angle degrees from the average), where no average is right."""
+    d = mesh.geometry.dim
+    nodal = fem.Function(W, name="normal")
+    nodal.x.array.reshape(-1, d)[nodes.nodes] = nodes.normals
+    facet = ufl.FacetNormal(mesh)
+    q = ufl.TestFunction(Q)
+    deviation = assemble_vector(fem.form((1.0 - ufl.dot(facet, nodal)) * q * dsc))
+    weight = assemble_vector(fem.form(q * dsc))
+    for vec in (deviation, weight):
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    with deviation.localForm() as dl, weight.localForm() as wl:
+        mean = dl.array[nodes.nodes] / wl.array[nodes.nodes]
+    corners = nodes.nodes[mean > 1.0 - np.cos(np.deg2rad(corner_angle))]
+    nodes.corners = corners
+    if mesh.comm.allreduce(corners.size, MPI.SUM) == 0:
+        return nodal
+    indicator = fem.Function(Q)
+    indicator.x.array[corners] = 1.0
+    return ufl.conditional(ufl.gt(indicator, 0.5), facet, nodal)
 
 
 def _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed, d):

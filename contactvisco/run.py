@@ -77,10 +77,14 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         if keep_tables:
             result.tables.append(table)
         if writer is not None:
-            fields = [problem.u]
+            fields = []
             if writer.xdmf is not None:
-                sigma.interpolate(problem.sigma_expression)
-                fields.append(sigma)
+                if "sigma" in opts["fields"]:
+                    sigma.interpolate(problem.sigma_expression)
+                available = {"u": problem.u, "sigma": sigma, "history_stress": problem.H,
+                             "lambda_nu": problem.lambda_nu, "lambda_tau": problem.lambda_tau}
+                fields = [available[name] for name in opts["fields"]
+                          if available[name] is not None]
             writer.step(record, table, fields)
             if n in figure_steps and opts["figures"] and geometry.mesh.geometry.dim == 2:
                 gathered = output.gather_mesh(problem, comm)

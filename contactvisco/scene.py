@@ -68,6 +68,8 @@ DEFAULTS: dict = {
         "probes": [],
         "figure_times": [],       # times (besides T) at which the deformed mesh is drawn
         "xdmf": True,
+        "fields": ["u", "sigma"],  # XDMF fields: u, sigma, history_stress, lambda_nu,
+                                   # lambda_tau
         "figures": True,
     },
 }
@@ -271,6 +273,10 @@ def check(scene: dict) -> None:
             need(finite(contact[key]) and contact[key] >= 0,
                  f"contact.{key} must be a finite number >= 0, got {contact[key]}")
         need(contact["augmentation"] > 0, "contact.augmentation must be > 0")
+        names = contact["boundary"]
+        need(isinstance(names, str) or (isinstance(names, list) and names
+                                        and all(isinstance(b, str) for b in names)),
+             f"contact.boundary must be a boundary name or a list of names, got {names!r}")
         need(isinstance(contact["g"], (int, float)) and contact["g"] >= 0,
              f"contact.g must be >= 0 (inf: no bound), got {contact['g']}")
         need(contact["stiffness"] > 0 or math.isfinite(contact["g"]),
@@ -278,6 +284,10 @@ def check(scene: dict) -> None:
         need(contact["mu"] == 0 or (contact["stiffness"] > 0 and contact["g"] > 0),
              f"contact.mu = {contact['mu']} has no effect: the friction bound mu p_nu(u_nu) is "
              "zero without a compliance stiffness > 0 and a layer g > 0; set contact.mu = 0")
+    fields = scene["output"]["fields"]
+    allowed = ("u", "sigma", "history_stress", "lambda_nu", "lambda_tau")
+    need(isinstance(fields, list) and all(f in allowed for f in fields),
+         f"output.fields must be a list of {', '.join(allowed)}, got {fields!r}")
     need(scene["discretization"]["contact_quadrature"] in ("nodal", "gauss"),
          "discretization.contact_quadrature must be nodal or gauss")
     need(scene["discretization"]["degree"] in (1, 2), "discretization.degree must be 1 or 2")

@@ -69,3 +69,33 @@ def test_block_separates_under_tension():
     assert np.all(table["status"] == 0)
     assert np.allclose(table["reaction_nu"], 0.0, atol=1e-12)
     assert np.all(table["u_nu"] < 0)
+
+
+def test_block_in_a_corner_of_two_layers():
+    """Contact on two boundaries: pressures q on top and p on the right push the block onto
+    compliant layers at the bottom and on the left. Homogeneous stress sigma = diag(-p, -q):
+    u = (-p/c + eps_xx x, -q/c + eps_yy y) with plane-strain eps from Hooke's law."""
+    q, p, c, E, nu = 3.0, 1.0, 100.0, 50.0, 0.3
+    raw = {
+        "name": "corner",
+        "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [5, 5]},
+        "material": {"model": "plane_strain", "E": E, "nu": nu},
+        "traction": [{"boundary": "top", "value": [0.0, -q]},
+                     {"boundary": "right", "value": [-p, 0.0]}],
+        "contact": {"boundary": ["bottom", "left"], "stiffness": c, "g": 1.0, "mu": 0.0},
+        "time": {"T": 1.0, "steps": 1},
+        "output": {"probes": [[1.0, 1.0], [0.4, 0.6]]},
+    }
+    result = simulate(scene_module.resolve(raw), comm=MPI.COMM_WORLD, progress=False,
+                      keep_tables=True)
+    s_xx, s_yy = -p, -q
+    e_xx = ((1 - nu**2) * s_xx - nu * (1 + nu) * s_yy) / E
+    e_yy = ((1 - nu**2) * s_yy - nu * (1 + nu) * s_xx) / E
+    for probe in result.steps[-1]["probes"]:
+        x, y = probe["x"]
+        assert probe["u"] == pytest.approx([-p / c + e_xx * x, -q / c + e_yy * y], abs=1e-12)
+    table = result.tables[-1]
+    on_bottom = (table["x"][:, 1] < 1e-12) & (table["x"][:, 0] > 1e-12)
+    on_left = (table["x"][:, 0] < 1e-12) & (table["x"][:, 1] > 1e-12)
+    assert np.allclose(table["reaction_nu"][on_bottom], q, atol=1e-10)
+    assert np.allclose(table["reaction_nu"][on_left], p, atol=1e-10)
