@@ -90,6 +90,9 @@ class BlockSNES:
         x.ghostUpdate(addv=_INSERT, mode=_FORWARD)
 
     def _residual(self, snes, x, b):
+        # SNES updates only the owned entries of x; the lifting of the Dirichlet rows below
+        # reads x's ghosts too. Stale ghosts go unnoticed while all prescribed values are 0.
+        x.ghostUpdate(addv=_INSERT, mode=_FORWARD)
         # Copy SNES's iterate into the Functions (ghosts included) before assembling.
         self._to_functions(x)
         with b.localForm() as local:

@@ -12,14 +12,22 @@ pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="needs mpirun -
 KEYS = ("x", "u_nu", "u_tau", "reaction_nu", "reaction_tau", "lambda_nu")
 
 
-@pytest.mark.parametrize("overrides", [[], ["contact.g=inf"], ["geometry.diagonal='crossed'",
-                                                               "contact.mu=0.5"]])
-def test_ranks_agree(overrides):
-    scene = scene_module.load("paper", ["geometry.cells=[24, 16]", "time.steps=4"] + overrides)
+@pytest.mark.parametrize("name, overrides", [
+    ("paper", ["geometry.cells=[24, 16]", "time.steps=4"]),
+    ("paper", ["geometry.cells=[24, 16]", "time.steps=4", "contact.g=inf"]),
+    ("paper", ["geometry.cells=[24, 16]", "time.steps=4", "geometry.diagonal='crossed'",
+               "contact.mu=0.5"]),
+    # 3D, gmsh mesh, nonzero prescribed displacements that vary in x and t
+    ("block3d", ["time.steps=4"]),
+    ("ironing", ["geometry.parameters.h=0.1", "time.steps=4"]),
+])
+def test_ranks_agree(name, overrides):
+    scene = scene_module.load(name, overrides)
     world = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
     single = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
-    assert world.problem.geometry.mesh.topology.index_map(2).size_local < \
-        single.problem.geometry.mesh.topology.index_map(2).size_local   # really distributed
+    tdim = world.problem.geometry.mesh.topology.dim
+    assert world.problem.geometry.mesh.topology.index_map(tdim).size_local < \
+        single.problem.geometry.mesh.topology.index_map(tdim).size_local   # really distributed
     for a, b in zip(world.tables, single.tables):
         for key in KEYS:
             assert np.max(np.abs(a[key] - b[key])) < 1e-10, key

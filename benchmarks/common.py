@@ -1,0 +1,43 @@
+"""Shared by the benchmarks: timing a scene and writing result tables."""
+import json
+import pathlib
+import statistics
+import time
+
+from contactvisco.run import simulate
+
+RESULTS = pathlib.Path(__file__).parent / "results"
+
+
+def timed_run(scene, comm, repeat=2):
+    """Best of `repeat` runs (the first also compiles the forms): (seconds, result)."""
+    best = None
+    for _ in range(repeat):
+        tick = time.perf_counter()
+        result = simulate(scene, comm=comm, progress=False)
+        seconds = time.perf_counter() - tick
+        if best is None or seconds < best[0]:
+            best = (seconds, result)
+    return best
+
+
+def step_statistics(result):
+    steps = result.steps
+    iterations = [s["newton_iterations"] for s in steps]
+    return {"unknowns": sum(result.problem.count_unknowns().values()),
+            "unknowns_by_field": result.problem.count_unknowns(),
+            "steps": len(steps) - 1,
+            "mean_newton": statistics.mean(iterations), "max_newton": max(iterations),
+            "s_per_step": statistics.mean(s["wall_s"] for s in steps),
+            "s_per_newton": sum(s["wall_s"] for s in steps) / max(1, sum(iterations)),
+            "final_status": steps[-1]["status_counts"]}
+
+
+def write(name, rows, header, line):
+    """results/<name>.json and results/<name>.md (a table: header, then line(row) per row)."""
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{name}.json").write_text(json.dumps(rows, indent=1))
+    lines = [header, "|" + "|".join("---" for _ in header.strip("|").split("|")) + "|"]
+    lines += [line(r) for r in rows]
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
