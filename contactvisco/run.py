@@ -47,6 +47,13 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         + ", ".join(f"{k_}={v}" for k_, v in problem.count_unknowns().items())
         + f"; set-up (incl. JIT) {setup_s:.2f} s")
 
+    if problem.history is not None and problem.history.direct:
+        note = ("memory: a general (table) kernel has no recursion: eq (19) is summed "
+                "directly, O(n) work and memory per step")
+        say(note)
+        if writer is not None:
+            writer.summary["notes"] = [note]
+
     b = scene_module.stability_number(scene)
     if scene["time"]["rule"] == "paper" and b >= 1.0:
         warning = (f"warning: the paper's time rule is unstable here: k R(0) (1 + nu) / E = "

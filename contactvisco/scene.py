@@ -220,6 +220,9 @@ def check(scene: dict) -> None:
         need(all(isinstance(n, int) and not isinstance(n, bool) and n >= 1
                  for n in geo["cells"]),
              f"geometry.cells must be positive integers, got {geo['cells']}")
+        need(geo["diagonal"] in ("left", "right", "crossed", "left_right", "right_left"),
+             f"geometry.diagonal must be left, right, crossed, left_right or right_left, "
+             f"got '{geo['diagonal']}'")
         need(all(finite(a) and finite(b) and b > a for a, b in zip(geo["lower"], geo["upper"])),
              f"geometry.upper must exceed geometry.lower, got {geo['lower']}, {geo['upper']}")
     else:
