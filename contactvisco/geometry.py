@@ -7,6 +7,7 @@ import importlib.util
 import json
 import os
 import pathlib
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,10 +90,11 @@ def mesh_file(geo) -> pathlib.Path:
         return path
     script = MESH_DIR / f"{geo['script']}.py"
     if not script.is_file():
-        names = sorted(p.stem for p in MESH_DIR.glob("*.py"))
+        names = sorted(p.stem for p in MESH_DIR.glob("*.py") if p.stem != "refinement")
         raise SceneError(f"geometry.script: no mesh script '{geo['script']}' in {MESH_DIR} "
                          f"(there are: {', '.join(names)})")
-    key = hashlib.sha1(script.read_bytes()
+    # The hash covers the shared helper too, so editing it remakes the cached meshes.
+    key = hashlib.sha1(script.read_bytes() + (MESH_DIR / "refinement.py").read_bytes()
                        + json.dumps(geo["parameters"], sort_keys=True).encode()).hexdigest()
     return CACHE_DIR / f"{geo['script']}-{key[:12]}.msh"
 
@@ -102,7 +104,11 @@ def _generate(geo, path: pathlib.Path, d: int):
     script = MESH_DIR / f"{geo['script']}.py"
     spec = importlib.util.spec_from_file_location(f"contactvisco_mesh_{geo['script']}", script)
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    sys.path.insert(0, str(MESH_DIR))          # for the scripts' shared helper
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(MESH_DIR))
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)

@@ -4,6 +4,7 @@ Centre (0, R); boundaries: "contact" (the arc from (0, 0) to (R, R)), "top" (y =
 "axis" (x = 0, the symmetry line). The mesh is refined to h_contact within `refine` of the
 contact point and grows to h_far away from it.
 """
+from refinement import refine_near
 
 
 def build(gmsh, radius=1.0, h_contact=0.005, h_far=0.1, refine=0.25):
@@ -19,17 +20,5 @@ def build(gmsh, radius=1.0, h_contact=0.005, h_far=0.1, refine=0.25):
     for dim, tags, name in ((1, [arc], "contact"), (1, [top], "top"), (1, [axis], "axis"),
                             (2, [surface], "body")):
         gmsh.model.setPhysicalName(dim, gmsh.model.addPhysicalGroup(dim, tags), name)
-    field = gmsh.model.mesh.field
-    distance = field.add("Distance")
-    field.setNumbers(distance, "PointsList", [bottom])
-    threshold = field.add("Threshold")
-    field.setNumber(threshold, "InField", distance)
-    field.setNumber(threshold, "SizeMin", h_contact)
-    field.setNumber(threshold, "SizeMax", h_far)
-    field.setNumber(threshold, "DistMin", refine)
-    field.setNumber(threshold, "DistMax", 2 * refine + 10 * h_far)
-    field.setAsBackgroundMesh(threshold)
-    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    refine_near(gmsh, h_contact, h_far, refine, 2 * refine + 10 * h_far, points=[bottom])
     gmsh.model.mesh.generate(2)

@@ -2,6 +2,7 @@
 
 Boundaries: "left", "right", "bottom", "top".
 """
+from refinement import refine_near
 
 
 def build(gmsh, length=4.0, height=1.0, h=0.1, h_bottom=None):
@@ -14,16 +15,5 @@ def build(gmsh, length=4.0, height=1.0, h=0.1, h_bottom=None):
     for dim, tags, name in ((1, [left], "left"), (1, [right], "right"), (1, [bottom], "bottom"),
                             (1, [top], "top"), (2, [surface], "body")):
         gmsh.model.setPhysicalName(dim, gmsh.model.addPhysicalGroup(dim, tags), name)
-    field = gmsh.model.mesh.field
-    distance = field.add("Distance")
-    field.setNumbers(distance, "CurvesList", [bottom])
-    threshold = field.add("Threshold")
-    field.setNumber(threshold, "InField", distance)
-    field.setNumber(threshold, "SizeMin", h_bottom or h)
-    field.setNumber(threshold, "SizeMax", h)
-    field.setNumber(threshold, "DistMin", 0.1 * height)
-    field.setNumber(threshold, "DistMax", 0.5 * height)
-    field.setAsBackgroundMesh(threshold)
-    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    refine_near(gmsh, h_bottom or h, h, 0.1 * height, 0.5 * height, curves=[bottom])
     gmsh.model.mesh.generate(2)
