@@ -84,6 +84,7 @@ class Problem:
     context: Context | None = None            # x and t of the scene's expressions
     updates: list = field(default_factory=list)   # callables run at each new time
     gap: fem.Function | None = None           # initial gap h at the P1 nodes
+    implicit_terms: list = field(default_factory=list)  # (Constant, k/2 R(0)) of the trapezoid
 
     @property
     def unknowns(self) -> list[fem.Function]:
@@ -106,9 +107,12 @@ class Problem:
             update()
 
     def update_history(self):
-        """Take eps(u_n) of the current (converged) u into the history; set H_{n+1}."""
+        """Take eps(u_n) of the current (converged) u into the history; set H_{n+1} (and the
+        implicit weight k/2 R(0) of the trapezoid rule, which is 0 at t_0)."""
         if self.history is None:
             return
+        for constant, weight in self.implicit_terms:
+            constant.value = weight
         self.eps_function.interpolate(self.eps_expression)
         self.H.x.array[:] = self.history.advance(self.eps_function.x.array)
 
@@ -276,11 +280,15 @@ def _memory(scene, mesh, u, sigma, k, constants):
     parts = {"full": eps, "deviatoric": ufl.dev(eps),
              "volumetric": ufl.tr(eps) / d * ufl.Identity(d)}
     sigma = sigma + H
+    implicit_terms = []
     for part, weight in implicit.items():
-        constants[f"memory_implicit_{part}"] = _scalar(mesh, weight)
+        # Zero at t_0, where there is no history yet; update_history switches it on.
+        constants[f"memory_implicit_{part}"] = _scalar(mesh, 0.0)
+        implicit_terms.append((constants[f"memory_implicit_{part}"], weight))
         sigma = sigma + constants[f"memory_implicit_{part}"] * parts[part]
     memory = dict(history=history, H=H, eps_function=fem.Function(T),
-                  eps_expression=fem.Expression(eps, T.element.interpolation_points()), T=T)
+                  eps_expression=fem.Expression(eps, T.element.interpolation_points()), T=T,
+                  implicit_terms=implicit_terms)
     return sigma, memory
 
 
