@@ -44,8 +44,11 @@ test-serial: install
 test-parallel: install
 	timeout $(TEST_TIMEOUT) $(MPIRUN) $(PY) -m pytest -q --color=no tests
 
+# Benchmarks write their tables to benchmarks/results/ (run by hand; not part of the tests).
 benchmark: install
-	$(PY) benchmarks/paper_scaling.py
+	cd benchmarks && ../$(PY) paper_scaling.py && ../$(PY) reductions.py && \
+	  ../$(PY) scenes.py && $(MPIRUN) ../$(PY) scenes.py && ../$(PY) verification.py && \
+	  ../$(PY) tradeoff.py
 
 clean:
 	rm -rf results build *.egg-info

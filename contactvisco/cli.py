@@ -22,6 +22,8 @@ def _parser():
     run.add_argument("--out", default=None, help="output folder (default results/<scene name>)")
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scene value, e.g. --set time.steps=100")
+    run.add_argument("--preset", choices=["fast", "balanced", "accurate"],
+                     help="speed-accuracy preset (scales the scene's mesh and steps)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
     sub.add_parser("scenes", help="list the built-in scenes")
     show = sub.add_parser("show", help="print a scene with its defaults filled in")
@@ -46,7 +48,8 @@ def main(argv=None):
             for name in scene_module.builtin_names():
                 print(f"{name:12s} {scene_module.load(name)['description']}")
             return 0
-        scene = scene_module.load(args.scene, args.set)
+        preset = [f"preset='{args.preset}'"] if getattr(args, "preset", None) else []
+        scene = scene_module.load(args.scene, preset + args.set)
         if args.command == "show":
             from .output import jsonable
             print(json.dumps(jsonable(scene), indent=2))

@@ -18,6 +18,7 @@ SCENE_DIR = pathlib.Path(__file__).parent / "scenes"
 DEFAULTS: dict = {
     "name": "unnamed",
     "description": "",
+    "preset": None,               # fast | balanced | accurate: see PRESETS
     "geometry": {
         "type": "box",            # box: structured mesh made in memory (2D triangles, 3D tets)
                                   # gmsh: a mesh script from meshes/ (or a .msh file)
@@ -72,6 +73,18 @@ DEFAULTS: dict = {
                                    # lambda_tau
         "figures": True,
     },
+}
+
+#: Speed-accuracy presets, relative to the scene's own discretization: mesh refines the mesh
+#: (box cells times mesh; gmsh sizes h* divided by mesh), steps multiplies time.steps.
+#: Chosen from the measured trade-off (benchmarks/tradeoff.py, README): on the built-in scenes
+#: the space error dominates (the time error at the scenes' own k is 20-50 times smaller), so
+#: no preset refines time; P2 is faster per error on the paper scene but its Newton diverges
+#: on pure Signorini contact (Hertz), so every preset stays P1 with exact nodal conditions.
+PRESETS = {
+    "fast": {"mesh": 0.5, "steps": 1.0, "degree": 1, "rule": "trapezoid"},
+    "balanced": {"mesh": 1.0, "steps": 1.0, "degree": 1, "rule": "trapezoid"},
+    "accurate": {"mesh": 2.0, "steps": 1.0, "degree": 1, "rule": "trapezoid"},
 }
 
 #: Defaults of the [contact] table, used when a scene has one.
@@ -156,8 +169,15 @@ def resolve(raw: dict, overrides: list[str] = ()) -> dict:
             raise SceneError("material: give either E and nu or lambda and mu, not both")
     if raw.get("contact") is not None:
         scene["contact"] = _merge(CONTACT_DEFAULTS, raw["contact"], "contact.")
-    for text in overrides:
-        _apply_set(scene, *parse_assignment(text))
+    assignments = [parse_assignment(text) for text in overrides]
+    for path, value in assignments:          # a preset from --set first, then the rest
+        if path == ["preset"]:
+            scene["preset"] = value
+    if scene["preset"] is not None:
+        apply_preset(scene, scene["preset"])
+    for path, value in assignments:
+        if path != ["preset"]:
+            _apply_set(scene, path, value)
     _lame_to_young(scene["material"])
     contact = scene["contact"]
     if contact is not None:
@@ -182,6 +202,27 @@ def load(name_or_path: str, overrides: list[str] = ()) -> dict:
     except tomllib.TOMLDecodeError as err:
         raise SceneError(f"{path}: {err}") from None
     return resolve(raw, overrides)
+
+
+def apply_preset(scene: dict, name: str) -> None:
+    """Scale the scene's discretization by the preset `name` (see PRESETS)."""
+    if name not in PRESETS:
+        hint = difflib.get_close_matches(str(name), list(PRESETS), n=1)
+        raise SceneError(f"unknown preset '{name}'" + (f" (did you mean '{hint[0]}'?)" if hint
+                                                       else "")
+                         + f"; allowed: {', '.join(PRESETS)}")
+    preset = PRESETS[name]
+    geo = scene["geometry"]
+    if geo["type"] == "box":
+        geo["cells"] = [max(1, round(n * preset["mesh"])) for n in geo["cells"]]
+    else:
+        geo["parameters"] = {k: (v / preset["mesh"] if k.startswith("h") else v)
+                             for k, v in geo["parameters"].items()}
+    scene["time"]["steps"] = max(1, round(scene["time"]["steps"] * preset["steps"]))
+    scene["time"]["rule"] = preset["rule"]
+    scene["discretization"]["degree"] = preset["degree"]
+    if preset["degree"] > 1:
+        scene["discretization"]["contact_quadrature"] = "gauss"
 
 
 def _lame_to_young(material: dict) -> None:

@@ -75,3 +75,20 @@ def test_only_needed_terms_are_built(overrides, unknowns, history):
     assert (problem.H is not None) == history
     # the residual depends on exactly these unknowns
     assert len(problem.F) == len(unknowns)
+
+
+def test_presets_scale_the_scene():
+    base = scene_module.load("paper")
+    fast = scene_module.load("paper", ["preset='fast'"])
+    accurate = scene_module.load("paper", ["preset='accurate'"])
+    assert fast["geometry"]["cells"] == [16, 16] and fast["time"]["steps"] == 10
+    assert accurate["geometry"]["cells"] == [64, 64] and accurate["time"]["steps"] == 10
+    assert base["time"]["rule"] == "paper" and accurate["time"]["rule"] == "trapezoid"
+    # --set after the preset still wins, whatever the order on the command line
+    both = scene_module.load("paper", ["time.steps=7", "preset='accurate'"])
+    assert both["time"]["steps"] == 7 and both["geometry"]["cells"] == [64, 64]
+    hertz = scene_module.load("hertz", ["preset='fast'"])
+    assert hertz["geometry"]["parameters"]["h_contact"] == pytest.approx(0.0054)
+    assert hertz["geometry"]["parameters"]["radius"] == 1.0       # not a mesh size
+    with pytest.raises(scene_module.SceneError, match="did you mean 'fast'"):
+        scene_module.load("paper", ["preset='fats'"])
