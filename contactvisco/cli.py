@@ -3,6 +3,7 @@
     contactvisco run SCENE [--out DIR] [--set key=value ...] [PETSc options]
     contactvisco scenes
     contactvisco show SCENE [--set key=value ...]
+    contactvisco plot DIR
 
 SCENE is a built-in scene name or a TOML file. Arguments that start with a single dash and are
 not ours (-snes_monitor, -ksp_type gmres, ...) go to PETSc.
@@ -26,6 +27,8 @@ def _parser():
                      help="speed-accuracy preset (scales the scene's mesh and steps)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
     sub.add_parser("scenes", help="list the built-in scenes")
+    plot = sub.add_parser("plot", help="redraw the figures of a finished run")
+    plot.add_argument("folder", help="a run's output folder")
     show = sub.add_parser("show", help="print a scene with its defaults filled in")
     show.add_argument("scene")
     show.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
@@ -43,6 +46,8 @@ def main(argv=None):
     petsc4py.init([sys.argv[0]] + petsc_args)
 
     from . import scene as scene_module
+    if args.command == "plot":
+        return _plot(args.folder)
     try:
         if args.command == "scenes":
             for name in scene_module.builtin_names():
@@ -65,6 +70,18 @@ def main(argv=None):
     except scene_module.SceneError as err:
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
+    return 0
+
+
+def _plot(folder):
+    import pathlib
+    if not (pathlib.Path(folder) / "summary.json").exists():
+        print(f"contactvisco: {folder} has no summary.json: not a contactvisco output folder",
+              file=sys.stderr)
+        return 2
+    from .figures import draw_all
+    for path in draw_all(folder):
+        print(path)
     return 0
 
 

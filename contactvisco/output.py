@@ -143,7 +143,7 @@ class Writer:
             d = problem.geometry.mesh.geometry.dim
             self.csv.writerow(["step", "t"] + ["xyz"[i] for i in range(d)]
                               + ["u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
-                                 "status"])
+                                 "friction_bound", "status"])
         self.xdmf = None
         if xdmf:
             self.xdmf = io.XDMFFile(comm, str(self.folder / "solution.xdmf"), "w")
@@ -161,7 +161,8 @@ class Writer:
                 self.csv.writerow([record["step"], repr(record["t"])]
                                   + [repr(float(c)) for c in table["x"][i]]
                                   + [repr(float(table[key][i])) for key in
-                                     ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau")]
+                                     ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
+                                      "radius")]
                                   + [STATUSES[table["status"][i]]])
             self.csv_file.flush()
         self._write_summary()
@@ -196,9 +197,10 @@ def jsonable(value):
     return value
 
 
-def gather_mesh(problem, comm):
-    """(points (n, d), triangles (m, 3), displacement (n, d)) of a P1 2D mesh on rank 0 (None
-    elsewhere), in a numbering independent of the rank count."""
+def gather_mesh(problem, sigma, comm):
+    """(points (n, d), cells (m, d+1), displacement (n, d), von Mises stress per cell (m,))
+    of the mesh's vertices on rank 0 (None elsewhere), in a numbering independent of the rank
+    count. In 2D the von Mises stress is that of the in-plane stress (sigma_zz taken as 0)."""
     V = problem.V
     d = problem.geometry.mesh.geometry.dim
     imap = V.dofmap.index_map
@@ -209,12 +211,31 @@ def gather_mesh(problem, comm):
     n_cells = problem.geometry.mesh.topology.index_map(d).size_local
     cell_dofs = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[:n_cells, :d + 1]
     cells = imap.local_to_global(cell_dofs.ravel()).reshape(-1, d + 1)
-    parts = comm.gather((global_index, x, u, cells), root=0)
+    T = sigma.function_space
+    stress_dofs = T.dofmap.list.array.reshape(-1, T.dofmap.dof_layout.num_dofs)[:n_cells]
+    stress = sigma.x.array.reshape(-1, d, d)[stress_dofs].mean(axis=1)   # cell averages
+    parts = comm.gather((global_index, x, u, cells, von_mises(stress)), root=0)
     if comm.rank != 0:
         return None
     size = imap.size_global
     points, disp = np.zeros((size, d)), np.zeros((size, d))
-    for gi, xi, ui, _ in parts:
+    for gi, xi, ui, _, _ in parts:
         points[gi], disp[gi] = xi, ui
-    triangles = np.concatenate([p[3] for p in parts])
-    return points, triangles, disp
+    return (points, np.concatenate([p[3] for p in parts]), disp,
+            np.concatenate([p[4] for p in parts]))
+
+
+def von_mises(stress: np.ndarray) -> np.ndarray:
+    """sqrt(3/2 s:s), s the deviator of the (3 x 3, zero-padded in 2D) stress tensors."""
+    full = np.zeros((len(stress), 3, 3))
+    d = stress.shape[1]
+    full[:, :d, :d] = stress
+    dev = full - np.einsum("cii->c", full)[:, None, None] / 3 * np.eye(3)
+    return np.sqrt(1.5 * np.einsum("cij,cij->c", dev, dev))
+
+
+def write_snapshots(path, snapshots):
+    """snapshots.npz: the mesh once, then per figure time its displacement and stress."""
+    times, points, cells, disp, mises = zip(*snapshots)
+    np.savez_compressed(path, times=np.array(times), points=points[0], cells=cells[0],
+                        displacements=np.array(disp), von_mises=np.array(mises))

@@ -93,8 +93,10 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
                 fields = [available[name] for name in opts["fields"]
                           if available[name] is not None]
             writer.step(record, table, fields)
-            if n in figure_steps and opts["figures"] and geometry.mesh.geometry.dim == 2:
-                gathered = output.gather_mesh(problem, comm)
+            if n in figure_steps and opts["figures"]:
+                if writer.xdmf is None or "sigma" not in opts["fields"]:
+                    sigma.interpolate(problem.sigma_expression)
+                gathered = output.gather_mesh(problem, sigma, comm)
                 if gathered is not None:
                     snapshots.append((t,) + gathered)
         say(f"step {n:4d}/{N}  t = {t:.4g}  Newton {iterations:2d}  "
@@ -107,18 +109,17 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     if writer is not None:
         writer.finish(final)
         if comm.rank == 0 and opts["figures"]:
-            _figures(pathlib.Path(out), snapshots, table, T, scene)
+            from . import figures
+            output.write_snapshots(pathlib.Path(out) / "snapshots.npz", snapshots)
+            try:
+                figures.draw_all(pathlib.Path(out))
+            except Exception as err:   # the results are written; a figure must not lose them
+                print(f"contactvisco: warning: figures failed ({type(err).__name__}: {err}); "
+                      f"the results in {out} are complete; retry with 'contactvisco plot "
+                      f"{out}'", file=sys.stderr, flush=True)
     say(f"done in {final['wall_s']:.2f} s; at t = {T:g}: "
         + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
     return result
-
-
-def _figures(folder, snapshots, table, T, scene):
-    from . import figures
-    if snapshots:
-        figures.deformed_meshes(snapshots, folder / "deformed_mesh.png")
-    if table is not None:
-        figures.contact_profiles(table, T, scene["contact"]["g"], folder)
 
 
 def _printer(comm, enabled):

@@ -38,10 +38,10 @@
 import json
 import pathlib
 
-import matplotlib.pyplot as plt
 from mpi4py import MPI
 
 from contactvisco import scene as scene_module
+from contactvisco.notebook import quick, show_images
 from contactvisco.run import simulate
 
 # %% [markdown]
@@ -51,6 +51,8 @@ from contactvisco.run import simulate
 
 # %%
 scene = scene_module.load("paper")
+if quick():
+    scene["output"]["xdmf"] = False
 for table in ("material", "memory", "contact", "time"):
     print(f"{table:9s}", scene[table])
 
@@ -83,9 +85,5 @@ for step in (summary["steps"][1], summary["steps"][-1]):
 
 # %%
 if MPI.COMM_WORLD.rank == 0:
-    for name in ("deformed_mesh", "contact_reactions", "contact_displacements"):
-        image = plt.imread(out / f"{name}.png")
-        fig, ax = plt.subplots(figsize=(9, 9 * image.shape[0] / image.shape[1]))
-        ax.imshow(image)
-        ax.axis("off")
-        plt.show()
+    show_images(*(out / f"{name}.png" for name in ("deformed_mesh", "contact_reactions",
+                                                   "contact_displacements", "stress")))

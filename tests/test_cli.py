@@ -40,6 +40,23 @@ def test_run_writes_results(tmp_path):
         assert (out / name).stat().st_size > 0, name
 
 
+def test_plot_redraws_every_figure_from_the_files(tmp_path):
+    """The run writes its figures from its own output files; `contactvisco plot` redraws
+    them (including the pyvista stress rendering, drawn in a child process) after deletion."""
+    out = tmp_path / "paper"
+    assert cli("run", "paper", "--out", str(out), "--set", "geometry.cells=[6, 6]",
+               "--set", "time.steps=2", "--quiet").returncode == 0
+    names = {"deformed_mesh.png", "stress.png", "contact_reactions.png",
+             "contact_displacements.png", "probes.png"}
+    assert names <= {p.name for p in out.glob("*.png")}
+    for png in out.glob("*.png"):
+        png.unlink()
+    proc = cli("plot", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert names <= {p.name for p in out.glob("*.png") if p.stat().st_size > 1000}
+    assert cli("plot", str(tmp_path)).returncode == 2     # not an output folder
+
+
 def test_summary_is_strict_json_without_a_bound(tmp_path):
     proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
                "--set", "time.steps=1", "--set", "contact.g=inf", "--quiet")

@@ -1,5 +1,7 @@
 """Every demo in demos/ runs as a notebook (jupytext -> nbclient, a kernel from this
-environment) without error, and the paper demo prints the paper's zone counts."""
+environment) without error, at the small sizes CONTACTVISCO_QUICK selects, and the paper demo
+prints the paper's zone counts."""
+import os
 import pathlib
 
 import pytest
@@ -12,7 +14,8 @@ pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
 
 
 @pytest.mark.parametrize("demo", DEMOS, ids=[d.stem for d in DEMOS])
-def test_demo_runs_as_notebook(demo, tmp_path):
+def test_demo_runs_as_notebook(demo, tmp_path, monkeypatch):
+    monkeypatch.setitem(os.environ, "CONTACTVISCO_QUICK", "1")   # the kernel inherits it
     jupytext = pytest.importorskip("jupytext")
     nbclient = pytest.importorskip("nbclient")
     notebook = jupytext.read(demo)
