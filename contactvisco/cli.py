@@ -26,6 +26,8 @@ def _parser():
     run.add_argument("--preset", choices=["fast", "balanced", "accurate"],
                      help="speed-accuracy preset (scales the scene's mesh and steps)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.add_argument("--traceback", action="store_true",
+                     help="show the Python traceback of an unexpected error")
     sub.add_parser("scenes", help="list the built-in scenes")
     plot = sub.add_parser("plot", help="redraw the figures of a finished run")
     plot.add_argument("folder", help="a run's output folder")
@@ -62,15 +64,38 @@ def main(argv=None):
         from .run import simulate
         from .solver import NewtonFailure
         out = args.out or f"results/{scene['name']}"
+        _check_writable(out)
         try:
             simulate(scene, out, progress=not args.quiet)
         except NewtonFailure as err:
             print(f"contactvisco: {err}", file=sys.stderr)
             return 3
+        except scene_module.SceneError:
+            raise
+        except Exception as err:          # no bare traceback for users; --traceback shows it
+            if args.traceback:
+                raise
+            print(f"contactvisco: error: {type(err).__name__}: {err} (run again with "
+                  "--traceback for the details)", file=sys.stderr)
+            return 1
     except scene_module.SceneError as err:
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
     return 0
+
+
+def _check_writable(folder):
+    """Fail before any work if the output folder cannot be written."""
+    import pathlib
+    import tempfile
+    from .scene import SceneError
+    path = pathlib.Path(folder)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path):
+            pass
+    except OSError as err:
+        raise SceneError(f"output folder '{folder}' is not writable: {err.strerror}") from None
 
 
 def _plot(folder):

@@ -32,10 +32,25 @@ class Geometry:
     names: dict[str, int]          # boundary name -> facet tag value
 
     def facets(self, name: str) -> np.ndarray:
+        """The local facets of a named boundary; a name that is unknown, has no facet, or
+        names facets inside the body is a scene error."""
         if name not in self.names:
             raise SceneError(f"no boundary named '{name}'; this geometry has "
                              f"{', '.join(sorted(self.names))}")
-        return self.facet_tags.find(self.names[name])
+        found = self.facet_tags.find(self.names[name])
+        comm = self.mesh.comm
+        if comm.allreduce(found.size, MPI.SUM) == 0:
+            raise SceneError(f"boundary '{name}' has no facets in this mesh")
+        # A facet with two cells (ghosts included) is inside the body; a boundary facet never
+        # has two, and an inner one has two on at least one rank.
+        fdim = self.mesh.topology.dim - 1
+        self.mesh.topology.create_connectivity(fdim, fdim + 1)
+        cells_per_facet = np.diff(self.mesh.topology.connectivity(fdim, fdim + 1).offsets)
+        inside = comm.allreduce(int(np.sum(cells_per_facet[found] == 2)), MPI.SUM)
+        if inside:
+            raise SceneError(f"boundary '{name}' has facets inside the body, not on its "
+                             "boundary")
+        return found
 
 
 def build(scene: dict, comm=MPI.COMM_WORLD) -> Geometry:
@@ -143,10 +158,16 @@ def _gmsh(geo, d: int, comm) -> Geometry:
     if comm.rank == 0:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.merge(str(path))
-        names = {gmsh.model.getPhysicalName(d - 1, tag): tag
-                 for _, tag in gmsh.model.getPhysicalGroups(d - 1)}
+        try:
+            gmsh.merge(str(path))
+            names = {gmsh.model.getPhysicalName(d - 1, tag): tag
+                     for _, tag in gmsh.model.getPhysicalGroups(d - 1)}
+        except Exception as err:   # gmsh reports a bad file as a plain Exception
+            names = f"cannot read mesh file {path}: {err}"
+            gmsh.finalize()
     names = comm.bcast(names, root=0)
+    if isinstance(names, str):
+        raise SceneError(names)
     mesh, _, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=d)
     if comm.rank == 0:
         gmsh.finalize()

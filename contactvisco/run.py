@@ -14,7 +14,7 @@ from . import geometry as geometry_module
 from . import output
 from . import scene as scene_module
 from .problem import Problem, build
-from .solver import BlockSNES
+from .solver import BlockSNES, NewtonFailure
 
 
 @dataclass
@@ -71,7 +71,11 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         problem.set_time(t)
         if n > 0:
             problem.update_history()     # H_n from u_0 .. u_{n-1} (eq 19)
-        iterations = snes.solve()
+        try:
+            iterations = snes.solve()
+        except NewtonFailure as err:
+            raise NewtonFailure(f"step {n} (t = {t:g}): {err}; {likely_cause(err, scene, n)}",
+                                err.reason, err.residuals) from None
         wall = clock.perf_counter() - tick
         table = output.contact_table(problem, comm)
         counts = output.status_counts(table)
@@ -120,6 +124,23 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     say(f"done in {final['wall_s']:.2f} s; at t = {T:g}: "
         + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
     return result
+
+
+def likely_cause(err: NewtonFailure, scene: dict, step: int) -> str:
+    """A hint from the SNES reason and the scene."""
+    if err.reason == -3:
+        return ("likely cause: the linear solve failed; is the body held (Dirichlet conditions "
+                "or a contact law with stiffness) against every rigid motion?")
+    if err.reason == -4:
+        return ("likely cause: the residual became NaN or Inf; check expressions for "
+                "divisions by zero or overflow, and extreme parameter values")
+    if err.reason == -5:
+        hint = "likely cause: too large a step for the contact state to settle"
+        if step > 0 and scene["time"]["rule"] == "paper" and \
+                scene_module.stability_number(scene) >= 1:
+            hint += " (the paper's time rule is unstable at this step: use 'trapezoid')"
+        return hint + "; try more time steps or raise -snes_max_it"
+    return "see the residual history"
 
 
 def _printer(comm, enabled):

@@ -198,10 +198,37 @@ def load(name_or_path: str, overrides: list[str] = ()) -> dict:
         raise SceneError(f"no scene '{name_or_path}': not a built-in scene "
                          f"({', '.join(builtin_names())}) and no such file")
     try:
-        raw = tomllib.loads(path.read_text())
+        text = path.read_text()
+        raw = tomllib.loads(text)
+    except (OSError, UnicodeDecodeError) as err:
+        raise SceneError(f"cannot read scene file {path}: {err}") from None
     except tomllib.TOMLDecodeError as err:
         raise SceneError(f"{path}: {err}") from None
-    return resolve(raw, overrides)
+    try:
+        return resolve(raw, overrides)
+    except SceneError as err:
+        raise SceneError(f"{err}{origin(str(err), path, text, overrides)}") from None
+
+
+def origin(message: str, path, text: str, overrides) -> str:
+    """Where the value a message names came from: a --set, or a line of the scene file."""
+    key = message.split(" ", 1)[0].rstrip(":,")
+    dotted = key.replace("[", ".").replace("]", "")
+    if dotted.split(".")[0] not in DEFAULTS:
+        return ""
+    for text_set in overrides:
+        set_key = text_set.split("=", 1)[0].strip()
+        if dotted == set_key or dotted.startswith(set_key + "."):
+            return f" (from --set {text_set})"
+    last = [part for part in dotted.split(".") if not part.isdigit()][-1]
+    for number, line in enumerate(text.splitlines(), start=1):
+        if "=" in line and line.split("=", 1)[0].strip() == last:
+            return f" ({path.name}, line {number}: {line.strip()})"
+    section = f"[[{last}]]"
+    for number, line in enumerate(text.splitlines(), start=1):
+        if line.strip() == section:
+            return f" ({path.name}, line {number}: {section})"
+    return " (a default value)"
 
 
 def apply_preset(scene: dict, name: str) -> None:
@@ -249,8 +276,45 @@ def check(scene: dict) -> None:
     def finite(x):
         return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
+    def number_list(value, where, length=None):
+        need(isinstance(value, list) and all(finite(v) for v in value)
+             and (length is None or len(value) == length),
+             f"{where} must be a list of {length or 'any number of'} finite numbers, "
+             f"got {value!r}")
+
+    def table_list(key, required):
+        items = scene[key]
+        need(isinstance(items, list) and all(isinstance(i, dict) for i in items),
+             f"{key} must be a list of tables ([[{key}]] in TOML), got {items!r}")
+        for i, item in enumerate(items):
+            missing = [r for r in required if r not in item]
+            need(not missing, f"{key}[{i}] needs {', '.join(missing)}")
+
     geo, mat, mem, time = scene["geometry"], scene["material"], scene["memory"], scene["time"]
     d = dimension(scene)
+    for key in ("lower", "upper", "cells"):
+        need(isinstance(geo[key], list), f"geometry.{key} must be a list, got {geo[key]!r}")
+    table_list("dirichlet", ["boundary"])
+    table_list("traction", ["boundary", "value"])
+    for i, item in enumerate(scene["dirichlet"]):
+        comps = item.get("components", "all")
+        need(comps == "all" or (isinstance(comps, list) and all(
+            isinstance(c, int) and not isinstance(c, bool) and 0 <= c < d for c in comps)),
+            f"dirichlet[{i}].components must be 'all' or a list of components 0..{d - 1} of "
+            f"a {d}D displacement, got {comps!r}")
+    for i, item in enumerate(scene["traction"]):
+        need(isinstance(item["value"], list) and len(item["value"]) == d,
+             f"traction[{i}].value must be a list of {d} components, got {item['value']!r}")
+    body = scene["body_force"]["value"]
+    need(body is None or (isinstance(body, list) and len(body) == d),
+         f"body_force.value must be a list of {d} components, got {body!r}")
+    probes = scene["output"]["probes"]
+    need(isinstance(probes, list), f"output.probes must be a list of points, got {probes!r}")
+    for i, point in enumerate(probes):
+        number_list(point, f"output.probes[{i}]", d)
+    number_list(scene["output"]["figure_times"], "output.figure_times")
+    need(scene["contact"] is None or isinstance(scene["contact"], dict),
+         f"contact must be a table, got {scene['contact']!r}")
     need(mat["model"] in ("plane_stress", "plane_strain", "3d"),
          f"material.model must be plane_stress, plane_strain or 3d, got '{mat['model']}'")
     need(geo["type"] in ("box", "gmsh"), f"geometry.type must be box or gmsh, got '{geo['type']}'")

@@ -7,6 +7,7 @@ the semismooth residual.
 """
 from __future__ import annotations
 
+import numpy as np
 from dolfinx import fem
 from dolfinx.fem.petsc import (assemble_matrix_block, assemble_vector_block,
                                create_matrix_block, create_vector_block)
@@ -113,6 +114,8 @@ class BlockSNES:
         self.snes.solve(None, self.x)
         self._to_functions(self.x)
         reason = self.snes.getConvergedReason()
+        if reason > 0 and not np.isfinite(self.x.norm()):
+            reason = -4      # never accept a non-finite solution as converged
         if reason <= 0:
             raise NewtonFailure(
                 f"Newton did not converge (SNES reason {reason}) after "
