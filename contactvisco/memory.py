@@ -46,46 +46,75 @@ def project(eps: np.ndarray, part: str, d: int) -> np.ndarray:
 
 
 class History:
-    """Incremental history stress of eq (19) for a Prony kernel [(alpha, tau, part)]."""
+    """History stress of eq (19) for a Prony kernel [(alpha, tau, part)], incremental.
 
-    def __init__(self, terms, k: float, rule: str = "paper", d: int = 2):
+    Steps may differ in size (step cutting). With P_n the trapezoid sum over [t_0, t_n] at t_n
+    (weights k_1/2, (k_j + k_{j+1})/2, k_n/2) and d = exp(-k/tau) for the next step k:
+
+        P_{n+1} = d P_n + k/2 (d e_n + e_{n+1})                    (commit)
+        H_{n+1} = sum_i alpha_i (d_i P_i,n + c k d_i e_i,n)        (explicit)
+
+    with c = 1 for the paper's rule (left point on the last sub-interval) and c = 1/2 for the
+    trapezoid rule, whose remaining k/2 R(0) eps_{n+1} is implicit. For uniform steps this is
+    eq (19) term by term; each call is O(1) in the number of steps.
+    """
+
+    def __init__(self, terms, k: float = None, rule: str = "paper", d: int = 2):
         self.terms = [(float(a), float(tau), part) for a, tau, part in terms]
-        self.decays = [math.exp(-k / tau) for _, tau, _ in self.terms]   # 1 if tau = inf
         self.k, self.rule, self.d = k, rule, d
-        self.sums: list[np.ndarray] | None = None   # B_i,n
+        self.sums: list[np.ndarray] | None = None   # P_i,n
+        self.last: dict | None = None               # parts of eps_n
         self.direct = False
 
-    def advance(self, eps: np.ndarray) -> np.ndarray:
-        """Take the converged strain eps_n of step n; return H_{n+1} (its explicit part for
-        the trapezoid rule), the history stress of the next step."""
-        k = self.k
-        parts = {part: project(eps, part, self.d) for _, _, part in self.terms}
+    def commit(self, eps: np.ndarray, k: float | None):
+        """Take the strain of a converged state, reached by a step of size k (None at t_0)."""
+        parts = {part: project(eps, part, self.d).copy() for _, _, part in self.terms}
         if self.sums is None:
-            self.sums = [0.5 * k * dec * parts[part]
-                         for (_, _, part), dec in zip(self.terms, self.decays)]
+            self.sums = [np.zeros_like(eps) for _ in self.terms]
         else:
-            for s, (_, _, part), dec in zip(self.sums, self.terms, self.decays):
+            for s, (_, tau, part) in zip(self.sums, self.terms):
+                dec = math.exp(-k / tau)              # 1 if tau = inf
                 s *= dec
-                s += (k * dec) * parts[part]
-        out = np.zeros_like(eps)
-        for (a, _, part), dec, s in zip(self.terms, self.decays, self.sums):
-            out += a * s
-            if self.rule == "paper":
-                out += (a * 0.5 * k * dec) * parts[part]
+                s += (0.5 * k * dec) * self.last[part] + (0.5 * k) * parts[part]
+        self.last = parts
+
+    def explicit(self, k: float) -> np.ndarray:
+        """The history stress (its explicit part for the trapezoid rule) of a step of size k
+        from the committed state; nothing is changed, so a failed step can be retried."""
+        c = 1.0 if self.rule == "paper" else 0.5
+        out = np.zeros_like(self.sums[0])
+        for (a, tau, part), s in zip(self.terms, self.sums):
+            dec = math.exp(-k / tau)
+            out += (a * dec) * s + (a * c * k * dec) * self.last[part]
         return out
+
+    def advance(self, eps: np.ndarray) -> np.ndarray:
+        """Uniform steps of size self.k: commit eps_n and return H_{n+1}."""
+        self.commit(eps, None if self.sums is None else self.k)
+        return self.explicit(self.k)
 
 
 class DirectHistory:
-    """Eq (19) summed term by term for a general kernel R(t) eps = r(t) eps."""
+    """Eq (19) summed term by term for a general kernel R(t) eps = r(t) eps, any step sizes;
+    O(n) work and memory per step."""
 
-    def __init__(self, r, k: float, rule: str = "paper"):
+    def __init__(self, r, k: float = None, rule: str = "paper"):
         self.r, self.k, self.rule = r, k, rule
+        self.times: list[float] = []
         self.strains: list[np.ndarray] = []
         self.direct = True
 
-    def advance(self, eps: np.ndarray) -> np.ndarray:
+    def commit(self, eps: np.ndarray, k: float | None):
+        self.times.append(0.0 if not self.times else self.times[-1] + k)
         self.strains.append(eps.copy())
-        return direct_sum(lambda t, e: self.r(t) * e, self.k, self.strains, self.rule)
+
+    def explicit(self, k: float) -> np.ndarray:
+        return direct_sum(lambda t, e: self.r(t) * e, self.times, self.strains,
+                          self.times[-1] + k, self.rule)
+
+    def advance(self, eps: np.ndarray) -> np.ndarray:
+        self.commit(eps, None if not self.times else self.k)
+        return self.explicit(self.k)
 
 
 def prony(terms, d: int):
@@ -101,25 +130,33 @@ def table_kernel(times, values):
     return lambda t: float(np.interp(t, times, values))
 
 
-def implicit_weights(terms, k: float, rule: str) -> dict[str, float]:
-    """Per part, the weight c of the implicit term c P eps(u_{n+1}) of the history stress:
-    k/2 R(0) for the trapezoid rule, nothing for the paper's rule."""
+def implicit_weights(terms, rule: str) -> dict[str, float]:
+    """Per part, R(0) of the implicit term k/2 R(0) P eps(u_{n+1}) of the trapezoid rule;
+    nothing for the paper's rule."""
     if rule != "trapezoid":
         return {}
     out: dict[str, float] = {}
     for a, _, part in terms:
-        out[part] = out.get(part, 0.0) + 0.5 * k * a
+        out[part] = out.get(part, 0.0) + a
     return out
 
 
-def direct_sum(R, k: float, strains: list[np.ndarray], rule: str = "paper"):
-    """Eq (19) term by term: the history stress at t_n, n = len(strains), from eps_0..eps_{n-1}.
-    For the trapezoid rule it is the explicit part, without k/2 R(0) eps_n. R(t, eps) applies
-    the kernel at time t. O(n) work."""
-    n = len(strains)
-    out = 0.5 * k * R(n * k, strains[0])
-    for j in range(1, n):
-        out = out + k * R((n - j) * k, strains[j])
-    if rule == "trapezoid":
-        return out
-    return out + 0.5 * k * R(k, strains[n - 1])
+def direct_sum(R, times, strains: list[np.ndarray], t_next: float = None,
+               rule: str = "paper"):
+    """Eq (19) term by term at t_next from the strains at `times` (t_0 .. t_n), for any step
+    sizes: the trapezoid rule on [t_0, t_n] plus, on [t_n, t_next], the left point (paper's
+    rule) or the left half of the trapezoid (its implicit right end is left out). R(t, eps) applies
+    the kernel at time t. O(n) work. A number k for `times` means uniform steps: times j k and
+    t_next = (n + 1) k, which is eq (19) as printed."""
+    if not isinstance(times, (list, tuple, np.ndarray)):
+        k = times
+        times = [j * k for j in range(len(strains))]
+        t_next = len(strains) * k
+    out = np.zeros_like(strains[0])
+    for j in range(len(strains) - 1):
+        half = 0.5 * (times[j + 1] - times[j])
+        out = out + half * (R(t_next - times[j], strains[j])
+                            + R(t_next - times[j + 1], strains[j + 1]))
+    last = t_next - times[-1]          # the last sub-interval [t_n, t_next]
+    weight = last if rule == "paper" else 0.5 * last
+    return out + weight * R(last, strains[-1])

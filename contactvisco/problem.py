@@ -84,7 +84,8 @@ class Problem:
     context: Context | None = None            # x and t of the scene's expressions
     updates: list = field(default_factory=list)   # callables run at each new time
     gap: fem.Function | None = None           # initial gap h at the P1 nodes
-    implicit_terms: list = field(default_factory=list)  # (Constant, k/2 R(0)) of the trapezoid
+    implicit_terms: list = field(default_factory=list)  # (Constant, R(0) part) of the trapezoid
+    history_started: bool = False
 
     @property
     def unknowns(self) -> list[fem.Function]:
@@ -106,15 +107,32 @@ class Problem:
         for update in self.updates:
             update()
 
-    def update_history(self):
-        """Take eps(u_n) of the current (converged) u into the history; set H_{n+1} (and the
-        implicit weight k/2 R(0) of the trapezoid rule, which is 0 at t_0)."""
+    def commit(self, k: float | None):
+        """Take eps of the current, converged u (reached by a step of size k; None at t_0)
+        into the history."""
         if self.history is None:
             return
-        for constant, weight in self.implicit_terms:
-            constant.value = weight
         self.eps_function.interpolate(self.eps_expression)
-        self.H.x.array[:] = self.history.advance(self.eps_function.x.array)
+        self.history.commit(self.eps_function.x.array, k)
+
+    def prepare(self, k: float):
+        """Set the history stress H of a step of size k from the committed state, and the
+        implicit weight k/2 R(0) of the trapezoid rule (0 at t_0, where nothing is prepared).
+        A failed step can be prepared again with a smaller k."""
+        if self.history is None:
+            return
+        for constant, R0 in self.implicit_terms:
+            constant.value = 0.5 * k * R0
+        self.H.x.array[:] = self.history.explicit(k)
+
+    def update_history(self, k: float | None = None):
+        """Uniform steps: commit the current u and prepare the next step of size k (the
+        scene's T/N by default)."""
+        k = k or self.scene["time"]["T"] / self.scene["time"]["steps"]
+        first = self.history is not None and not self.history_started
+        self.commit(None if first else k)
+        self.history_started = True
+        self.prepare(k)
 
 
 def _scalar(mesh, value):
@@ -272,19 +290,19 @@ def _memory(scene, mesh, u, sigma, k, constants):
     H = fem.Function(T, name="history_stress")
     if table is not None:
         history = DirectHistory(table_kernel(*table), k, rule)
-        implicit = {"full": 0.5 * k * table[1][0]} if rule == "trapezoid" else {}
+        implicit = {"full": table[1][0]} if rule == "trapezoid" else {}
     else:
         history = History(terms, k, rule, d)
-        implicit = implicit_weights(terms, k, rule)
+        implicit = implicit_weights(terms, rule)
     eps = strain(u)
     parts = {"full": eps, "deviatoric": ufl.dev(eps),
              "volumetric": ufl.tr(eps) / d * ufl.Identity(d)}
     sigma = sigma + H
     implicit_terms = []
-    for part, weight in implicit.items():
-        # Zero at t_0, where there is no history yet; update_history switches it on.
+    for part, R0 in implicit.items():
+        # Zero at t_0, where there is no history yet; prepare(k) sets it to k/2 R(0).
         constants[f"memory_implicit_{part}"] = _scalar(mesh, 0.0)
-        implicit_terms.append((constants[f"memory_implicit_{part}"], weight))
+        implicit_terms.append((constants[f"memory_implicit_{part}"], R0))
         sigma = sigma + constants[f"memory_implicit_{part}"] * parts[part]
     memory = dict(history=history, H=H, eps_function=fem.Function(T),
                   eps_expression=fem.Expression(eps, T.element.interpolation_points()), T=T,

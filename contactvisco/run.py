@@ -64,24 +64,17 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         if writer is not None:
             writer.summary["warnings"] = [warning]
 
-    table = None
-    for n in range(N + 1):
-        t = n * k
-        tick = clock.perf_counter()
-        problem.set_time(t)
-        if n > 0:
-            problem.update_history()     # H_n from u_0 .. u_{n-1} (eq 19)
-        try:
-            iterations = snes.solve()
-        except NewtonFailure as err:
-            raise NewtonFailure(f"step {n} (t = {t:g}): {err}; {likely_cause(err, scene, n)}",
-                                err.reason, err.residuals) from None
-        wall = clock.perf_counter() - tick
+    figure_times = {round(i * k, 12) for i in figure_steps}
+    state = {"t": 0.0, "count": 0, "table": None}
+
+    def accept(t, iterations, wall, cuts):
+        """Record a converged state: tables, probes, files, figures, progress."""
+        n = state["count"]
         table = output.contact_table(problem, comm)
         counts = output.status_counts(table)
         record = {"step": n, "t": t, "newton_iterations": iterations,
                   "residual": snes.residuals[-1] if snes.residuals else 0.0,
-                  "residual_history": snes.residuals, "wall_s": wall,
+                  "residual_history": snes.residuals, "wall_s": wall, "cuts": cuts,
                   "status_counts": counts,
                   "probes": probes.values(problem.u, comm) if probes else []}
         result.steps.append(record)
@@ -97,16 +90,49 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
                 fields = [available[name] for name in opts["fields"]
                           if available[name] is not None]
             writer.step(record, table, fields)
-            if n in figure_steps and opts["figures"]:
+            if round(t, 12) in figure_times and opts["figures"]:
                 if writer.xdmf is None or "sigma" not in opts["fields"]:
                     sigma.interpolate(problem.sigma_expression)
                 gathered = output.gather_mesh(problem, sigma, comm)
                 if gathered is not None:
                     snapshots.append((t,) + gathered)
-        say(f"step {n:4d}/{N}  t = {t:.4g}  Newton {iterations:2d}  "
+        say(f"step {n:4d}  t = {t:.4g}/{T:g}  Newton {iterations:2d}  "
             f"|F| = {record['residual']:.2e}  "
             + " ".join(f"{key} {value}" for key, value in counts.items())
-            + f"  {wall:.3f} s")
+            + f"  {wall:.3f} s" + (f"  (cut x{2 ** cuts})" if cuts else ""))
+        state.update(t=t, count=n + 1, table=table)
+
+    def solve_to(t_new, cuts):
+        """One step to t_new; on failure restore the unknowns and take it in two halves,
+        at most solver.max_cuts times in a row."""
+        tick = clock.perf_counter()
+        step = t_new - state["t"]
+        saved = [f.x.array.copy() for f in problem.unknowns]
+        problem.set_time(t_new)
+        if state["count"] > 0:
+            problem.prepare(step)        # H from u_0 .. u_n (eq 19, any step sizes)
+        try:
+            iterations = snes.solve()
+        except NewtonFailure as err:
+            for f, values in zip(problem.unknowns, saved):
+                f.x.array[:] = values
+            if state["count"] == 0 or cuts >= scene["solver"]["max_cuts"]:
+                cut_note = f" after {cuts} cuts" if cuts else ""
+                raise NewtonFailure(
+                    f"step to t = {t_new:g} (from t = {state['t']:g}{cut_note}): {err}; "
+                    f"{likely_cause(err, scene, state['count'])}",
+                    err.reason, err.residuals) from None
+            say(f"step to t = {t_new:.4g} failed (SNES reason {err.reason}); "
+                f"taking it in two halves")
+            solve_to(state["t"] + 0.5 * step, cuts + 1)
+            solve_to(t_new, cuts + 1)
+            return
+        problem.commit(None if state["count"] == 0 else step)
+        accept(t_new, iterations, clock.perf_counter() - tick, cuts)
+
+    for n in range(N + 1):
+        solve_to(n * k, 0)
+    table = state["table"]
 
     final = {"t": T, "status_counts": output.status_counts(table),
              "wall_s": clock.perf_counter() - started, "setup_s": setup_s}

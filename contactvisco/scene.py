@@ -64,6 +64,8 @@ DEFAULTS: dict = {
     },
     "solver": {
         "petsc_options": {},      # PETSc options; the command line overrides them
+        "max_cuts": 4,            # a step whose Newton fails is halved, at most this many
+                                  # times in a row (0: no step cutting)
     },
     "output": {
         "probes": [],
@@ -392,6 +394,9 @@ def check(scene: dict) -> None:
         need(contact["mu"] == 0 or (contact["stiffness"] > 0 and contact["g"] > 0),
              f"contact.mu = {contact['mu']} has no effect: the friction bound mu p_nu(u_nu) is "
              "zero without a compliance stiffness > 0 and a layer g > 0; set contact.mu = 0")
+    cuts = scene["solver"]["max_cuts"]
+    need(isinstance(cuts, int) and not isinstance(cuts, bool) and 0 <= cuts <= 20,
+         f"solver.max_cuts must be an integer from 0 to 20, got {cuts!r}")
     fields = scene["output"]["fields"]
     allowed = ("u", "sigma", "history_stress", "lambda_nu", "lambda_tau")
     need(isinstance(fields, list) and all(f in allowed for f in fields),

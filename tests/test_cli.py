@@ -22,7 +22,7 @@ def test_run_writes_results(tmp_path):
     proc = cli("run", "paper", "--out", str(out), "--set", "geometry.cells=[8, 8]",
                "--set", "time.steps=2", "-snes_max_it", "30")
     assert proc.returncode == 0, proc.stderr
-    assert "step    2/2" in proc.stdout
+    assert "step    2  t = 1/1" in proc.stdout
     summary = json.loads((out / "summary.json").read_text())
     assert [s["t"] for s in summary["steps"]] == [0.0, 0.5, 1.0]
     for step in summary["steps"]:

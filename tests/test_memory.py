@@ -6,7 +6,7 @@ import pytest
 from mpi4py import MPI
 
 from contactvisco import geometry, problem as problem_module, scene as scene_module
-from contactvisco.memory import History, direct_sum, prony
+from contactvisco.memory import DirectHistory, History, direct_sum, prony
 from contactvisco.solver import BlockSNES
 
 KERNELS = {
@@ -64,3 +64,33 @@ def test_history_function_in_a_run():
             assert np.max(np.abs(problem.H.x.array - exact)) <= 1e-12 * np.max(np.abs(exact))
         snes.solve()
     assert len(strains) == 5 and np.max(np.abs(strains[-1])) > 1e-3
+
+
+@pytest.mark.parametrize("rule", ["paper", "trapezoid"])
+@pytest.mark.parametrize("name", ["constant", "prony-parts"])
+def test_non_uniform_steps_equal_the_direct_sum(rule, name):
+    """Steps of any sizes (as step cutting makes them): the incremental history equals eq (19)
+    with the trapezoid weights of the non-uniform grid, to round-off. A rejected step may be
+    prepared again with another size."""
+    terms = KERNELS[name]
+    rng = np.random.default_rng(11)
+    steps = rng.uniform(0.01, 0.2, 25)
+    history = History(terms, rule=rule, d=2)
+    times, strains = [], []
+    t = 0.0
+    for n, k in enumerate(steps):
+        eps = rng.standard_normal(12)
+        history.commit(eps, None if n == 0 else steps[n - 1])
+        times.append(t)
+        strains.append(eps)
+        history.explicit(3 * k)                      # a rejected attempt changes nothing
+        exact = direct_sum(prony(terms, 2), times, strains, t + k, rule)
+        assert np.max(np.abs(history.explicit(k) - exact)) <= 1e-12 * np.max(np.abs(exact))
+        t += k
+    table = DirectHistory(lambda s: 7.0 * math.exp(-s / 0.3), rule=rule)
+    for n, (eps, k) in enumerate(zip(strains, steps)):
+        table.commit(eps, None if n == 0 else steps[n - 1])
+    recursion = History([(7.0, 0.3, "full")], rule=rule, d=2)
+    for n, eps in enumerate(strains):
+        recursion.commit(eps, None if n == 0 else steps[n - 1])
+    assert np.allclose(table.explicit(0.05), recursion.explicit(0.05), rtol=1e-12, atol=0)

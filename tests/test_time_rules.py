@@ -61,7 +61,7 @@ def test_trapezoid_history_equals_direct_sum(terms):
     history = History(terms, k, "trapezoid", d=3)
     for n in range(1, len(strains) + 1):
         incremental = history.advance(strains[n - 1])
-        exact_sum = direct_sum(prony(terms, 3), k, strains[:n], "trapezoid")
+        exact_sum = direct_sum(prony(terms, 3), k, strains[:n], rule="trapezoid")
         assert np.max(np.abs(incremental - exact_sum)) <= 1e-12 * np.max(np.abs(exact_sum))
 
 
