@@ -48,7 +48,7 @@ test-parallel: install
 benchmark: install
 	cd benchmarks && ../$(PY) paper_scaling.py && ../$(PY) reductions.py && \
 	  ../$(PY) scenes.py && $(MPIRUN) ../$(PY) scenes.py && ../$(PY) verification.py && \
-	  ../$(PY) tradeoff.py
+	  ../$(PY) tradeoff.py && ../$(PY) extremes.py
 
 clean:
 	rm -rf results build *.egg-info
