@@ -26,6 +26,8 @@ def _parser():
     run.add_argument("--preset", choices=["fast", "balanced", "accurate"],
                      help="speed-accuracy preset (scales the scene's mesh and steps)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.add_argument("--restart", action="store_true",
+                     help="continue the run in --out from its last checkpoint")
     run.add_argument("--traceback", action="store_true",
                      help="show the Python traceback of an unexpected error")
     sub.add_parser("scenes", help="list the built-in scenes")
@@ -66,7 +68,7 @@ def main(argv=None):
         out = args.out or f"results/{scene['name']}"
         _check_writable(out)
         try:
-            simulate(scene, out, progress=not args.quiet)
+            simulate(scene, out, progress=not args.quiet, restart=args.restart)
         except NewtonFailure as err:
             print(f"contactvisco: {err}", file=sys.stderr)
             return 3

@@ -93,6 +93,18 @@ class History:
         self.commit(eps, None if self.sums is None else self.k)
         return self.explicit(self.k)
 
+    def state(self) -> dict:
+        """Arrays that restore() takes back (checkpoints)."""
+        out = {f"sum{i}": s for i, s in enumerate(self.sums or [])}
+        out.update({f"last_{part}": e for part, e in (self.last or {}).items()})
+        return out
+
+    def restore(self, state: dict):
+        count = sum(1 for key in state if key.startswith("sum"))
+        self.sums = [state[f"sum{i}"].copy() for i in range(count)] or None
+        self.last = {key[5:]: value.copy() for key, value in state.items()
+                     if key.startswith("last_")} or None
+
 
 class DirectHistory:
     """Eq (19) summed term by term for a general kernel R(t) eps = r(t) eps, any step sizes;
@@ -115,6 +127,15 @@ class DirectHistory:
     def advance(self, eps: np.ndarray) -> np.ndarray:
         self.commit(eps, None if not self.times else self.k)
         return self.explicit(self.k)
+
+    def state(self) -> dict:
+        out = {"times": np.array(self.times)}
+        out.update({f"strain{j}": e for j, e in enumerate(self.strains)})
+        return out
+
+    def restore(self, state: dict):
+        self.times = list(state["times"])
+        self.strains = [state[f"strain{j}"].copy() for j in range(len(self.times))]
 
 
 def prony(terms, d: int):

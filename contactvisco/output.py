@@ -127,7 +127,9 @@ class Probes:
 class Writer:
     """summary.json, contact_nodes.csv and solution.xdmf in one output folder."""
 
-    def __init__(self, folder, problem, comm, xdmf=True):
+    def __init__(self, folder, problem, comm, xdmf=True, restart_count=None):
+        """restart_count: continue the files of an earlier run after its first
+        restart_count steps (what a later crash may have written beyond them is dropped)."""
         self.folder = pathlib.Path(folder)
         self.comm = comm
         self.rank = comm.rank
@@ -136,17 +138,33 @@ class Writer:
         comm.barrier()
         self.summary = {"scene": problem.scene, "unknowns": problem.count_unknowns(),
                         "ranks": comm.size, "steps": [], "final": None}
+        if restart_count is not None:
+            earlier = json.loads((self.folder / "summary.json").read_text())
+            self.summary["steps"] = earlier["steps"][:restart_count]
+            self.summary["restarts"] = earlier.get("restarts", []) + [
+                {"from_step": restart_count}]
         self.csv = None
         if self.rank == 0 and problem.nodes is not None:
-            self.csv_file = open(self.folder / "contact_nodes.csv", "w", newline="")
-            self.csv = csv.writer(self.csv_file)
             d = problem.geometry.mesh.geometry.dim
-            self.csv.writerow(["step", "t"] + ["xyz"[i] for i in range(d)]
-                              + ["u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
-                                 "friction_bound", "status"])
+            header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
+                "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
+                "status"]
+            path = self.folder / "contact_nodes.csv"
+            kept = []
+            if restart_count is not None and path.exists():
+                with open(path, newline="") as f:
+                    kept = [row for row in list(csv.reader(f))[1:]
+                            if len(row) == len(header) and int(row[0]) < restart_count]
+            self.csv_file = open(path, "w", newline="")
+            self.csv = csv.writer(self.csv_file)
+            self.csv.writerow(header)
+            self.csv.writerows(kept)
         self.xdmf = None
         if xdmf:
-            self.xdmf = io.XDMFFile(comm, str(self.folder / "solution.xdmf"), "w")
+            # A restarted run continues in a file of its own: the earlier one may be cut.
+            name = "solution.xdmf" if restart_count is None else \
+                f"solution-restart{len(self.summary['restarts'])}.xdmf"
+            self.xdmf = io.XDMFFile(comm, str(self.folder / name), "w")
             self.xdmf.write_mesh(problem.geometry.mesh)
 
     def step(self, record: dict, table, fields=()):
@@ -234,8 +252,18 @@ def von_mises(stress: np.ndarray) -> np.ndarray:
     return np.sqrt(1.5 * np.einsum("cij,cij->c", dev, dev))
 
 
+def read_snapshots(path, t_max):
+    """The snapshots of snapshots.npz up to time t_max, as write_snapshots takes them."""
+    data = np.load(path)
+    return [(t, data["points"], data["cells"], disp, mises)
+            for t, disp, mises in zip(data["times"], data["displacements"], data["von_mises"])
+            if t <= t_max + 1e-12]
+
+
 def write_snapshots(path, snapshots):
     """snapshots.npz: the mesh once, then per figure time its displacement and stress."""
     times, points, cells, disp, mises = zip(*snapshots)
-    np.savez_compressed(path, times=np.array(times), points=points[0], cells=cells[0],
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez_compressed(tmp, times=np.array(times), points=points[0], cells=cells[0],
                         displacements=np.array(disp), von_mises=np.array(mises))
+    os.replace(tmp, path)

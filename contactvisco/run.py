@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from dolfinx import fem
 from mpi4py import MPI
 
+from . import checkpoint
 from . import geometry as geometry_module
 from . import output
 from . import scene as scene_module
@@ -25,8 +26,9 @@ class Result:
 
 
 def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
-             keep_tables=False) -> Result:
-    """Solve a resolved scene; write results into folder `out` when given."""
+             keep_tables=False, restart=False) -> Result:
+    """Solve a resolved scene; write results into folder `out` when given, with a checkpoint
+    after every step; restart=True continues from the checkpoint in `out`."""
     started = clock.perf_counter()
     geometry = geometry_module.build(scene, comm)
     problem = build(scene, geometry)
@@ -36,7 +38,9 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     opts = scene["output"]
     probes = output.Probes(geometry.mesh, opts["probes"]) if opts["probes"] else None
     sigma = fem.Function(problem.T, name="sigma")
-    writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"]) if out else None
+    resumed = checkpoint.load(out, problem, comm) if restart else None
+    writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
+                           restart_count=resumed and resumed["count"]) if out else None
     T, N = scene["time"]["T"], scene["time"]["steps"]
     k = T / N
     figure_steps = {min(N, max(0, round(t / k))) for t in opts["figure_times"]} | {N}
@@ -66,6 +70,12 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
 
     figure_times = {round(i * k, 12) for i in figure_steps}
     state = {"t": 0.0, "count": 0, "table": None}
+    if resumed:
+        state.update(t=resumed["t"], count=resumed["count"])
+        if comm.rank == 0 and (pathlib.Path(out) / "snapshots.npz").exists():
+            snapshots = output.read_snapshots(pathlib.Path(out) / "snapshots.npz", resumed["t"])
+        say(f"restarting from the checkpoint at t = {resumed['t']:g} (step "
+            f"{resumed['count'] - 1})")
 
     def accept(t, iterations, wall, cuts):
         """Record a converged state: tables, probes, files, figures, progress."""
@@ -96,6 +106,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
                 gathered = output.gather_mesh(problem, sigma, comm)
                 if gathered is not None:
                     snapshots.append((t,) + gathered)
+                    output.write_snapshots(pathlib.Path(out) / "snapshots.npz", snapshots)
         say(f"step {n:4d}  t = {t:.4g}/{T:g}  Newton {iterations:2d}  "
             f"|F| = {record['residual']:.2e}  "
             + " ".join(f"{key} {value}" for key, value in counts.items())
@@ -129,18 +140,25 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
             return
         problem.commit(None if state["count"] == 0 else step)
         accept(t_new, iterations, clock.perf_counter() - tick, cuts)
+        if out and opts["checkpoint"]:
+            checkpoint.save(out, problem, comm, t_new, state["count"], step)
 
     for n in range(N + 1):
+        if resumed and n * k <= state["t"] + 1e-12 * T:
+            continue                      # done before the restart
         solve_to(n * k, 0)
     table = state["table"]
 
-    final = {"t": T, "status_counts": output.status_counts(table),
+    if table is None and writer is not None and writer.summary["steps"]:
+        counts = writer.summary["steps"][-1]["status_counts"]     # nothing left after a restart
+    else:
+        counts = output.status_counts(table)
+    final = {"t": T, "status_counts": counts,
              "wall_s": clock.perf_counter() - started, "setup_s": setup_s}
     if writer is not None:
         writer.finish(final)
         if comm.rank == 0 and opts["figures"]:
             from . import figures
-            output.write_snapshots(pathlib.Path(out) / "snapshots.npz", snapshots)
             try:
                 figures.draw_all(pathlib.Path(out))
             except Exception as err:   # the results are written; a figure must not lose them

@@ -74,6 +74,7 @@ DEFAULTS: dict = {
         "fields": ["u", "sigma"],  # XDMF fields: u, sigma, history_stress, lambda_nu,
                                    # lambda_tau
         "figures": True,
+        "checkpoint": True,        # save the state after every step (for --restart)
     },
 }
 

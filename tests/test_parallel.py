@@ -19,7 +19,9 @@ KEYS = ("x", "u_nu", "u_tau", "reaction_nu", "reaction_tau", "lambda_nu")
                "contact.mu=0.5"]),
     # 3D, gmsh mesh, nonzero prescribed displacements that vary in x and t
     ("block3d", ["time.steps=4"]),
-    ("ironing", ["geometry.parameters.h=0.1", "time.steps=4"]),
+    # a moving load needs steps small enough for Newton to start near the solution: with 4
+    # steps the semismooth Newton was seen to end on another discrete solution now and then
+    ("ironing", ["geometry.parameters.h=0.1", "time.steps=20"]),
 ])
 def test_ranks_agree(name, overrides):
     scene = scene_module.load(name, overrides)
