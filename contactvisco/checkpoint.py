@@ -36,6 +36,14 @@ def _keys(space):
     return np.hstack([coords, compute_midpoints(mesh, tdim, cell_of)])
 
 
+def _cached_keys(problem, space):
+    """_keys(space), computed once per problem (they never change during a run)."""
+    cache = problem.__dict__.setdefault("_checkpoint_keys", {})
+    if id(space) not in cache:
+        cache[id(space)] = (space, _keys(space))   # the space is kept, so its id stays its own
+    return cache[id(space)][1]
+
+
 def _fields(problem):
     """(name, space, local array view) of everything a restart needs."""
     out = [(f"unknown{i}", f.function_space, f.x.array) for i, f in enumerate(problem.unknowns)]
@@ -54,7 +62,8 @@ def save(folder, problem, comm, t: float, count: int, step: float | None):
             continue
         n = space.dofmap.index_map.size_local
         bs = array.size // len(space.tabulate_dof_coordinates())
-        parts = comm.gather((_keys(space)[:n], array.reshape(-1, bs)[:n]), root=0)
+        parts = comm.gather((_cached_keys(problem, space)[:n], array.reshape(-1, bs)[:n]),
+                            root=0)
         if comm.rank == 0:
             gathered[name + ".keys"] = np.concatenate([p[0] for p in parts])
             gathered[name] = np.concatenate([p[1] for p in parts])
