@@ -45,7 +45,9 @@ class Context:
         if isinstance(value, bool) or not isinstance(value, (numbers.Real, str)):
             raise SceneError(f"{where} must be a number or an expression string, got {value!r}")
         if isinstance(value, str):
-            return self._evaluate(value, where)
+            value = self._evaluate(value, where)
+            if not isinstance(value, float):
+                return value
         if not math.isfinite(value):
             raise SceneError(f"{where} must be finite, got {value}")
         return fem.Constant(self.mesh, PETSc.ScalarType(value))

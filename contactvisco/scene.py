@@ -185,7 +185,11 @@ def resolve(raw: dict, overrides: list[str] = ()) -> dict:
     contact = scene["contact"]
     if contact is not None:
         if isinstance(contact["g"], str):
-            contact["g"] = float(contact["g"])
+            try:
+                contact["g"] = float(contact["g"])
+            except ValueError:
+                raise SceneError(f"contact.g must be a number >= 0 or inf, got "
+                                 f"{contact['g']!r}") from None
         if contact["augmentation"] is None:
             contact["augmentation"] = contact["stiffness"] or scene["material"]["E"]
     check(scene)
@@ -236,7 +240,7 @@ def origin(message: str, path, text: str, overrides) -> str:
 
 def apply_preset(scene: dict, name: str) -> None:
     """Scale the scene's discretization by the preset `name` (see PRESETS)."""
-    if name not in PRESETS:
+    if not isinstance(name, str) or name not in PRESETS:
         hint = difflib.get_close_matches(str(name), list(PRESETS), n=1)
         raise SceneError(f"unknown preset '{name}'" + (f" (did you mean '{hint[0]}'?)" if hint
                                                        else "")
@@ -297,6 +301,8 @@ def check(scene: dict) -> None:
     d = dimension(scene)
     for key in ("lower", "upper", "cells"):
         need(isinstance(geo[key], list), f"geometry.{key} must be a list, got {geo[key]!r}")
+    need(finite(geo["rotation"]), f"geometry.rotation must be a finite number of degrees, "
+                                  f"got {geo['rotation']!r}")
     table_list("dirichlet", ["boundary"])
     table_list("traction", ["boundary", "value"])
     for i, item in enumerate(scene["dirichlet"]):
@@ -305,6 +311,10 @@ def check(scene: dict) -> None:
             isinstance(c, int) and not isinstance(c, bool) and 0 <= c < d for c in comps)),
             f"dirichlet[{i}].components must be 'all' or a list of components 0..{d - 1} of "
             f"a {d}D displacement, got {comps!r}")
+    for key in ("dirichlet", "traction"):
+        for i, item in enumerate(scene[key]):
+            need(isinstance(item["boundary"], str),
+                 f"{key}[{i}].boundary must be a boundary name, got {item['boundary']!r}")
     for i, item in enumerate(scene["traction"]):
         need(isinstance(item["value"], list) and len(item["value"]) == d,
              f"traction[{i}].value must be a list of {d} components, got {item['value']!r}")
