@@ -12,6 +12,8 @@ import math
 import pathlib
 import tomllib
 
+from .memory import PARTS
+
 SCENE_DIR = pathlib.Path(__file__).parent / "scenes"
 
 #: Defaults filled into every scene; a scene file only states what differs.
@@ -373,7 +375,7 @@ def check(scene: dict) -> None:
             tau = term.get("tau", math.inf)
             need(isinstance(tau, (int, float)) and tau > 0,
                  f"memory.terms[{i}].tau must be > 0 (inf: constant), got {tau}")
-            need(term.get("part", "full") in ("full", "deviatoric", "volumetric"),
+            need(term.get("part", "full") in PARTS,
                  f"memory.terms[{i}].part must be full, deviatoric or volumetric")
     if mem["kernel"] == "table":
         times, values = mem["times"], mem["values"]
