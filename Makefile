@@ -12,7 +12,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN := mpirun -n $(NP)
 
-.PHONY: install demo test test-serial test-parallel benchmark clean
+.PHONY: install demo test test-serial test-parallel benchmark benchmark-scaling clean
 
 install: $(VENV)/.installed
 
@@ -48,7 +48,11 @@ test-parallel: install
 benchmark: install
 	cd benchmarks && ../$(PY) paper_scaling.py && ../$(PY) reductions.py && \
 	  ../$(PY) scenes.py && $(MPIRUN) ../$(PY) scenes.py && ../$(PY) verification.py && \
-	  ../$(PY) tradeoff.py && ../$(PY) extremes.py
+	  ../$(PY) tradeoff.py && ../$(PY) extremes.py && ../$(PY) time_linearity.py
+
+# Size, solver and rank scaling (about an hour on 2 cores; each configuration its own mpirun).
+benchmark-scaling: install
+	cd benchmarks && ../$(PY) scaling.py
 
 clean:
 	rm -rf results build *.egg-info

@@ -1,18 +1,28 @@
-"""Checkpoints: after every accepted step the unknowns and the history state are gathered by
-position (dof coordinates, and cell midpoints for the discontinuous history fields) into
-checkpoint/state.npz with its meta (t, step, scene hash), written atomically by rank 0.
-`contactvisco run ... --restart` continues from it on any partition (the partition of a mesh
-is not reproducible between runs), and reaches the same answer as an uninterrupted run."""
+"""Checkpoints: after every accepted step each rank writes the unknowns and the history state
+of its own dofs, keyed by position (dof coordinates, and cell midpoints for the discontinuous
+history fields), to checkpoint/state-<step>/part-<rank>.npz; rank 0 then writes
+checkpoint/meta.json (t, step, scene hash, the parts and the bounding box of each part's
+positions) atomically and removes the previous step's folder. No rank gathers the state of
+the whole mesh: every rank writes O(dofs / ranks).
+
+`contactvisco run ... --restart` continues from it on any partition and any rank count (the
+partition of a mesh is not reproducible between runs): each rank reads only the parts whose
+bounding box meets its own positions, and reaches the same answer as an uninterrupted run.
+A checkpoint of the earlier single-file layout (checkpoint/state.npz) is read as one part."""
 from __future__ import annotations
 
 import hashlib
 import json
 import os
 import pathlib
+import shutil
 
 import numpy as np
 
 from .scene import SceneError
+
+META = "meta.json"
+LEGACY = "state.npz"
 
 
 def scene_hash(scene: dict) -> str:
@@ -53,58 +63,131 @@ def _fields(problem):
     return out
 
 
+def _global(name: str) -> bool:
+    """Arrays that are the same on every rank (the table kernel's step times), not per dof."""
+    return name.startswith("history_times")
+
+
+def _box(coordinates: np.ndarray):
+    """[lower, upper] of a set of points, or None for none."""
+    if len(coordinates) == 0:
+        return None
+    return [coordinates.min(axis=0).tolist(), coordinates.max(axis=0).tolist()]
+
+
 def save(folder, problem, comm, t: float, count: int, step: float | None):
-    folder = pathlib.Path(folder) / "checkpoint"
-    gathered = {}
-    for name, space, array in _fields(problem):
-        if name.startswith("history_times"):       # table kernel: the same on every rank
-            gathered[name] = array
+    """Write the state after `count` accepted steps (collective: every rank calls it)."""
+    root = pathlib.Path(folder) / "checkpoint"
+    name = f"state-{count:06d}"
+    here = root / name
+    if comm.rank == 0:
+        if here.exists():              # left by a run killed before its meta was written
+            shutil.rmtree(here)
+        here.mkdir(parents=True)
+    comm.barrier()
+    here.mkdir(parents=True, exist_ok=True)   # no reliance on another node's directory cache
+    part, points, names = {}, [], []
+    for field, space, array in _fields(problem):
+        names.append(field)
+        if _global(field):
+            part[field] = array
             continue
         n = space.dofmap.index_map.size_local
-        bs = array.size // len(space.tabulate_dof_coordinates())
-        parts = comm.gather((_cached_keys(problem, space)[:n], array.reshape(-1, bs)[:n]),
-                            root=0)
-        if comm.rank == 0:
-            gathered[name + ".keys"] = np.concatenate([p[0] for p in parts])
-            gathered[name] = np.concatenate([p[1] for p in parts])
-    if comm.rank == 0:
-        folder.mkdir(parents=True, exist_ok=True)
+        keys = _cached_keys(problem, space)
+        bs = array.size // len(keys)
+        part[field + ".keys"] = keys[:n]
+        part[field] = array.reshape(-1, bs)[:n]
+        points.append(keys[:n, :3])
+    tmp = here / f"part-{comm.rank}.tmp.npz"
+    np.savez(tmp, **part)
+    os.replace(tmp, here / f"part-{comm.rank}.npz")
+    boxes = comm.gather(_box(np.concatenate(points)) if points else None, root=0)
+    if comm.rank == 0:                 # every part is complete once rank 0 has every box
         meta = {"t": t, "count": count, "step": step, "ranks": comm.size,
-                "scene": scene_hash(problem.scene)}
-        tmp = folder / "state.tmp.npz"
-        np.savez(tmp, meta=json.dumps(meta), **gathered)
-        os.replace(tmp, folder / "state.npz")
+                "scene": scene_hash(problem.scene), "fields": names,
+                "parts": [{"file": f"{name}/part-{r}.npz", "box": box}
+                          for r, box in enumerate(boxes)]}
+        tmp = root / "meta.tmp.json"
+        tmp.write_text(json.dumps(meta))
+        os.replace(tmp, root / META)   # the checkpoint of step `count` is now the one
+        for old in root.iterdir():
+            if old.name != name and old.name.startswith("state-") and old.is_dir():
+                shutil.rmtree(old, ignore_errors=True)
+        (root / LEGACY).unlink(missing_ok=True)
     comm.barrier()
+
+
+def _read_meta(root: pathlib.Path) -> dict:
+    if (root / META).exists():
+        return json.loads((root / META).read_text())
+    if (root / LEGACY).exists():       # one file holding every dof, gathered by rank 0
+        data = np.load(root / LEGACY)
+        meta = json.loads(str(data["meta"]))
+        meta["fields"] = [f for f in data.files if f != "meta" and not f.endswith(".keys")]
+        meta["parts"] = [{"file": LEGACY, "box": None}]
+        return meta
+    raise SceneError(f"--restart: no checkpoint in {root.parent}")
+
+
+def _match(want: np.ndarray, have: np.ndarray) -> np.ndarray:
+    """For each row of `want`, the index of the equal row of `have`, or -1 (rows are integer
+    position keys; sorted search, O((n + m) log m))."""
+    if len(have) == 0:
+        return np.full(len(want), -1)
+    row = np.dtype([(f"c{i}", np.int64) for i in range(have.shape[1])])
+    have_rows = np.ascontiguousarray(have).view(row).ravel()
+    want_rows = np.ascontiguousarray(want).view(row).ravel()
+    order = np.argsort(have_rows)
+    ordered = have_rows[order]
+    at = np.minimum(np.searchsorted(ordered, want_rows), len(ordered) - 1)
+    return np.where(ordered[at] == want_rows, order[at], -1)
 
 
 def load(folder, problem, comm) -> dict:
     """Restore the unknowns and the history; return the meta (t, count, step)."""
-    path = pathlib.Path(folder) / "checkpoint" / "state.npz"
-    if not path.exists():
-        raise SceneError(f"--restart: no checkpoint in {pathlib.Path(folder)}")
-    data = np.load(path)
-    meta = json.loads(str(data["meta"]))
+    root = pathlib.Path(folder) / "checkpoint"
+    meta = _read_meta(root)
     if meta["scene"] != scene_hash(problem.scene):
         raise SceneError("--restart: the scene differs from the one of the checkpoint")
     scale = 1e-9 * problem.length_scale
-    state = {}
-    # The unknowns, then the history arrays the file holds (a fresh history has none yet).
+
+    def key(positions):
+        return np.round(positions / scale).astype(np.int64)
+
+    # The unknowns, then the history arrays the checkpoint holds (a fresh history has none).
     fields = [(name, space, array) for name, space, array in _fields(problem)
               if name.startswith("unknown")]
-    fields += [(name, problem.T, None) for name in data.files
-               if name.startswith("history_") and not name.endswith(".keys")]
+    fields += [(name, problem.T, None) for name in meta["fields"]
+               if name.startswith("history_")]
+    mine = {name: _keys(space) for name, space, _ in fields if not _global(name)}
+    # Only the parts whose box meets the box of this rank's positions can hold them.
+    box = _box(np.concatenate([k[:, :3] for k in mine.values()])) if mine else None
+    tol = 2 * scale
+    parts = [p for p in meta["parts"] if p["box"] is None or (
+        box is not None and np.all(np.array(p["box"][0]) <= np.array(box[1]) + tol)
+        and np.all(np.array(box[0]) <= np.array(p["box"][1]) + tol))]
+    data = [np.load(root / p["file"]) for p in parts]
+    state, missing = {}, None
     for name, space, array in fields:
-        if name.startswith("history_times"):
-            state[name[len("history_"):]] = data[name]
+        if _global(name):
+            state[name[len("history_"):]] = np.load(root / meta["parts"][0]["file"])[name]
             continue
-        lookup = {tuple(k): i for i, k in enumerate(np.round(data[name + ".keys"] / scale))}
-        keys = np.round(_keys(space) / scale)
-        rows = np.array([lookup[tuple(k)] for k in keys])
-        values = data[name][rows].ravel()
+        want = mine[name]
+        have_keys = [d[name + ".keys"] for d in data] or [np.zeros((0, want.shape[1]))]
+        have_values = [d[name] for d in data] or [np.zeros(0)]
+        rows = _match(key(want), key(np.concatenate(have_keys)))
+        if np.any(rows < 0):
+            missing = missing or (name, want[np.argmin(rows)][:3].tolist())
+            continue
+        values = np.concatenate(have_values)[rows].ravel()
         if name.startswith("unknown"):
             array[:] = values
         else:
             state[name[len("history_"):]] = values
+    missing = next((m for m in comm.allgather(missing) if m is not None), None)
+    if missing is not None:      # on every rank, so that none waits for the others
+        raise SceneError(f"--restart: the checkpoint has no value of '{missing[0]}' at "
+                         f"{missing[1]}: was it written for another mesh?")
     if problem.history is not None:
         problem.history.restore(state)
     return meta

@@ -3,6 +3,12 @@
 Everything is gathered by owned dofs and coordinates, so the output does not depend on the rank
 count (dof numbering does). Files are written step by step: a run that stops early leaves
 readable output for the steps it finished.
+
+Who writes what, per step: every rank writes its own part of solution.h5 (DOLFINx XDMFFile,
+MPI-IO HDF5); rank 0 writes summary.json and contact_nodes.csv, whose size is O(contact nodes
++ probes), from tables that were allgathered (O(contact nodes) per rank). Only the figure
+snapshots (gather_mesh, at output.figure_times and T) copy the whole mesh to rank 0, and they
+are skipped above output.snapshot_max_nodes.
 """
 from __future__ import annotations
 
@@ -213,6 +219,18 @@ def jsonable(value):
     if isinstance(value, float) and not math.isfinite(value):
         return str(value)
     return value
+
+
+def snapshot_skip_note(problem, limit, xdmf: bool) -> str | None:
+    """None if the figure snapshots may be taken; else the note that says why not: gather_mesh
+    copies the whole mesh and its fields to rank 0, which must stay O(boundary) on a large
+    mesh (output.snapshot_max_nodes)."""
+    nodes = problem.V.dofmap.index_map.size_global
+    if nodes <= limit:
+        return None
+    return (f"figures: no snapshots (snapshots.npz, deformed_mesh.png, stress.png): {nodes} "
+            f"nodes > output.snapshot_max_nodes = {limit}"
+            + ("; the fields are in the XDMF output" if xdmf else ""))
 
 
 def gather_mesh(problem, sigma, comm):

@@ -57,6 +57,7 @@ class ContactNodes:
     normals: np.ndarray        # (len(nodes), d) unit nodal normals
     tangents: np.ndarray | None  # (len(nodes), d) unit tangent (2D only)
     corners: np.ndarray | None = None  # nodes at corners of Gamma_C (facet normals used)
+    weights: np.ndarray | None = None  # nodal quadrature weight (the node's share of Gamma_C)
 
 
 @dataclass
@@ -69,8 +70,11 @@ class Problem:
     lambda_tau: fem.Function | None
     F: list
     J: list
-    bcs: list
+    bcs: list                                 # on every unknown
     constants: dict
+    bcs_u: list = field(default_factory=list)  # on u only
+    u_fixed: np.ndarray | None = None         # (nodes, d) 1 where u's component is prescribed
+    multiplier_free: list = field(default_factory=list)  # per multiplier: (nodes, bs) bool
     history: History | None = None
     H: fem.Function | None = None             # history stress (DG, tensor)
     eps_function: fem.Function | None = None
@@ -100,6 +104,12 @@ class Problem:
                 imap = f.function_space.dofmap.index_map
                 out[name] = imap.size_global * f.function_space.dofmap.index_map_bs
         return out
+
+    def count_contact_nodes(self) -> int:
+        """Global number of contact nodes (0 without contact)."""
+        if self.nodes is None:
+            return 0
+        return self.V.mesh.comm.allreduce(int(self.nodes.owned.sum()))
 
     def set_time(self, t: float):
         """Move time-dependent data (loads, Dirichlet values, gap) to time t."""
@@ -248,19 +258,18 @@ def build(scene: dict, geometry: Geometry) -> Problem:
             F_extra.append(-1.0 / c["r"] * ufl.dot(lambda_tau - sigma_tau, gamma) * dsc)
             unknowns.append(lambda_tau)
             spaces.append(W)
-        bcs += _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed_components, d)
+    bcs_u = list(bcs)
+    multiplier_bcs, multiplier_free = _multiplier_bcs(nodes, lambda_nu, lambda_tau,
+                                                      fixed_components, d)
+    bcs += multiplier_bcs
 
     F = [F_u] + F_extra
     J = _block_jacobian(F, unknowns, spaces)
-    # Multiplier dofs off Gamma_C have no entry in the ds blocks: a zero dx mass term gives
-    # them a diagonal in the sparsity pattern for the Dirichlet rows.
-    zero = _scalar(mesh, 0.0)
-    for i in range(1, len(unknowns)):
-        mass = zero * ufl.inner(ufl.TrialFunction(spaces[i]), ufl.TestFunction(spaces[i])) * dx
-        J[i][i] = mass if J[i][i] is None else J[i][i] + mass
 
     problem = Problem(scene=scene, geometry=geometry, V=V, u=u, lambda_nu=lambda_nu,
                       lambda_tau=lambda_tau, F=F, J=J, bcs=bcs, constants=constants,
+                      bcs_u=bcs_u, u_fixed=fixed_components,
+                      multiplier_free=multiplier_free,
                       nodes=nodes, context=context, updates=updates, gap=gap_function,
                       **problem_memory)
     if nodes is not None:
@@ -402,7 +411,8 @@ def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:
     normals /= np.linalg.norm(normals, axis=1)[:, None]
     tangents = np.column_stack([-normals[:, 1], normals[:, 0]]) if d == 2 else None
     owned = nodes < Q.dofmap.index_map.size_local
-    return ContactNodes(nodes=nodes, owned=owned, normals=normals, tangents=tangents)
+    return ContactNodes(nodes=nodes, owned=owned, normals=normals, tangents=tangents,
+                        weights=weights[nodes])
 
 
 def _contact_normal(mesh, Q, W, dsc, nodes, corner_angle=15.0):
@@ -433,10 +443,11 @@ def _contact_normal(mesh, Q, W, dsc, nodes, corner_angle=15.0):
 
 def _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed, d):
     """Fix multiplier dofs to zero off Gamma_C, and where the displacement they act on is
-    prescribed (their Newton rows would be empty: MUMPS then stops with INFOG(1) = -3)."""
-    bcs = []
+    prescribed (their Newton rows would be empty: MUMPS then stops with INFOG(1) = -3).
+    Returns the conditions and, per multiplier, its free dofs as a (nodes, bs) bool array."""
+    bcs, free_masks = [], []
     if nodes is None:
-        return bcs
+        return bcs, free_masks
     zero = PETSc.ScalarType(0.0)
     if lambda_nu is not None:
         Q = lambda_nu.function_space
@@ -448,6 +459,7 @@ def _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed, d):
         free[nodes.nodes[~prescribed]] = True
         dofs = np.flatnonzero(~free).astype(np.int32)
         bcs.append(fem.dirichletbc(zero, dofs, Q))
+        free_masks.append(free[:, None])
     if lambda_tau is not None:
         L = lambda_tau.function_space
         n_local = L.dofmap.index_map.size_local + L.dofmap.index_map.num_ghosts
@@ -457,4 +469,5 @@ def _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed, d):
         for comp in range(d):
             dofs = (np.flatnonzero(~free[:, comp]) * d + comp).astype(np.int32)
             bcs.append(fem.dirichletbc(zero, dofs, L.sub(comp)))
-    return bcs
+        free_masks.append(free)
+    return bcs, free_masks

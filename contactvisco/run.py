@@ -15,7 +15,8 @@ from . import geometry as geometry_module
 from . import output
 from . import scene as scene_module
 from .problem import Problem, build
-from .solver import BlockSNES, NewtonFailure
+from . import solver as solver_module
+from .solver import NewtonFailure
 
 
 @dataclass
@@ -23,6 +24,8 @@ class Result:
     problem: Problem
     steps: list = field(default_factory=list)        # the summary.json step records
     tables: list = field(default_factory=list)       # contact_table per step (every rank)
+    linear_system: str = ""                           # condensed | coupled | displacement
+    linear_solver: str = ""                           # KSP/PC, e.g. preonly/lu
 
 
 def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
@@ -32,8 +35,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     started = clock.perf_counter()
     geometry = geometry_module.build(scene, comm)
     problem = build(scene, geometry)
-    snes = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, comm,
-                     scene["solver"]["petsc_options"])
+    snes = solver_module.create(problem, comm)
     setup_s = clock.perf_counter() - started
     opts = scene["output"]
     probes = output.Probes(geometry.mesh, opts["probes"]) if opts["probes"] else None
@@ -45,11 +47,16 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     k = T / N
     figure_steps = {min(N, max(0, round(t / k))) for t in opts["figure_times"]} | {N}
     snapshots = []
-    result = Result(problem)
+    result = Result(problem, linear_system=snes.system_kind, linear_solver=snes.linear_solver())
     say = _printer(comm, progress)
-    say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), unknowns "
-        + ", ".join(f"{k_}={v}" for k_, v in problem.count_unknowns().items())
-        + f"; set-up (incl. JIT) {setup_s:.2f} s")
+    counts = problem.count_unknowns()
+    contact_nodes = problem.count_contact_nodes()
+    multipliers = ", ".join(name for name in counts if name != "u")
+    say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), {counts['u']} "
+        f"displacement unknowns"
+        + (f", {contact_nodes} contact nodes ({multipliers})" if contact_nodes else "")
+        + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
+        f"{setup_s:.2f} s")
 
     if problem.history is not None and problem.history.direct:
         note = ("memory: a general (table) kernel has no recursion: eq (19) is summed "
@@ -85,6 +92,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         record = {"step": n, "t": t, "newton_iterations": iterations,
                   "residual": snes.residuals[-1] if snes.residuals else 0.0,
                   "residual_history": snes.residuals, "wall_s": wall, "cuts": cuts,
+                  "krylov_iterations": snes.krylov_iterations,
                   "status_counts": counts,
                   "probes": probes.values(problem.u, comm) if probes else []}
         result.steps.append(record)
@@ -100,7 +108,12 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
                 fields = [available[name] for name in opts["fields"]
                           if available[name] is not None]
             writer.step(record, table, fields)
-            if round(t, 12) in figure_times and opts["figures"]:
+            skip = opts["figures"] and output.snapshot_skip_note(
+                problem, opts["snapshot_max_nodes"], writer.xdmf is not None)
+            if skip and skip not in writer.summary.setdefault("notes", []):
+                writer.summary["notes"].append(skip)
+                say(skip)
+            if round(t, 12) in figure_times and opts["figures"] and not skip:
                 if writer.xdmf is None or "sigma" not in opts["fields"]:
                     sigma.interpolate(problem.sigma_expression)
                 gathered = output.gather_mesh(problem, sigma, comm)

@@ -68,6 +68,11 @@ DEFAULTS: dict = {
         "petsc_options": {},      # PETSc options; the command line overrides them
         "max_cuts": 4,            # a step whose Newton fails is halved, at most this many
                                   # times in a row (0: no step cutting)
+        "linear_system": "auto",  # condensed (u only, multipliers eliminated node by node;
+                                  # nodal contact quadrature) | coupled (u and multipliers);
+                                  # auto: condensed where possible
+        "linear_solver": "auto",  # direct (MUMPS LU) | iterative (GMRES + GAMG); auto:
+                                  # iterative from solver.AUTO_ITERATIVE unknowns on
     },
     "output": {
         "probes": [],
@@ -76,6 +81,8 @@ DEFAULTS: dict = {
         "fields": ["u", "sigma"],  # XDMF fields: u, sigma, history_stress, lambda_nu,
                                    # lambda_tau
         "figures": True,
+        "snapshot_max_nodes": 200000,  # figure snapshots gather the whole mesh on rank 0:
+                                       # skipped (with a note) above this many mesh nodes
         "checkpoint": True,        # save the state after every step (for --restart)
     },
 }
@@ -410,6 +417,21 @@ def check(scene: dict) -> None:
     cuts = scene["solver"]["max_cuts"]
     need(isinstance(cuts, int) and not isinstance(cuts, bool) and 0 <= cuts <= 20,
          f"solver.max_cuts must be an integer from 0 to 20, got {cuts!r}")
+    solver = scene["solver"]
+    need(solver["linear_system"] in ("auto", "condensed", "coupled"),
+         f"solver.linear_system must be auto, condensed or coupled, got "
+         f"{solver['linear_system']!r}")
+    need(solver["linear_solver"] in ("auto", "direct", "iterative"),
+         f"solver.linear_solver must be auto, direct or iterative, got "
+         f"{solver['linear_solver']!r}")
+    if solver["linear_system"] == "condensed" and contact is not None:
+        need(scene["discretization"]["contact_quadrature"] == "nodal",
+             "solver.linear_system = 'condensed' needs discretization.contact_quadrature = "
+             "'nodal' (the conditions must hold node by node); use 'coupled' or 'auto'")
+    limit = scene["output"]["snapshot_max_nodes"]
+    need((isinstance(limit, int) and not isinstance(limit, bool) and limit >= 0)
+         or limit == math.inf,
+         f"output.snapshot_max_nodes must be an integer >= 0 or inf, got {limit!r}")
     fields = scene["output"]["fields"]
     allowed = ("u", "sigma", "history_stress", "lambda_nu", "lambda_tau")
     need(isinstance(fields, list) and all(f in allowed for f in fields),

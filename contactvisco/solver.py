@@ -8,10 +8,14 @@ the semismooth residual.
 from __future__ import annotations
 
 import numpy as np
-from dolfinx import fem
+import ufl
+from dolfinx import fem, la
 from dolfinx.fem.petsc import (assemble_matrix_block, assemble_vector_block,
                                create_matrix_block, create_vector_block)
 from petsc4py import PETSc
+
+from .condensed import NodalCondensation
+from .scene import SceneError
 
 #: SNES defaults. Measured on this problem: the basic (full-step) line search converges in
 #: 1-5 iterations whatever the augmentation parameter; bt/cp get worse as it grows.
@@ -29,6 +33,30 @@ DEFAULT_OPTIONS = {
     "pc_factor_mat_solver_type": "mumps",
 }
 
+#: The iterative linear solver: GMRES preconditioned by BoomerAMG (hypre), HMIS coarsening with
+#: extended+i interpolation. On the condensed contact system it kept 12-19 Krylov iterations
+#: per Newton step from 128^2 to 512^2 cells, where PETSc's GAMG needed 40-120 (the rows of
+#: active nodes are constraints, not elasticity). The relative tolerance is tight enough for
+#: Newton to take the steps of the direct solver.
+ITERATIVE_OPTIONS = {
+    "ksp_type": "gmres",
+    "ksp_gmres_restart": 100,
+    "ksp_rtol": 1e-10,
+    "ksp_atol": 1e-14,
+    "ksp_max_it": 1000,
+    "pc_type": "hypre",
+    "pc_hypre_type": "boomeramg",
+    "pc_hypre_boomeramg_strong_threshold": 0.7,
+    "pc_hypre_boomeramg_coarsen_type": "HMIS",
+    "pc_hypre_boomeramg_interp_type": "ext+i",
+    "pc_hypre_boomeramg_P_max": 4,
+    "pc_hypre_boomeramg_agg_nl": 1,
+}
+
+#: linear_solver = "auto" takes the iterative solver from this many displacement unknowns
+#: on (by dimension), where it was measured to beat MUMPS (benchmarks/solvers.py).
+AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
+
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
 _FORWARD = PETSc.ScatterMode.FORWARD
 
@@ -42,35 +70,58 @@ class NewtonFailure(RuntimeError):
         self.residuals = residuals
 
 
-class BlockSNES:
-    """SNES over the unknowns `functions` with residual blocks F and Jacobian blocks J."""
+class _Newton:
+    """The SNES shared by both linear systems: options, monitor, solve, failure report."""
 
-    def __init__(self, F, J, functions, bcs, comm, scene_options=None):
-        self.F = [fem.form(f) for f in F]
-        self.J = [[None if a is None else fem.form(a) for a in row] for row in J]
+    def __init__(self, comm, functions, scene_options=None, defaults=None):
         self.functions = functions
-        self.bcs = bcs
-        self.b = create_vector_block(self.F)
-        self.x = create_vector_block(self.F)
-        self.A = create_matrix_block(self.J)
         self.residuals: list[float] = []
-
-        # Command-line options win over the scene, the scene over DEFAULT_OPTIONS. Options set
+        self.krylov_iterations: list[int] = []
+        # Command-line options win over the scene, the scene over the defaults. Options set
         # here are removed again after setFromOptions so they do not leak into later solvers.
         opts = PETSc.Options()
         merged = dict(DEFAULT_OPTIONS)
+        merged.update(defaults or {})
         merged.update(scene_options or {})
-        inserted = [key for key in merged if not opts.hasName(key)]
-        for key in inserted:
+        self._inserted = [key for key in merged if not opts.hasName(key)]
+        for key in self._inserted:
             opts[key] = merged[key]
-
         self.snes = PETSc.SNES().create(comm)
-        self.snes.setFunction(self._residual, self.b)
-        self.snes.setJacobian(self._jacobian, self.A)
-        self.snes.setMonitor(lambda snes, it, norm: self.residuals.append(float(norm)))
+
+    def _finish_setup(self):
+        self.snes.setMonitor(self._monitor)
         self.snes.setFromOptions()
-        for key in inserted:
+        opts = PETSc.Options()
+        for key in self._inserted:
             opts.delValue(key)
+
+    def _monitor(self, snes, it, norm):
+        self.residuals.append(float(norm))
+        if it > 0:
+            self.krylov_iterations.append(snes.getKSP().getIterationNumber())
+
+    def linear_solver(self) -> str:
+        """KSP and PC types, e.g. 'preonly/lu' or 'gmres/gamg'."""
+        ksp = self.snes.getKSP()
+        return f"{ksp.getType()}/{ksp.getPC().getType()}"
+
+    def solve(self) -> int:
+        """Newton from the current Functions; returns the iteration count or raises
+        NewtonFailure. The Functions hold the converged solution afterwards."""
+        self.residuals = []
+        self.krylov_iterations = []
+        self._from_functions(self.x)
+        self.snes.solve(None, self.x)
+        self._to_functions(self.x)
+        reason = self.snes.getConvergedReason()
+        if reason > 0 and not np.isfinite(self.x.norm()):
+            reason = -4      # never accept a non-finite solution as converged
+        if reason <= 0:
+            raise NewtonFailure(
+                f"Newton did not converge (SNES reason {reason}) after "
+                f"{self.snes.getIterationNumber()} iterations; residual history "
+                f"{['%.3e' % r for r in self.residuals]}", reason, list(self.residuals))
+        return self.snes.getIterationNumber()
 
     def _to_functions(self, x):
         offset = 0
@@ -90,6 +141,31 @@ class BlockSNES:
             offset += n
         x.ghostUpdate(addv=_INSERT, mode=_FORWARD)
 
+
+class BlockSNES(_Newton):
+    """SNES over all unknowns `functions` (u and the multipliers) with residual blocks F and
+    Jacobian blocks J: the coupled saddle-point system."""
+
+    def __init__(self, F, J, functions, bcs, comm, scene_options=None, defaults=None):
+        super().__init__(comm, functions, scene_options, defaults)
+        J = [list(row) for row in J]
+        # Multiplier dofs off Gamma_C have no entry in the ds blocks: a zero dx mass term gives
+        # them a diagonal in the sparsity pattern for their Dirichlet rows.
+        for i in range(1, len(functions)):
+            space = functions[i].function_space
+            zero = fem.Constant(space.mesh, PETSc.ScalarType(0.0))
+            mass = zero * ufl.inner(ufl.TrialFunction(space), ufl.TestFunction(space)) * ufl.dx
+            J[i][i] = mass if J[i][i] is None else J[i][i] + mass
+        self.F = [fem.form(f) for f in F]
+        self.J = [[None if a is None else fem.form(a) for a in row] for row in J]
+        self.bcs = bcs
+        self.b = create_vector_block(self.F)
+        self.x = create_vector_block(self.F)
+        self.A = create_matrix_block(self.J)
+        self.snes.setFunction(self._residual, self.b)
+        self.snes.setJacobian(self._jacobian, self.A)
+        self._finish_setup()
+
     def _residual(self, snes, x, b):
         # SNES updates only the owned entries of x; the lifting of the Dirichlet rows below
         # reads x's ghosts too. Stale ghosts go unnoticed while all prescribed values are 0.
@@ -106,19 +182,116 @@ class BlockSNES:
         assemble_matrix_block(A, self.J, bcs=self.bcs, diagonal=1.0)
         A.assemble()
 
+
+class CondensedSNES(_Newton):
+    """SNES over u alone, the nodal multipliers eliminated node by node in every Newton step
+    (contactvisco.condensed); they are updated from each displacement step."""
+
+    def __init__(self, problem, comm, scene_options=None, defaults=None):
+        super().__init__(comm, [problem.u], scene_options, defaults)
+        self.system = NodalCondensation(problem)
+        self.b = problem.u.vector.copy()
+        self.x = problem.u.vector.copy()
+        self._x_jacobian = None          # the iterate of the last Jacobian
+        self.snes.setFunction(self._residual, self.b)
+        self.snes.setJacobian(self._jacobian, self.system.J_red)
+        # Converged when the residual of the coupled problem (u and multiplier rows) is small,
+        # as with BlockSNES; the condensed residual alone leaves out the multiplier rows.
+        self.snes.setConvergenceTest(self._converged)
+        self.system.J_red.setNearNullSpace(rigid_body_modes(problem.V))
+        self._finish_setup()
+
     def solve(self) -> int:
-        """Newton from the current Functions; returns the iteration count or raises
-        NewtonFailure. The Functions hold the converged solution afterwards."""
-        self.residuals = []
-        self._from_functions(self.x)
-        self.snes.solve(None, self.x)
-        self._to_functions(self.x)
-        reason = self.snes.getConvergedReason()
-        if reason > 0 and not np.isfinite(self.x.norm()):
-            reason = -4      # never accept a non-finite solution as converged
-        if reason <= 0:
-            raise NewtonFailure(
-                f"Newton did not converge (SNES reason {reason}) after "
-                f"{self.snes.getIterationNumber()} iterations; residual history "
-                f"{['%.3e' % r for r in self.residuals]}", reason, list(self.residuals))
-        return self.snes.getIterationNumber()
+        self._x_jacobian = None
+        return super().solve()
+
+    def _monitor(self, snes, it, norm):
+        super()._monitor(snes, it, self.system.full_norm)
+
+    def _residual(self, snes, x, b):
+        x.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+        if self._x_jacobian is not None:
+            # x = x_J - y, the step from the last Jacobian's iterate: update the multipliers.
+            du = x.copy()
+            du.axpy(-1.0, self._x_jacobian)
+            self.system.update_multipliers(du)
+            self._x_jacobian = None
+        self._to_functions(x)
+        self.system.residual(x, b)
+
+    def _jacobian(self, snes, x, A, P):
+        self.system.jacobian()
+        self._x_jacobian = x.copy()
+
+    def _converged(self, snes, it, norms):
+        norm = self.system.full_norm
+        atol, rtol, _, max_it = snes.getTolerances()
+        if it == 0:
+            self._norm0 = norm
+        if not np.isfinite(norm):
+            return PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+        if norm <= atol:
+            return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+        if it > 0 and norm <= rtol * self._norm0:
+            return PETSc.SNES.ConvergedReason.CONVERGED_FNORM_RELATIVE
+        if it >= max_it:
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
+        return PETSc.SNES.ConvergedReason.CONVERGED_ITERATING
+
+
+def rigid_body_modes(V) -> PETSc.NullSpace:
+    """The rigid motions (2D: 3, 3D: 6) as an orthonormal near-nullspace of elasticity, for
+    algebraic multigrid."""
+    d = V.dofmap.index_map_bs
+    x = V.tabulate_dof_coordinates()[:V.dofmap.index_map.size_local, :d]
+    n = x.shape[0]
+    modes = []
+    for c in range(d):                          # translations
+        mode = np.zeros((n, d))
+        mode[:, c] = 1.0
+        modes.append(mode)
+    for a, b in ([(0, 1)] if d == 2 else [(0, 1), (1, 2), (2, 0)]):   # rotations
+        mode = np.zeros((n, d))
+        mode[:, a], mode[:, b] = -x[:, b], x[:, a]
+        modes.append(mode)
+    vectors = []
+    for mode in modes:
+        vec = PETSc.Vec().createMPI((n * d, None), bsize=d, comm=V.mesh.comm)
+        vec.array[:] = mode.ravel()
+        vectors.append(vec)
+    la.orthonormalize(vectors)
+    return PETSc.NullSpace().create(vectors=vectors, comm=V.mesh.comm)
+
+
+def create(problem, comm, scene_options=None) -> _Newton:
+    """The Newton solver a Problem's scene asks for (solver.linear_system, .linear_solver)."""
+    solver = problem.scene["solver"]
+    options = solver["petsc_options"] if scene_options is None else scene_options
+    multipliers = len(problem.unknowns) > 1
+    nodal = problem.scene["discretization"]["contact_quadrature"] == "nodal"
+    system = solver["linear_system"]
+    if system == "auto":
+        system = "condensed" if multipliers and nodal else "coupled"
+    if not multipliers:
+        system = "displacement"                # nothing to condense: u is the only unknown
+    if system == "condensed" and not nodal:
+        raise SceneError("solver.linear_system = 'condensed' needs nodal contact quadrature")
+    d = problem.V.mesh.geometry.dim
+    size = problem.count_unknowns()["u"]
+    kind = solver["linear_solver"]
+    if kind == "auto":
+        kind = "iterative" if system != "coupled" and size >= AUTO_ITERATIVE[d] else "direct"
+    if kind == "iterative" and system == "coupled":
+        raise SceneError("solver.linear_solver = 'iterative' needs the displacement-only "
+                         "system: solver.linear_system = 'condensed' (nodal contact "
+                         "quadrature)")
+    defaults = ITERATIVE_OPTIONS if kind == "iterative" else {}
+    if system == "condensed":
+        newton = CondensedSNES(problem, comm, options, defaults)
+    else:
+        newton = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, comm,
+                           options, defaults)
+        if system == "displacement":
+            newton.A.setNearNullSpace(rigid_body_modes(problem.V))
+    newton.system_kind = system
+    return newton

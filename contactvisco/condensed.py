@@ -1,0 +1,268 @@
+"""Newton on the displacement alone: the nodal multipliers eliminated node by node.
+
+With the vertex rule on Gamma_C the multiplier equations of contact node i involve only u_i and
+lambda_i, and lambda_i enters only the rows of u_i. The Newton system of the coupled problem,
+
+    [ J    B ] [du]     [F_u]
+    [ C    D ] [dl] = - [G  ],
+
+is therefore made of one d x m, m x d and m x m block per node: B_i, C_i, D_i (m = 1, d or d + 1
+multiplier components). D_i is singular where a condition is active: lambda_i is then a
+reaction, and its equation a constraint on u_i (u_nu = g at a bound node, u_tau = 0 at a
+sticking one). With the SVD D_i = U S V^T split into range (r) and null (0) parts:
+
+    dl_i = D_i^+ (-G_i - C_i du_i) + V_0 b_i,      D_i^+ = V_r S_r^-1 U_r^T,
+    U_0^T C_i du_i = -U_0^T G_i                    (k = m - r constraints on du_i),
+    (J du)_i + B_i dl_i = -F_u,i.
+
+With Z_i = B_i V_0 = Q_i R_i, the projection P_i = I - Q_i Q_i^T removes b_i from the rows of
+u_i and the k constraints take its place in the directions Q_i, scaled by s_i (the size of J's
+diagonal at the node):
+
+    P_i (J du)_i + L_i du_i = -[P_i (F_u,i - E_i G_i) + s_i Q_i U_0^T G_i],
+    E_i = B_i D_i^+,   L_i = -P_i E_i C_i + s_i Q_i U_0^T C_i.
+
+The linear system keeps the size of u: J_red = S J + L with S = diag(P_i) (the identity off the
+active nodes). After the solve, dl_i follows node by node with
+b_i = R_i^-1 Q_i^T (-F_u,i - (J du)_i - B_i a_i), a_i = D_i^+ (-G_i - C_i du_i). Newton's
+iterates are the coupled method's to round-off (the same converged answer and iteration count),
+while the linear algebra pays for the contact boundary only.
+"""
+from __future__ import annotations
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem.petsc import (apply_lifting, assemble_matrix, assemble_vector,
+                               create_matrix, create_vector, set_bc)
+from mpi4py import MPI
+from petsc4py import PETSc
+
+_INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
+_FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE
+
+#: Singular values of D_i below this fraction of the node's natural scale w_i / r are zero.
+RANK_TOLERANCE = 1e-10
+
+
+def eliminate(B, C, D, F, G, scale, d_scale):
+    """The node-wise elimination above, batched over nodes.
+
+    B (n, d, m), C (n, m, d), D (n, m, m), F (n, d) = F_u,i, G (n, m), scale (n,) = s_i,
+    d_scale (n,) = the size of a non-zero D_i. Returns a dict of arrays: F_red (n, d),
+    L (n, d, d), P (n, d, d), and what the recovery of dl needs (Dp, W, k)."""
+    n, d, m = B.shape
+    U, sigma, Vt = np.linalg.svd(D)
+    rank = np.sum(sigma > RANK_TOLERANCE * d_scale[:, None], axis=1)
+    Dp = np.zeros((n, m, m))
+    P = np.broadcast_to(np.eye(d), (n, d, d)).copy()
+    K = np.zeros((n, d, m))            # Q U_0^T: the constraints written in the directions Q
+    W = np.zeros((n, m, d))            # V_0 R^-1 Q^T: b from the rows of u_i
+    for r in np.unique(rank):
+        idx = np.flatnonzero(rank == r)
+        Ur, Vr = U[idx][:, :, :r], np.transpose(Vt[idx][:, :r, :], (0, 2, 1))
+        Dp[idx] = Vr @ (Ur.transpose(0, 2, 1) / sigma[idx][:, :r, None])
+        if r == m:
+            continue
+        if m - r > d:
+            raise np.linalg.LinAlgError(
+                f"{m - r} active conditions on {d} displacement components at a contact node "
+                "(singular Newton matrix)")
+        U0 = U[idx][:, :, r:]
+        V0 = np.transpose(Vt[idx][:, r:, :], (0, 2, 1))
+        Q, R = np.linalg.qr(B[idx] @ V0)
+        size = np.abs(np.diagonal(R, axis1=1, axis2=2))
+        if np.any(size <= 1e-12 * np.max(np.abs(B[idx]), axis=(1, 2))[:, None] + 1e-300):
+            raise np.linalg.LinAlgError(
+                "a contact node has a multiplier that acts on no free displacement component "
+                "(singular Newton matrix); use solver.linear_system = 'coupled' to see where")
+        P[idx] -= Q @ Q.transpose(0, 2, 1)
+        # Write the constraints as s_i (Q^T du_i - ...) = 0: with A = U_0^T C_i Q (k x k),
+        # the rows are s_i Q A^-1 U_0^T (C_i du_i + G_i), whose block on the directions Q is
+        # s_i I. Any invertible A^-1 gives the same solution, but this one keeps the diagonal
+        # positive, which multigrid smoothers need.
+        A = U0.transpose(0, 2, 1) @ C[idx] @ Q
+        K[idx] = Q @ np.linalg.solve(A, U0.transpose(0, 2, 1))
+        W[idx] = V0 @ np.linalg.solve(R, Q.transpose(0, 2, 1))
+    E = B @ Dp
+    s = scale[:, None, None]
+    L = -P @ E @ C + s * (K @ C)
+    F_red = np.einsum("nij,nj->ni", P, F - np.einsum("nij,nj->ni", E, G)) \
+        + scale[:, None] * np.einsum("nij,nj->ni", K, G)
+    return {"F_red": F_red, "L": L, "P": P, "Dp": Dp, "W": W, "k": m - rank}
+
+
+def recover(parts, B, C, F, G, du, Jdu):
+    """dl_i = a_i + W_i (-F_u,i - (J du)_i - B_i a_i), a_i = D_i^+ (-G_i - C_i du_i)."""
+    a = np.einsum("nij,nj->ni", parts["Dp"], -G - np.einsum("nij,nj->ni", C, du))
+    return a + np.einsum("nij,nj->ni", parts["W"], -F - Jdu - np.einsum("nij,nj->ni", B, a))
+
+
+class NodalCondensation:
+    """Assembles the residual and Jacobian of the displacement-only Newton system of a
+    Problem whose contact conditions hold node by node (degree 1, nodal contact quadrature)."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        V = problem.V
+        self.V = V
+        self.d = d = V.dofmap.index_map_bs
+        self.fields = [f for f in (problem.lambda_nu, problem.lambda_tau) if f is not None]
+        self.bs = [f.function_space.dofmap.index_map_bs for f in self.fields]
+        self.offsets = np.concatenate([[0], np.cumsum(self.bs)]).astype(int)
+        self.m = int(self.offsets[-1])
+        nodes = problem.nodes
+        self.own = nodes.nodes[nodes.owned]
+        if V.dofmap.index_map.size_local != \
+                self.fields[0].function_space.dofmap.index_map.size_local:
+            raise RuntimeError("displacement and multiplier node ownership differ")
+        self.bcs = problem.bcs_u
+        self.F_u = fem.form(problem.F[0])
+        self.J_uu = fem.form(problem.J[0][0])
+        self.G = [fem.form(problem.F[1 + a]) for a in range(len(self.fields))]
+
+        # Unit fields: the action of a Jacobian block on a unit field, read at node i, is
+        # column j of that block's node-i part (every other node's entry is zero in the
+        # vertex rule).
+        self.e_u = fem.Function(V)
+        self.e = [fem.Function(f.function_space) for f in self.fields]
+        J = problem.J
+        terms = [ufl.action(J[0][1 + a], self.e[a]) for a in range(len(self.fields))
+                 if J[0][1 + a] is not None]
+        self.B_form = fem.form(sum(terms[1:], terms[0])) if terms else None
+        self.row_forms = []
+        for b in range(len(self.fields)):
+            terms = [ufl.action(J[1 + b][0], self.e_u)] if J[1 + b][0] is not None else []
+            terms += [ufl.action(J[1 + b][1 + a], self.e[a]) for a in range(len(self.fields))
+                      if J[1 + b][1 + a] is not None]
+            self.row_forms.append(fem.form(sum(terms[1:], terms[0])))
+        self.B_vec = create_vector(self.B_form) if self.B_form is not None else None
+        self.row_vecs = [create_vector(f) for f in self.row_forms]
+        self.G_vecs = [create_vector(f) for f in self.G]
+
+        self.free = np.concatenate([mask[self.own] for mask in problem.multiplier_free], axis=1)
+        self.fixed_u = problem.u_fixed[self.own] > 0
+        self.d_scale = nodes.weights[nodes.owned] / problem.constants["r"].value
+
+        # Global row indices of u_i for the owned contact nodes.
+        start = V.dofmap.index_map.local_range[0] * d
+        self.rows = (start + self.own[:, None] * d + np.arange(d)).astype(PETSc.IntType)
+
+        self.A = create_matrix(self.J_uu)                 # J (the u-u block)
+        self._assemble_J()
+        diagonal = self.A.getDiagonal()
+        scale = np.abs(diagonal.array.reshape(-1, d)).mean(axis=1)
+        typical = V.mesh.comm.allreduce(float(scale.mean()) if scale.size else 0.0,
+                                        MPI.SUM) / V.mesh.comm.size
+        self.scale = np.where(scale[self.own] > 0, scale[self.own], typical or 1.0)
+        self.S = self._selection_matrix()
+        self.J_red = self.S.matMult(self.A)
+        self.parts = None
+        self.full_norm = 0.0
+
+    def _selection_matrix(self):
+        """S = diag(P_i): the identity now (block-diagonal pattern), its contact blocks set at
+        each Jacobian."""
+        d = self.d
+        rstart, rend = self.A.getOwnershipRange()
+        rows = np.arange(rstart, rend)
+        indptr = np.arange(0, d * (rend - rstart) + 1, d, dtype=PETSc.IntType)
+        indices = ((rows // d * d)[:, None] + np.arange(d)).ravel().astype(PETSc.IntType)
+        values = (indices == np.repeat(rows, d)).astype(PETSc.ScalarType)
+        S = PETSc.Mat().createAIJ(self.A.getSizes(), bsize=d, csr=(indptr, indices, values),
+                                  comm=self.A.getComm())
+        S.assemble()
+        return S
+
+    def _assemble_J(self):
+        self.A.zeroEntries()
+        assemble_matrix(self.A, self.J_uu, bcs=self.bcs, diagonal=1.0)
+        self.A.assemble()
+
+    def _node_values(self, vec, bs):
+        vec.ghostUpdate(addv=_ADD, mode=_REVERSE)
+        return vec.array.reshape(-1, bs)[self.own]
+
+    def _assemble_vector(self, vec, form):
+        with vec.localForm() as local:
+            local.set(0.0)
+        assemble_vector(vec, form)
+
+    def local_blocks(self):
+        """B (n, d, m), C (n, m, d), D (n, m, m) at the owned contact nodes."""
+        n, d, m = len(self.own), self.d, self.m
+        B, C, D = np.zeros((n, d, m)), np.zeros((n, m, d)), np.zeros((n, m, m))
+        directions = [(None, c) for c in range(d)] + \
+            [(a, j) for a in range(len(self.fields)) for j in range(self.bs[a])]
+        for field, j in directions:
+            for e in [self.e_u] + self.e:
+                e.x.array[:] = 0.0
+            unit = self.e_u if field is None else self.e[field]
+            unit.x.array.reshape(-1, unit.function_space.dofmap.index_map_bs)[:, j] = 1.0
+            for b, (form, vec) in enumerate(zip(self.row_forms, self.row_vecs)):
+                self._assemble_vector(vec, form)
+                rows = slice(self.offsets[b], self.offsets[b + 1])
+                values = self._node_values(vec, self.bs[b])
+                if field is None:
+                    C[:, rows, j] = values
+                else:
+                    D[:, rows, self.offsets[field] + j] = values
+            if field is not None and self.B_form is not None:
+                self._assemble_vector(self.B_vec, self.B_form)
+                B[:, :, self.offsets[field] + j] = self._node_values(self.B_vec, d)
+        # Dirichlet rows of u carry no multiplier; fixed multipliers are decoupled (dl = 0).
+        B[self.fixed_u] = 0.0
+        B *= self.free[:, None, :]
+        C *= self.free[:, :, None]
+        D *= self.free[:, :, None] * self.free[:, None, :]
+        idx_node, idx_comp = np.nonzero(~self.free)
+        D[idx_node, idx_comp, idx_comp] = 1.0
+        return B, C, D
+
+    def residual(self, x, b):
+        """The condensed residual at x (u's vector, ghosts updated) into b; also stores the
+        node blocks for the Jacobian and the full residual norm of the coupled problem."""
+        with b.localForm() as local:
+            local.set(0.0)
+        assemble_vector(b, self.F_u)
+        apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
+        b.ghostUpdate(addv=_ADD, mode=_REVERSE)
+        set_bc(b, self.bcs, x, -1.0)
+        G = np.zeros((len(self.own), self.m))
+        for a, (form, vec) in enumerate(zip(self.G, self.G_vecs)):
+            self._assemble_vector(vec, form)
+            G[:, self.offsets[a]:self.offsets[a + 1]] = self._node_values(vec, self.bs[a])
+        G *= self.free
+        comm = self.V.mesh.comm
+        self.full_norm = float(np.sqrt(b.norm() ** 2 + comm.allreduce(float(np.sum(G * G)),
+                                                                       MPI.SUM)))
+        B, C, D = self.local_blocks()
+        array = b.array.reshape(-1, self.d)
+        F = array[self.own].copy()
+        parts = eliminate(B, C, D, F, G, self.scale, self.d_scale)
+        array[self.own] = parts["F_red"]
+        self.parts = dict(parts, B=B, C=C, F=F, G=G)
+
+    def jacobian(self):
+        """J_red = S J + L into self.J_red."""
+        self._assemble_J()
+        P, L = self.parts["P"], self.parts["L"]
+        for rows, block in zip(self.rows, P):
+            self.S.setValues(rows, rows, block)
+        self.S.assemble()
+        self.S.matMult(self.A, result=self.J_red)
+        for rows, block in zip(self.rows, L):
+            self.J_red.setValues(rows, rows, block, addv=_ADD)
+        self.J_red.assemble()
+
+    def update_multipliers(self, du):
+        """Add the node-wise dl for the displacement step du (a PETSc vector)."""
+        Jdu = self.A.createVecLeft()
+        self.A.mult(du, Jdu)
+        p = self.parts
+        dl = recover(p, p["B"], p["C"], p["F"], p["G"],
+                     du.array.reshape(-1, self.d)[self.own],
+                     Jdu.array.reshape(-1, self.d)[self.own])
+        for a, f in enumerate(self.fields):
+            f.x.array.reshape(-1, self.bs[a])[self.own] += dl[:, self.offsets[a]:self.offsets[a + 1]]
+            f.vector.ghostUpdate(addv=_INSERT, mode=_FORWARD)
