@@ -41,3 +41,23 @@ def write(name, rows, header, line):
     lines += [line(r) for r in rows]
     (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
+
+
+def write_markdown(name, lines):
+    """results/<name>.md from table lines; also printed."""
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+def assemble_linear(a, L, bcs):
+    """Matrix and right-hand side of a linear problem with Dirichlet conditions (lifted)."""
+    from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
+    from petsc4py import PETSc
+    A = assemble_matrix(a, bcs=bcs)
+    A.assemble()
+    b = assemble_vector(L)
+    apply_lifting(b, [a], [bcs])
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    set_bc(b, bcs)
+    return A, b

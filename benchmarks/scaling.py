@@ -13,14 +13,13 @@ Newton iteration cannot go below). Writes benchmarks/results/scaling.{json,md}.
 import argparse
 import json
 import os
-import pathlib
 import resource
 import subprocess
 import sys
 import time
 
-HERE = pathlib.Path(__file__).parent
-RESULTS = HERE / "results"
+from common import RESULTS, assemble_linear, write_markdown
+
 PYTHON = sys.executable
 
 #: (scene, size) -> --set overrides. paper: cells per side; block3d: mesh size h (box3d).
@@ -36,7 +35,6 @@ def one(scene_name, size, solver, steps):
     import numpy as np
     import ufl
     from dolfinx import fem
-    from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
     from mpi4py import MPI
     from petsc4py import PETSc
 
@@ -79,12 +77,7 @@ def one(scene_name, size, solver, steps):
     for _ in range(2):
         comm.Barrier()
         tick = time.perf_counter()
-        A = assemble_matrix(a, bcs=bcs)
-        A.assemble()
-        b = assemble_vector(L)
-        apply_lifting(b, [a], [bcs])
-        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        set_bc(b, bcs)
+        A, b = assemble_linear(a, L, bcs)
         A.setNearNullSpace(solver_module.rigid_body_modes(V))
         ksp = PETSc.KSP().create(comm)
         ksp.setOptionsPrefix("elastic_")
@@ -121,7 +114,7 @@ def one(scene_name, size, solver, steps):
 CONFIGS = {
     # paper: cells per side; block3d: gmsh mesh size h
     "paper": [32, 64, 128, 256, 512],
-    "block3d": [0.125, 0.0625, 0.04, 0.025, 0.016],
+    "block3d": [0.125, 0.0625, 0.04, 0.025, 0.016, 0.013],
 }
 #: MUMPS is not run above these sizes (3D fill-in: minutes and many GB per factorization).
 DIRECT_LIMIT = {"paper": 256, "block3d": 0.04}
@@ -198,8 +191,7 @@ def write_table(rows, name):
             f"{' '.join(map(str, r['newton_per_step']))} | {krylov} | {r['s_per_step']:.3f} | "
             f"{r['s_per_newton']:.4f} | {r['elastic_solve_s']:.4f} | "
             f"{r['newton_over_elastic']:.2f} | {max(r['peak_mb_per_rank']):.0f} | {speedup} |")
-    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_markdown(name, lines)
 
 
 if __name__ == "__main__":
