@@ -23,7 +23,7 @@ diagonal at the node):
     E_i = B_i D_i^+,   L_i = -P_i E_i C_i + s_i Q_i U_0^T C_i.
 
 The linear system keeps the size of u: J_red = S J + L with S = diag(P_i) (the identity off the
-active nodes). After the solve, dl_i follows node by node with
+active nodes), built in place: only the rows of contact nodes change. After the solve, dl_i follows node by node with
 b_i = R_i^-1 Q_i^T (-F_u,i - (J du)_i - B_i a_i), a_i = D_i^+ (-G_i - C_i du_i). Newton's
 iterates are the coupled method's to round-off (the same converged answer and iteration count),
 while the linear algebra pays for the contact boundary only.
@@ -148,31 +148,24 @@ class NodalCondensation:
         start = V.dofmap.index_map.local_range[0] * d
         self.rows = (start + self.own[:, None] * d + np.arange(d)).astype(PETSc.IntType)
 
-        self.A = create_matrix(self.J_uu)                 # J (the u-u block)
+        # One matrix of u's size: J is assembled into it and its contact rows are then
+        # overwritten by the condensed ones (J_red); the original contact rows are kept in the
+        # small matrix self.J_contact for the multiplier update.
+        self.A = create_matrix(self.J_uu)
         self._assemble_J()
         diagonal = self.A.getDiagonal()
         scale = np.abs(diagonal.array.reshape(-1, d)).mean(axis=1)
         typical = V.mesh.comm.allreduce(float(scale.mean()) if scale.size else 0.0,
                                         MPI.SUM) / V.mesh.comm.size
         self.scale = np.where(scale[self.own] > 0, scale[self.own], typical or 1.0)
-        self.S = self._selection_matrix()
-        self.J_red = self.S.matMult(self.A)
+        comm = self.A.getComm()
+        self._contact_rows = PETSc.IS().createGeneral(self.rows.ravel(), comm=comm)
+        cstart, cend = self.A.getOwnershipRangeColumn()
+        self._columns = PETSc.IS().createStride(cend - cstart, first=cstart, step=1, comm=comm)
+        self.J_contact = self.A.createSubMatrix(self._contact_rows, self._columns)
+        self.J_red = self.A
         self.parts = None
         self.full_norm = 0.0
-
-    def _selection_matrix(self):
-        """S = diag(P_i): the identity now (block-diagonal pattern), its contact blocks set at
-        each Jacobian."""
-        d = self.d
-        rstart, rend = self.A.getOwnershipRange()
-        rows = np.arange(rstart, rend)
-        indptr = np.arange(0, d * (rend - rstart) + 1, d, dtype=PETSc.IntType)
-        indices = ((rows // d * d)[:, None] + np.arange(d)).ravel().astype(PETSc.IntType)
-        values = (indices == np.repeat(rows, d)).astype(PETSc.ScalarType)
-        S = PETSc.Mat().createAIJ(self.A.getSizes(), bsize=d, csr=(indptr, indices, values),
-                                  comm=self.A.getComm())
-        S.assemble()
-        return S
 
     def _assemble_J(self):
         self.A.zeroEntries()
@@ -244,25 +237,37 @@ class NodalCondensation:
         self.parts = dict(parts, B=B, C=C, F=F, G=G)
 
     def jacobian(self):
-        """J_red = S J + L into self.J_red."""
+        """J_red = S J + L, in place: J is assembled, its contact rows saved, and the rows of
+        every node where P_i != I or L_i != 0 replaced by P_i (J rows) + L_i."""
         self._assemble_J()
+        self.A.createSubMatrix(self._contact_rows, self._columns, submat=self.J_contact)
         P, L = self.parts["P"], self.parts["L"]
-        for rows, block in zip(self.rows, P):
-            self.S.setValues(rows, rows, block)
-        self.S.assemble()
-        self.S.matMult(self.A, result=self.J_red)
-        for rows, block in zip(self.rows, L):
-            self.J_red.setValues(rows, rows, block, addv=_ADD)
-        self.J_red.assemble()
+        changed = np.flatnonzero(np.any(np.abs(P - np.eye(self.d)) > 0, axis=(1, 2))
+                                 | np.any(L != 0, axis=(1, 2)))
+        new_rows = []
+        for i in changed:
+            rows = self.rows[i]
+            columns, first = self.A.getRow(int(rows[0]))
+            values = np.empty((self.d, len(columns)))
+            values[0] = first
+            for c in range(1, self.d):
+                values[c] = self.A.getRow(int(rows[c]))[1]
+            values = P[i] @ values
+            # The node's own d x d block: its columns are the rows' indices.
+            values[:, np.searchsorted(columns, rows)] += L[i]
+            new_rows.append((rows, columns, values))
+        for rows, columns, values in new_rows:
+            self.A.setValues(rows, columns, values)
+        self.A.assemble()
 
     def update_multipliers(self, du):
         """Add the node-wise dl for the displacement step du (a PETSc vector)."""
-        Jdu = self.A.createVecLeft()
-        self.A.mult(du, Jdu)
+        Jdu = self.J_contact.createVecLeft()
+        self.J_contact.mult(du, Jdu)
         p = self.parts
         dl = recover(p, p["B"], p["C"], p["F"], p["G"],
                      du.array.reshape(-1, self.d)[self.own],
-                     Jdu.array.reshape(-1, self.d)[self.own])
+                     Jdu.array.reshape(-1, self.d))
         for a, f in enumerate(self.fields):
             f.x.array.reshape(-1, self.bs[a])[self.own] += dl[:, self.offsets[a]:self.offsets[a + 1]]
             f.vector.ghostUpdate(addv=_INSERT, mode=_FORWARD)

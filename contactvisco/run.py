@@ -120,8 +120,10 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
                 if gathered is not None:
                     snapshots.append((t,) + gathered)
                     output.write_snapshots(pathlib.Path(out) / "snapshots.npz", snapshots)
+        krylov = snes.krylov_iterations
         say(f"step {n:4d}  t = {t:.4g}/{T:g}  Newton {iterations:2d}  "
-            f"|F| = {record['residual']:.2e}  "
+            + (f"Krylov {max(krylov):3d} max  " if krylov and max(krylov) > 1 else "")
+            + f"|F| = {record['residual']:.2e}  "
             + " ".join(f"{key} {value}" for key, value in counts.items())
             + f"  {wall:.3f} s" + (f"  (cut x{2 ** cuts})" if cuts else ""))
         state.update(t=t, count=n + 1, table=table)

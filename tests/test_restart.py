@@ -15,7 +15,9 @@ from mpi4py import MPI
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own (MPI) processes; run on one rank")
 
-SCENE = ["paper", "--set", "geometry.cells=[24, 24]", "--set", "time.steps=80",
+# Enough steps that the run is still going when 20 are written (a step takes about 0.02 s).
+STEPS = 200
+SCENE = ["paper", "--set", "geometry.cells=[24, 24]", "--set", f"time.steps={STEPS}",
          "--set", "output.figures=false", "--quiet"]
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 
@@ -56,7 +58,7 @@ def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
     # What the killed run left is complete and readable for the steps it finished.
     summary = json.loads((out / "summary.json").read_text())
     done = len(summary["steps"])
-    assert 20 <= done < 81 and summary["final"] is None
+    assert 20 <= done < STEPS + 1 and summary["final"] is None
     _, rows = last_step_rows(out / "contact_nodes.csv")
     assert {int(r["step"]) for r in rows} >= set(range(done))
     # Restart and compare with the uninterrupted run.
@@ -65,7 +67,7 @@ def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
     assert restart.returncode == 0, restart.stderr
     final = json.loads((out / "summary.json").read_text())
     expected = json.loads((reference / "summary.json").read_text())
-    assert len(final["steps"]) == 81 and final["restarts"][0]["from_step"] >= 20
+    assert len(final["steps"]) == STEPS + 1 and final["restarts"][0]["from_step"] >= 20
     assert final["final"]["status_counts"] == expected["final"]["status_counts"]
     got, _ = last_step_rows(out / "contact_nodes.csv")
     want, _ = last_step_rows(reference / "contact_nodes.csv")
