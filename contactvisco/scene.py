@@ -71,7 +71,7 @@ DEFAULTS: dict = {
         "linear_system": "auto",  # condensed (u only, multipliers eliminated node by node;
                                   # nodal contact quadrature) | coupled (u and multipliers);
                                   # auto: condensed where possible
-        "linear_solver": "auto",  # direct (MUMPS LU) | iterative (GMRES + GAMG); auto:
+        "linear_solver": "auto",  # direct (MUMPS LU) | iterative (GMRES + BoomerAMG); auto:
                                   # iterative from solver.AUTO_ITERATIVE unknowns on
     },
     "output": {

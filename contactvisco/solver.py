@@ -1,9 +1,17 @@
-"""A PETSc SNES generalized Newton over block-assembled UFL residuals (DOLFINx 0.5 has no SNES
-wrapper of its own).
+"""A PETSc SNES generalized Newton over UFL residuals (DOLFINx 0.5 has no SNES wrapper of its
+own).
 
-Each Newton step solves J(w) dw = -F(w) for all unknowns w = (u, lambda_nu, lambda_tau) at
-once; J is the UFL derivative of F, i.e. an element of the generalized (Clarke) Jacobian of
-the semismooth residual.
+Each Newton step solves J(w) dw = -F(w) for the unknowns w = (u, lambda_nu, lambda_tau); J is
+the UFL derivative of F, i.e. an element of the generalized (Clarke) Jacobian of the
+semismooth residual. Two forms of that linear system, with the same iterates:
+
+- CondensedSNES (default where the contact conditions hold node by node): the multipliers are
+  eliminated node by node (contactvisco.condensed) and the system has the size of u;
+- BlockSNES: u and the multipliers (whole-mesh P1 fields) in one block-assembled saddle-point
+  system (the Gauss contact quadrature needs it).
+
+`create` picks one from the scene, and a direct (MUMPS) or iterative (GMRES + BoomerAMG)
+linear solver.
 """
 from __future__ import annotations
 
@@ -54,7 +62,7 @@ ITERATIVE_OPTIONS = {
 }
 
 #: linear_solver = "auto" takes the iterative solver from this many displacement unknowns
-#: on (by dimension), where it was measured to beat MUMPS (benchmarks/solvers.py).
+#: on (by dimension), where it was measured to beat MUMPS (benchmarks/scaling.py).
 AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
 
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
