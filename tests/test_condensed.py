@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import geometry, output, problem as problem_module, scene as scene_module
+from contactvisco import geometry, problem as problem_module, scene as scene_module
 from contactvisco import solver as solver_module
 from contactvisco.condensed import eliminate, recover
 from contactvisco.run import simulate
