@@ -163,6 +163,7 @@ class NodalCondensation:
         cstart, cend = self.A.getOwnershipRangeColumn()
         self._columns = PETSc.IS().createStride(cend - cstart, first=cstart, step=1, comm=comm)
         self.J_contact = self.A.createSubMatrix(self._contact_rows, self._columns)
+        self._Jdu = self.J_contact.createVecLeft()
         self.J_red = self.A
         self.parts = None
         self.full_norm = 0.0
@@ -262,7 +263,7 @@ class NodalCondensation:
 
     def update_multipliers(self, du):
         """Add the node-wise dl for the displacement step du (a PETSc vector)."""
-        Jdu = self.J_contact.createVecLeft()
+        Jdu = self._Jdu
         self.J_contact.mult(du, Jdu)
         p = self.parts
         dl = recover(p, p["B"], p["C"], p["F"], p["G"],

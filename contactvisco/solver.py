@@ -200,7 +200,9 @@ class CondensedSNES(_Newton):
         self.system = NodalCondensation(problem)
         self.b = problem.u.vector.copy()
         self.x = problem.u.vector.copy()
-        self._x_jacobian = None          # the iterate of the last Jacobian
+        self._x_jacobian = problem.u.vector.copy()   # the iterate of the last Jacobian
+        self._du = problem.u.vector.copy()
+        self._pending = False            # a step from _x_jacobian awaits its multiplier update
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.system.J_red)
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
@@ -210,7 +212,7 @@ class CondensedSNES(_Newton):
         self._finish_setup()
 
     def solve(self) -> int:
-        self._x_jacobian = None
+        self._pending = False
         return super().solve()
 
     def _monitor(self, snes, it, norm):
@@ -218,18 +220,19 @@ class CondensedSNES(_Newton):
 
     def _residual(self, snes, x, b):
         x.ghostUpdate(addv=_INSERT, mode=_FORWARD)
-        if self._x_jacobian is not None:
+        if self._pending:
             # x = x_J - y, the step from the last Jacobian's iterate: update the multipliers.
-            du = x.copy()
-            du.axpy(-1.0, self._x_jacobian)
-            self.system.update_multipliers(du)
-            self._x_jacobian = None
+            x.copy(self._du)
+            self._du.axpy(-1.0, self._x_jacobian)
+            self.system.update_multipliers(self._du)
+            self._pending = False
         self._to_functions(x)
         self.system.residual(x, b)
 
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
-        self._x_jacobian = x.copy()
+        x.copy(self._x_jacobian)
+        self._pending = True
 
     def _converged(self, snes, it, norms):
         norm = self.system.full_norm
