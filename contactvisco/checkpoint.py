@@ -101,7 +101,10 @@ def save(folder, problem, comm, t: float, count: int, step: float | None):
     tmp = here / f"part-{comm.rank}.tmp.npz"
     np.savez(tmp, **part)
     os.replace(tmp, here / f"part-{comm.rank}.npz")
-    boxes = comm.gather(_box(np.concatenate(points)) if points else None, root=0)
+    cache = problem.__dict__.setdefault("_checkpoint_keys", {})
+    if "box" not in cache:             # the positions never change during a run
+        cache["box"] = _box(np.concatenate(points)) if points else None
+    boxes = comm.gather(cache["box"], root=0)
     if comm.rank == 0:                 # every part is complete once rank 0 has every box
         meta = {"t": t, "count": count, "step": step, "ranks": comm.size,
                 "scene": scene_hash(problem.scene), "fields": names,

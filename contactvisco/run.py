@@ -76,6 +76,14 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
             writer.summary["warnings"] = [warning]
 
     figure_times = {round(i * k, 12) for i in figure_steps}
+    # The figure snapshots gather the whole mesh on rank 0: skipped on large meshes.
+    skip_snapshots = writer is not None and opts["figures"] and output.snapshot_skip_note(
+        problem, opts["snapshot_max_nodes"], writer.xdmf is not None)
+    if skip_snapshots:
+        notes = writer.summary.setdefault("notes", [])
+        if skip_snapshots not in notes:     # a restarted run keeps its earlier summary
+            notes.append(skip_snapshots)
+        say(skip_snapshots)
     state = {"t": 0.0, "count": 0, "table": None}
     if resumed:
         state.update(t=resumed["t"], count=resumed["count"])
@@ -108,12 +116,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
                 fields = [available[name] for name in opts["fields"]
                           if available[name] is not None]
             writer.step(record, table, fields)
-            skip = opts["figures"] and output.snapshot_skip_note(
-                problem, opts["snapshot_max_nodes"], writer.xdmf is not None)
-            if skip and skip not in writer.summary.setdefault("notes", []):
-                writer.summary["notes"].append(skip)
-                say(skip)
-            if round(t, 12) in figure_times and opts["figures"] and not skip:
+            if round(t, 12) in figure_times and opts["figures"] and not skip_snapshots:
                 if writer.xdmf is None or "sigma" not in opts["fields"]:
                     sigma.interpolate(problem.sigma_expression)
                 gathered = output.gather_mesh(problem, sigma, comm)

@@ -154,6 +154,8 @@ class BlockSNES(_Newton):
     """SNES over all unknowns `functions` (u and the multipliers) with residual blocks F and
     Jacobian blocks J: the coupled saddle-point system."""
 
+    system_kind = "coupled"
+
     def __init__(self, F, J, functions, bcs, comm, scene_options=None, defaults=None):
         super().__init__(comm, functions, scene_options, defaults)
         J = [list(row) for row in J]
@@ -194,6 +196,8 @@ class BlockSNES(_Newton):
 class CondensedSNES(_Newton):
     """SNES over u alone, the nodal multipliers eliminated node by node in every Newton step
     (contactvisco.condensed); they are updated from each displacement step."""
+
+    system_kind = "condensed"
 
     def __init__(self, problem, comm, scene_options=None, defaults=None):
         super().__init__(comm, [problem.u], scene_options, defaults)
@@ -302,7 +306,7 @@ def create(problem, comm, scene_options=None) -> _Newton:
     else:
         newton = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, comm,
                            options, defaults)
-        if system == "displacement":
+        if system == "displacement":           # u alone: a block system of one block
+            newton.system_kind = system
             newton.A.setNearNullSpace(rigid_body_modes(problem.V))
-    newton.system_kind = system
     return newton

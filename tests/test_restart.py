@@ -45,9 +45,11 @@ def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
     deadline = time.time() + 300
     steps = 0
     while time.time() < deadline and proc.poll() is None:
+        # Wait for the checkpoint, not the summary: the summary of a step is written before
+        # its checkpoint, and a kill between the two restarts from the step before.
         try:
-            steps = len(json.loads((out / "summary.json").read_text())["steps"])
-        except (OSError, ValueError):
+            steps = json.loads((out / "checkpoint" / "meta.json").read_text())["count"]
+        except (OSError, ValueError, KeyError):
             steps = 0
         if steps >= 20:
             break
