@@ -14,6 +14,7 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from . import compat
 from .scene import SceneError, dimension
 
 MESH_DIR = pathlib.Path(__file__).resolve().parents[1] / "meshes"
@@ -142,7 +143,6 @@ def _generate(geo, path: pathlib.Path, d: int):
 
 
 def _gmsh(geo, d: int, comm) -> Geometry:
-    from dolfinx.io import gmshio
     import gmsh
     path = mesh_file(geo)
     error = None
@@ -168,7 +168,7 @@ def _gmsh(geo, d: int, comm) -> Geometry:
     names = comm.bcast(names, root=0)
     if isinstance(names, str):
         raise SceneError(names)
-    mesh, _, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=d)
+    mesh, facet_tags = compat.model_to_mesh(gmsh.model, comm, 0, gdim=d)
     if comm.rank == 0:
         gmsh.finalize()
     if not names:
