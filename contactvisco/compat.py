@@ -229,14 +229,16 @@ def _block_offsets(spaces):
 
 def assemble_block_residual(b, F, J, bcs, x, scale: float = -1.0):
     """b = F(x) with the rows of Dirichlet dofs set to scale (g - x) and the lifting of their
-    columns, for the stacked unknowns (the block system of the saddle point)."""
+    columns, for the stacked unknowns (the block system of the saddle point); x = None
+    stands for x = 0."""
     if _BLOCK_FUNCTIONS:
         fem_petsc.assemble_vector_block(b, F, J, bcs=bcs, x0=x, **{_LIFTING_SCALE: scale})
         return
     spaces = [f.function_spaces[0] for f in F]
     blocks = _block_offsets(spaces)
-    b.setAttr("_blocks", blocks)
-    x.setAttr("_blocks", blocks)
+    for vector in (b, x):
+        if vector is not None:
+            vector.setAttr("_blocks", blocks)
     fem_petsc.assemble_vector(b, F)
     bcs1 = fem.bcs_by_block(fem.extract_function_spaces(J, 1), bcs)
     apply_lifting(b, J, bcs=bcs1, x0=x, scale=scale)
@@ -260,3 +262,35 @@ def assemble_block_matrix(A, J, bcs, diagonal: float = 1.0):
 def has_hypre() -> bool:
     """Whether PETSc was built with hypre (BoomerAMG)."""
     return bool(PETSc.Sys.hasExternalPackage("hypre"))
+
+
+# ------------------------------------------------------------------ MPI
+
+def mpi_vendor() -> str:
+    """'Open MPI', 'MPICH' or another name, from the MPI library this Python uses."""
+    from mpi4py import MPI
+    library = MPI.Get_library_version()
+    for name in ("Open MPI", "MPICH"):
+        if name in library:
+            return name
+    return library.split()[0] if library.strip() else "unknown"
+
+
+def mpi_launcher() -> list[str]:
+    """The command that starts processes of this Python's MPI: the mpiexec installed beside
+    the interpreter (an MPI from PyPI lives in the virtual environment), else mpiexec or
+    mpirun on PATH."""
+    import pathlib
+    import shutil
+    import sys
+    beside = pathlib.Path(sys.executable).parent / "mpiexec"
+    if beside.exists():
+        return [str(beside)]
+    found = shutil.which("mpirun") or shutil.which("mpiexec")
+    return [found] if found else []
+
+
+def hostfile_line(host: str, slots: int) -> str:
+    """One line of a hostfile in the launcher's syntax (Open MPI: 'host slots=N', MPICH's
+    hydra: 'host:N')."""
+    return f"{host} slots={slots}" if mpi_vendor() == "Open MPI" else f"{host}:{slots}"
