@@ -175,7 +175,7 @@ class Writer:
         self.summary["steps"].append(record)
         if self.xdmf is not None:
             for f in fields:
-                self.xdmf.write_function(self._xdmf_field(f), record["t"])
+                self.xdmf.write_function(xdmf_field(f, self._writable), record["t"])
         if self.rank != 0:
             return
         if self.csv is not None and table is not None:
@@ -188,25 +188,6 @@ class Writer:
                                   + [STATUSES[table["status"][i]]])
             self.csv_file.flush()
         self._write_summary()
-
-    def _xdmf_field(self, function):
-        """The function itself where XDMFFile writes it; else (DOLFINx >= 0.6 writes only
-        fields of the mesh's degree) its interpolation into the P1 or DG0 space of the same
-        shape, under the same name."""
-        space = function.function_space
-        degree = compat.element_degree(space)
-        if compat.xdmf_writes_any_degree() or degree == (0 if compat.is_discontinuous(space)
-                                                          else 1):
-            return function
-        if function.name not in self._writable:
-            family, low = ("DG", 0) if compat.is_discontinuous(space) else ("CG", 1)
-            make = {0: compat.scalar_space, 1: compat.vector_space,
-                    2: compat.tensor_space}[len(function.ufl_shape)]
-            self._writable[function.name] = fem.Function(make(space.mesh, family, low),
-                                                         name=function.name)
-        target = self._writable[function.name]
-        target.interpolate(function)
-        return target
 
     def finish(self, final: dict):
         self.summary["final"] = final
@@ -248,6 +229,28 @@ def snapshot_skip_note(problem, limit, xdmf: bool) -> str | None:
     return (f"figures: no snapshots (snapshots.npz, deformed_mesh.png, stress.png): {nodes} "
             f"nodes > output.snapshot_max_nodes = {limit}"
             + ("; the fields are in the XDMF output" if xdmf else ""))
+
+
+def xdmf_field(function, cache: dict, convert: bool = None):
+    """What XDMFFile can write of a Function: the Function itself where XDMFFile writes any
+    degree (DOLFINx 0.5), else (0.6 on: only the mesh's degree) its interpolation into the P1
+    or DG0 space of the same shape, under the same name. convert=True always interpolates.
+    `cache` keeps the interpolation targets between steps."""
+    space = function.function_space
+    discontinuous = compat.is_discontinuous(space)
+    if convert is None:
+        convert = not compat.xdmf_writes_any_degree()
+    if not convert or compat.element_degree(space) == (0 if discontinuous else 1):
+        return function
+    if function.name not in cache:
+        family, degree = ("DG", 0) if discontinuous else ("CG", 1)
+        make = {0: compat.scalar_space, 1: compat.vector_space,
+                2: compat.tensor_space}[len(function.ufl_shape)]
+        cache[function.name] = fem.Function(make(space.mesh, family, degree),
+                                            name=function.name)
+    target = cache[function.name]
+    target.interpolate(function)
+    return target
 
 
 def gather_mesh(problem, sigma, comm):
