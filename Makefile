@@ -1,23 +1,38 @@
 # contactvisco: `make demo` and `make test` install what they need first (Debian 12, as root
-# or with sudo). Everything else lives in the virtual environment .venv.
+# or with sudo). Two routes to FEniCSx:
+#   STACK=debian (default): Debian's DOLFINx 0.5 with hypre and Open MPI, in .venv
+#   STACK=pip:              PyPI's DOLFINx 0.11 wheel (dolfinx-solver-real) with its own MPICH,
+#                           on Python >= 3.12, in .venv-pip
 SHELL := /bin/bash
-VENV := .venv
-PY := $(VENV)/bin/python
+STACK ?= debian
 NP ?= 2
+
+ifeq ($(STACK),pip)
+VENV := .venv-pip
+# What pip's gmsh and VTK load from the system, and a C compiler for the form JIT.
+APT_PACKAGES := gcc libglu1-mesa libxcursor1 libxft2 libxinerama1 libgl1 libxrender1
+MPIRUN := $(CURDIR)/$(VENV)/bin/mpiexec -n $(NP)
+else ifeq ($(STACK),debian)
+VENV := .venv
 APT_PACKAGES := python3-dolfinx-real python3-gmsh python3-venv python3-pytest \
                 python3-matplotlib openmpi-bin
-# Open MPI refuses root unless told; harmless otherwise.
+MPIRUN := mpirun -n $(NP)
+else
+$(error STACK must be debian or pip, not '$(STACK)')
+endif
+PY := $(VENV)/bin/python
+
+# Open MPI refuses root unless told; harmless otherwise (and ignored by MPICH).
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
-MPIRUN := mpirun -n $(NP)
 
-.PHONY: install demo test test-serial test-parallel benchmark benchmark-scaling clean
+.PHONY: install demo test test-serial test-parallel benchmark benchmark-scaling clean \
+        apt-packages
 
 install: $(VENV)/.installed
 
-# The constraints keep Debian's numpy: pip's numpy 2 breaks Debian's petsc4py.
-$(VENV)/.installed: pyproject.toml constraints.txt
+apt-packages:
 	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
 	if [ -n "$$missing" ]; then \
 	  echo "installing Debian packages: $$missing"; \
@@ -25,13 +40,34 @@ $(VENV)/.installed: pyproject.toml constraints.txt
 	  $$SUDO apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	fi
+
+ifeq ($(STACK),pip)
+# A Python >= 3.12 that runs: python3.13 or python3.12 on PATH, else pyenv's newest.
+FIND_PYTHON := for p in python3.13 python3.12 \
+	  $$(ls -d $$(pyenv root 2>/dev/null)/versions/3.1[2-9]*/bin/python3 2>/dev/null | sort -rV); do \
+	  $$p -c 'import sys; assert sys.version_info >= (3, 12)' 2>/dev/null && { command -v $$p; exit 0; }; \
+	done; exit 1
+
+$(VENV)/.installed: pyproject.toml | apt-packages
+	@if [ ! -x $(PY) ]; then \
+	  python=$$($(FIND_PYTHON)) || { echo "The PyPI route needs Python >= 3.12 (DOLFINx 0.11 wheels): install python3.12 or python3.13 (e.g. with pyenv) and run again." >&2; exit 1; }; \
+	  echo "PyPI route: $$python"; $$python -m venv $(VENV); \
+	fi
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q dolfinx-solver-real gmsh -e '.[viz,dev]'
+	$(PY) -m contactvisco --version
+	touch $@
+else
+# The constraints keep Debian's numpy: pip's numpy 2 breaks Debian's petsc4py.
+$(VENV)/.installed: pyproject.toml constraints.txt | apt-packages
 	[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
 	$(PY) -m pip install -q -c constraints.txt --no-build-isolation -e '.[viz,dev]'
-	$(PY) -c "import dolfinx, contactvisco; print('dolfinx', dolfinx.__version__, 'ok')"
+	$(PY) -m contactvisco --version
 	touch $@
+endif
 
 demo: install
-	$(VENV)/bin/contactvisco run paper --out results/paper
+	$(VENV)/bin/contactvisco run paper --out results/paper$(if $(filter pip,$(STACK)),-pip)
 
 test: test-serial test-parallel
 

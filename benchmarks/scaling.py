@@ -71,7 +71,7 @@ def one(scene_name, size, solver, steps):
     bcs = [fem.dirichletbc(np.zeros(d, dtype=PETSc.ScalarType), dofs, V)] + problem.bcs_u
     options = dict(solver_module.DEFAULT_OPTIONS)
     if solver == "iterative":
-        options.update(solver_module.ITERATIVE_OPTIONS)
+        options.update(solver_module.iterative_options())
     opts = PETSc.Options()
     linear = []
     for _ in range(2):

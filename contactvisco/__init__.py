@@ -8,7 +8,13 @@ PETSc first.
 """
 __version__ = "0.1.0"
 
+import importlib.util as _util
 import logging as _logging
+
+# A DOLFINx wheel that bundles its MPI and PETSc (PyPI's dolfinx-solver-*) loads their shared
+# libraries when this module is imported, which must happen before dolfinx or petsc4py.
+if _util.find_spec("dolfinx_solver") is not None:
+    import dolfinx_solver  # noqa: F401
 
 # A JIT compile of a form makes setuptools' distutils lower the root logger to INFO and log
 # every compiler command line; keep those out of the user's console.

@@ -19,6 +19,7 @@ import shutil
 
 import numpy as np
 
+from . import compat
 from .scene import SceneError
 
 META = "meta.json"
@@ -35,13 +36,13 @@ def _keys(space):
     a discontinuous space also the midpoint of its cell."""
     from dolfinx.mesh import compute_midpoints
     coords = space.tabulate_dof_coordinates()
-    if space.ufl_element().family() not in ("Discontinuous Lagrange", "DG", "DQ"):
+    if not compat.is_discontinuous(space):
         return coords
     mesh = space.mesh
     tdim = mesh.topology.dim
     n_cells = mesh.topology.index_map(tdim).size_local + mesh.topology.index_map(tdim).num_ghosts
     cell_of = np.empty(len(coords), dtype=np.int32)
-    dofs = space.dofmap.list.array.reshape(n_cells, -1)
+    dofs = compat.cell_dofs(space.dofmap)
     cell_of[dofs] = np.arange(n_cells, dtype=np.int32)[:, None]
     return np.hstack([coords, compute_midpoints(mesh, tdim, cell_of)])
 

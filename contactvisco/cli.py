@@ -4,6 +4,7 @@
     contactvisco scenes
     contactvisco show SCENE [--set key=value ...]
     contactvisco plot DIR
+    contactvisco --version
 
 SCENE is a built-in scene name or a TOML file. Arguments that start with a single dash and are
 not ours (-snes_monitor, -ksp_type gmres, ...) go to PETSc.
@@ -17,6 +18,8 @@ import sys
 
 def _parser():
     parser = argparse.ArgumentParser(prog="contactvisco", description=__doc__.split("\n")[0])
+    parser.add_argument("--version", action="store_true",
+                        help="print the versions of contactvisco, DOLFINx, PETSc and MPI")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve a scene")
     run.add_argument("scene", help="built-in scene name or TOML file")
@@ -41,6 +44,9 @@ def _parser():
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
+    if argv == ["--version"]:
+        print(versions())
+        return 0
     args, petsc_args = _parser().parse_known_args(argv)
     bad = [a for a in petsc_args if a.startswith("--")]
     if bad:
@@ -84,6 +90,33 @@ def main(argv=None):
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
     return 0
+
+
+def versions() -> str:
+    """What a bug report needs: the versions of this package and of the stack under it."""
+    from importlib import metadata
+
+    import dolfinx
+    import mpi4py
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    from . import __version__, compat
+    petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
+    library = MPI.Get_library_version().strip().splitlines()[0]
+    try:
+        gmsh = metadata.version("gmsh")
+    except metadata.PackageNotFoundError:
+        import gmsh as gmsh_module
+        gmsh = getattr(gmsh_module, "__version__", "unknown")
+    return "\n".join([
+        f"contactvisco {__version__}",
+        f"DOLFINx {dolfinx.__version__} (Python {sys.version.split()[0]})",
+        f"PETSc {petsc} (hypre: {'yes' if compat.has_hypre() else 'no'}, MUMPS: "
+        f"{'yes' if PETSc.Sys.hasExternalPackage('mumps') else 'no'})",
+        f"MPI: {library} (mpi4py {mpi4py.__version__})",
+        f"gmsh {gmsh}",
+    ])
 
 
 def _check_writable(folder):

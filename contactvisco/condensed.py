@@ -33,10 +33,11 @@ from __future__ import annotations
 import numpy as np
 import ufl
 from dolfinx import fem
-from dolfinx.fem.petsc import (apply_lifting, assemble_matrix, assemble_vector,
-                               create_matrix, create_vector, set_bc)
+from dolfinx.fem.petsc import assemble_vector, create_matrix
 from mpi4py import MPI
 from petsc4py import PETSc
+
+from . import compat
 
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
 _FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE
@@ -136,9 +137,9 @@ class NodalCondensation:
             terms += [ufl.action(J[1 + b][1 + a], self.e[a]) for a in range(len(self.fields))
                       if J[1 + b][1 + a] is not None]
             self.row_forms.append(fem.form(sum(terms[1:], terms[0])))
-        self.B_vec = create_vector(self.B_form) if self.B_form is not None else None
-        self.row_vecs = [create_vector(f) for f in self.row_forms]
-        self.G_vecs = [create_vector(f) for f in self.G]
+        self.B_vec = compat.form_vector(self.B_form) if self.B_form is not None else None
+        self.row_vecs = [compat.form_vector(f) for f in self.row_forms]
+        self.G_vecs = [compat.form_vector(f) for f in self.G]
 
         self.free = np.concatenate([mask[self.own] for mask in problem.multiplier_free], axis=1)
         self.fixed_u = problem.u_fixed[self.own] > 0
@@ -170,7 +171,7 @@ class NodalCondensation:
 
     def _assemble_J(self):
         self.A.zeroEntries()
-        assemble_matrix(self.A, self.J_uu, bcs=self.bcs, diagonal=1.0)
+        compat.assemble_matrix(self.A, self.J_uu, self.bcs, diagonal=1.0)
         self.A.assemble()
 
     def _node_values(self, vec, bs):
@@ -219,9 +220,9 @@ class NodalCondensation:
         with b.localForm() as local:
             local.set(0.0)
         assemble_vector(b, self.F_u)
-        apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
+        compat.apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
         b.ghostUpdate(addv=_ADD, mode=_REVERSE)
-        set_bc(b, self.bcs, x, -1.0)
+        compat.set_bc(b, self.bcs, x, -1.0)
         G = np.zeros((len(self.own), self.m))
         for a, (form, vec) in enumerate(zip(self.G, self.G_vecs)):
             self._assemble_vector(vec, form)
@@ -271,4 +272,4 @@ class NodalCondensation:
                      Jdu.array.reshape(-1, self.d))
         for a, f in enumerate(self.fields):
             f.x.array.reshape(-1, self.bs[a])[self.own] += dl[:, self.offsets[a]:self.offsets[a + 1]]
-            f.vector.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+            compat.petsc_vector(f).ghostUpdate(addv=_INSERT, mode=_FORWARD)

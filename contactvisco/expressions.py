@@ -18,12 +18,13 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
+from . import compat
 from .scene import SceneError
 
 NAMESPACE = {
     "pi": math.pi, "e": math.e,
     "sin": ufl.sin, "cos": ufl.cos, "tan": ufl.tan, "exp": ufl.exp, "ln": ufl.ln,
-    "log": ufl.ln, "sqrt": ufl.sqrt, "abs": abs, "atan2": ufl.atan_2,
+    "log": ufl.ln, "sqrt": ufl.sqrt, "abs": abs, "atan2": compat.atan2,
     "min": ufl.min_value, "max": ufl.max_value, "conditional": ufl.conditional,
 }
 

@@ -14,10 +14,26 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from . import compat
 from .scene import SceneError, dimension
 
-MESH_DIR = pathlib.Path(__file__).resolve().parents[1] / "meshes"
-CACHE_DIR = pathlib.Path(os.environ.get("CONTACTVISCO_MESH_CACHE", MESH_DIR / ".cache"))
+def _mesh_dir() -> pathlib.Path:
+    """The gmsh scripts: installed inside the package, or meshes/ beside it in a source tree."""
+    here = pathlib.Path(__file__).resolve().parent
+    installed = here / "meshes"
+    return installed if installed.is_dir() else here.parent / "meshes"
+
+
+def _cache_dir() -> pathlib.Path:
+    """Made meshes are cached per user (CONTACTVISCO_MESH_CACHE, else the XDG cache folder)."""
+    if os.environ.get("CONTACTVISCO_MESH_CACHE"):
+        return pathlib.Path(os.environ["CONTACTVISCO_MESH_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
+    return pathlib.Path(base) / "contactvisco" / "meshes"
+
+
+MESH_DIR = _mesh_dir()
+CACHE_DIR = _cache_dir()
 
 #: Boundary names of the built-in box: the faces x = lower/upper, y = ..., z = ...
 BOX_FACES_2D = {"left": (0, 0), "right": (0, 1), "bottom": (1, 0), "top": (1, 1)}
@@ -108,9 +124,12 @@ def mesh_file(geo) -> pathlib.Path:
         names = sorted(p.stem for p in MESH_DIR.glob("*.py") if p.stem != "refinement")
         raise SceneError(f"geometry.script: no mesh script '{geo['script']}' in {MESH_DIR} "
                          f"(there are: {', '.join(names)})")
-    # The hash covers the shared helper too, so editing it remakes the cached meshes.
+    # The hash covers the shared helper too, so editing it remakes the cached meshes, and the
+    # gmsh version, whose releases write the same mesh with last-digit differences.
+    import gmsh
     key = hashlib.sha1(script.read_bytes() + (MESH_DIR / "refinement.py").read_bytes()
-                       + json.dumps(geo["parameters"], sort_keys=True).encode()).hexdigest()
+                       + json.dumps(geo["parameters"], sort_keys=True).encode()
+                       + gmsh.__version__.encode()).hexdigest()
     return CACHE_DIR / f"{geo['script']}-{key[:12]}.msh"
 
 
@@ -142,7 +161,6 @@ def _generate(geo, path: pathlib.Path, d: int):
 
 
 def _gmsh(geo, d: int, comm) -> Geometry:
-    from dolfinx.io import gmshio
     import gmsh
     path = mesh_file(geo)
     error = None
@@ -168,7 +186,7 @@ def _gmsh(geo, d: int, comm) -> Geometry:
     names = comm.bcast(names, root=0)
     if isinstance(names, str):
         raise SceneError(names)
-    mesh, _, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=d)
+    mesh, facet_tags = compat.model_to_mesh(gmsh.model, comm, 0, gdim=d)
     if comm.rank == 0:
         gmsh.finalize()
     if not names:

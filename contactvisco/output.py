@@ -19,8 +19,9 @@ import os
 import pathlib
 
 import numpy as np
-from dolfinx import geometry as dgeometry
-from dolfinx import io
+from dolfinx import fem, io
+
+from . import compat
 
 STATUSES = ("separated", "compliance", "bound")
 
@@ -112,11 +113,7 @@ class Probes:
         for i, p in enumerate(points):
             self.points[i, :len(p)] = p
         self.mesh = mesh
-        tree = dgeometry.BoundingBoxTree(mesh, mesh.topology.dim)
-        cells = dgeometry.compute_colliding_cells(
-            mesh, dgeometry.compute_collisions(tree, self.points), self.points)
-        self.cells = [cells.links(i)[0] if len(cells.links(i)) else -1
-                      for i in range(len(points))]
+        self.cells = compat.colliding_cells(mesh, self.points)
 
     def values(self, u, comm) -> list[dict]:
         d = self.mesh.geometry.dim
@@ -172,12 +169,13 @@ class Writer:
                 f"solution-restart{len(self.summary['restarts'])}.xdmf"
             self.xdmf = io.XDMFFile(comm, str(self.folder / name), "w")
             self.xdmf.write_mesh(problem.geometry.mesh)
+        self._writable = {}
 
     def step(self, record: dict, table, fields=()):
         self.summary["steps"].append(record)
         if self.xdmf is not None:
             for f in fields:
-                self.xdmf.write_function(f, record["t"])
+                self.xdmf.write_function(xdmf_field(f, self._writable), record["t"])
         if self.rank != 0:
             return
         if self.csv is not None and table is not None:
@@ -233,6 +231,28 @@ def snapshot_skip_note(problem, limit, xdmf: bool) -> str | None:
             + ("; the fields are in the XDMF output" if xdmf else ""))
 
 
+def xdmf_field(function, cache: dict, convert: bool = None):
+    """What XDMFFile can write of a Function: the Function itself where XDMFFile writes any
+    degree (DOLFINx 0.5), else (0.6 on: only the mesh's degree) its interpolation into the P1
+    or DG0 space of the same shape, under the same name. convert=True always interpolates.
+    `cache` keeps the interpolation targets between steps."""
+    space = function.function_space
+    discontinuous = compat.is_discontinuous(space)
+    if convert is None:
+        convert = not compat.xdmf_writes_any_degree()
+    if not convert or compat.element_degree(space) == (0 if discontinuous else 1):
+        return function
+    if function.name not in cache:
+        family, degree = ("DG", 0) if discontinuous else ("CG", 1)
+        make = {0: compat.scalar_space, 1: compat.vector_space,
+                2: compat.tensor_space}[len(function.ufl_shape)]
+        cache[function.name] = fem.Function(make(space.mesh, family, degree),
+                                            name=function.name)
+    target = cache[function.name]
+    target.interpolate(function)
+    return target
+
+
 def gather_mesh(problem, sigma, comm):
     """(points (n, d), cells (m, d+1), displacement (n, d), von Mises stress per cell (m,))
     of the mesh's vertices on rank 0 (None elsewhere), in a numbering independent of the rank
@@ -245,10 +265,10 @@ def gather_mesh(problem, sigma, comm):
     u = problem.u.x.array.reshape(-1, d)[:n_own]
     global_index = imap.local_range[0] + np.arange(n_own)
     n_cells = problem.geometry.mesh.topology.index_map(d).size_local
-    cell_dofs = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[:n_cells, :d + 1]
+    cell_dofs = compat.cell_dofs(V.dofmap)[:n_cells, :d + 1]
     cells = imap.local_to_global(cell_dofs.ravel()).reshape(-1, d + 1)
     T = sigma.function_space
-    stress_dofs = T.dofmap.list.array.reshape(-1, T.dofmap.dof_layout.num_dofs)[:n_cells]
+    stress_dofs = compat.cell_dofs(T.dofmap)[:n_cells]
     stress = sigma.x.array.reshape(-1, d, d)[stress_dofs].mean(axis=1)   # cell averages
     parts = comm.gather((global_index, x, u, cells, von_mises(stress)), root=0)
     if comm.rank != 0:

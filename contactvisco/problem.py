@@ -29,6 +29,7 @@ from dolfinx.fem.petsc import assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from . import compat
 from . import contact as law
 from .geometry import Geometry
 from .material import elasticity, lame_constants, strain
@@ -174,7 +175,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     context = Context(mesh)
     updates = []                               # run at each new time
 
-    V = fem.VectorFunctionSpace(mesh, ("CG", degree))
+    V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
     lmbda, mu = lame_constants(mat["model"], mat["E"], mat["nu"])
     constants = {"lambda": _scalar(mesh, lmbda), "mu": _scalar(mesh, mu), "t": context.t}
@@ -213,10 +214,10 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         dsc = ds(tuple(geometry.names[name] for name in names), metadata=metadata)
 
         # P1 spaces for the multipliers and for the node tables of the output.
-        Q = fem.FunctionSpace(mesh, ("CG", 1))
+        Q = compat.scalar_space(mesh, "CG", 1)
         # Its own space object, even for P1: block assembly keys boundary conditions and
         # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
-        W = fem.VectorFunctionSpace(mesh, ("CG", 1))
+        W = compat.vector_space(mesh, "CG", 1)
         nodes = _contact_nodes(mesh, Q, W, dsc)
         if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
                                            W.tabulate_dof_coordinates()):
@@ -281,9 +282,9 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     mesh.comm.Allreduce(x.max(axis=0), upper, op=MPI.MAX)
     mesh.comm.Allreduce(x.min(axis=0), lower, op=MPI.MIN)
     problem.length_scale = float(np.max(upper - lower))
-    T_out = problem.T or fem.TensorFunctionSpace(mesh, ("DG", degree - 1))
+    T_out = problem.T or compat.tensor_space(mesh, "DG", degree - 1)
     problem.T = T_out
-    problem.sigma_expression = fem.Expression(sigma, T_out.element.interpolation_points())
+    problem.sigma_expression = fem.Expression(sigma, compat.interpolation_points(T_out))
     return problem
 
 
@@ -295,7 +296,7 @@ def _memory(scene, mesh, u, sigma, k, constants):
         return sigma, {}
     rule = scene["time"]["rule"]
     d = mesh.geometry.dim
-    T = fem.TensorFunctionSpace(mesh, ("DG", scene["discretization"]["degree"] - 1))
+    T = compat.tensor_space(mesh, "DG", scene["discretization"]["degree"] - 1)
     H = fem.Function(T, name="history_stress")
     if table is not None:
         history = DirectHistory(table_kernel(*table), k, rule)
@@ -314,7 +315,7 @@ def _memory(scene, mesh, u, sigma, k, constants):
         implicit_terms.append((constants[f"memory_implicit_{part}"], R0))
         sigma = sigma + constants[f"memory_implicit_{part}"] * parts[part]
     memory = dict(history=history, H=H, eps_function=fem.Function(T),
-                  eps_expression=fem.Expression(eps, T.element.interpolation_points()), T=T,
+                  eps_expression=fem.Expression(eps, compat.interpolation_points(T)), T=T,
                   implicit_terms=implicit_terms)
     return sigma, memory
 
@@ -323,7 +324,7 @@ def _interpolator(function, value, space):
     """A callable that sets `function` to the UFL value or Constant `value`."""
     if isinstance(value, fem.Constant):
         return lambda: function.x.array.__setitem__(slice(None), value.value)
-    expression = fem.Expression(value, space.element.interpolation_points())
+    expression = fem.Expression(value, compat.interpolation_points(space))
     return lambda: function.interpolate(expression)
 
 
@@ -384,8 +385,9 @@ def _dirichlet(scene, geometry, V, context, updates):
                 dofs = pair[0]
             fixed.x.array[dofs] = 1.0
     # A rank may hold a prescribed node as a ghost without the facet that prescribes it.
-    fixed.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    fixed.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    fixed_vector = compat.petsc_vector(fixed)
+    fixed_vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    fixed_vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
     return bcs, fixed.x.array.reshape(-1, V.dofmap.index_map_bs)
 
 

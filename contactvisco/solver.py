@@ -17,11 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 import ufl
-from dolfinx import fem, la
-from dolfinx.fem.petsc import (assemble_matrix_block, assemble_vector_block,
-                               create_matrix_block, create_vector_block)
+from dolfinx import fem
 from petsc4py import PETSc
 
+from . import compat
 from .condensed import NodalCondensation
 from .scene import SceneError
 
@@ -59,6 +58,21 @@ ITERATIVE_OPTIONS = {
     "pc_hypre_boomeramg_interp_type": "ext+i",
     "pc_hypre_boomeramg_P_max": 4,
     "pc_hypre_boomeramg_agg_nl": 1,
+}
+
+#: Where PETSc has no hypre: GMRES preconditioned by PETSc's smoothed-aggregation AMG (GAMG),
+#: with the rigid motions as near-nullspace like BoomerAMG.
+GAMG_OPTIONS = {
+    "ksp_type": "gmres",
+    "ksp_gmres_restart": 100,
+    "ksp_rtol": 1e-10,
+    "ksp_atol": 1e-14,
+    "ksp_max_it": 1000,
+    "pc_type": "gamg",
+    "pc_gamg_type": "agg",
+    "pc_gamg_threshold": 0.01,
+    "mg_levels_ksp_type": "chebyshev",
+    "mg_levels_pc_type": "jacobi",
 }
 
 #: linear_solver = "auto" takes the iterative solver from this many displacement unknowns
@@ -135,17 +149,19 @@ class _Newton:
         offset = 0
         array = x.getArray(readonly=True)
         for f in self.functions:
-            n = f.vector.getLocalSize()
-            f.vector.array[:] = array[offset:offset + n]
-            f.vector.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+            vec = compat.petsc_vector(f)
+            n = vec.getLocalSize()
+            vec.array[:] = array[offset:offset + n]
+            vec.ghostUpdate(addv=_INSERT, mode=_FORWARD)
             offset += n
 
     def _from_functions(self, x):
         offset = 0
         array = x.getArray()
         for f in self.functions:
-            n = f.vector.getLocalSize()
-            array[offset:offset + n] = f.vector.array
+            vec = compat.petsc_vector(f)
+            n = vec.getLocalSize()
+            array[offset:offset + n] = vec.array
             offset += n
         x.ghostUpdate(addv=_INSERT, mode=_FORWARD)
 
@@ -169,9 +185,9 @@ class BlockSNES(_Newton):
         self.F = [fem.form(f) for f in F]
         self.J = [[None if a is None else fem.form(a) for a in row] for row in J]
         self.bcs = bcs
-        self.b = create_vector_block(self.F)
-        self.x = create_vector_block(self.F)
-        self.A = create_matrix_block(self.J)
+        self.b = compat.block_vector(self.F)
+        self.x = compat.block_vector(self.F)
+        self.A = compat.block_matrix(self.J)
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
         self._finish_setup()
@@ -185,11 +201,11 @@ class BlockSNES(_Newton):
         with b.localForm() as local:
             local.set(0.0)
         # Rows of Dirichlet dofs become x - g: SNES then drives them to g.
-        assemble_vector_block(b, self.F, self.J, bcs=self.bcs, x0=x, scale=-1.0)
+        compat.assemble_block_residual(b, self.F, self.J, self.bcs, x, scale=-1.0)
 
     def _jacobian(self, snes, x, A, P):
         A.zeroEntries()
-        assemble_matrix_block(A, self.J, bcs=self.bcs, diagonal=1.0)
+        compat.assemble_block_matrix(A, self.J, self.bcs, diagonal=1.0)
         A.assemble()
 
 
@@ -202,10 +218,11 @@ class CondensedSNES(_Newton):
     def __init__(self, problem, comm, scene_options=None, defaults=None):
         super().__init__(comm, [problem.u], scene_options, defaults)
         self.system = NodalCondensation(problem)
-        self.b = problem.u.vector.copy()
-        self.x = problem.u.vector.copy()
-        self._x_jacobian = problem.u.vector.copy()   # the iterate of the last Jacobian
-        self._du = problem.u.vector.copy()
+        u_vector = compat.petsc_vector(problem.u)
+        self.b = u_vector.copy()
+        self.x = u_vector.copy()
+        self._x_jacobian = u_vector.copy()   # the iterate of the last Jacobian
+        self._du = u_vector.copy()
         self._pending = False            # a step from _x_jacobian awaits its multiplier update
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.system.J_red)
@@ -254,6 +271,11 @@ class CondensedSNES(_Newton):
         return PETSc.SNES.ConvergedReason.CONVERGED_ITERATING
 
 
+def iterative_options() -> dict:
+    """GMRES with BoomerAMG where PETSc has hypre, else with GAMG."""
+    return ITERATIVE_OPTIONS if compat.has_hypre() else GAMG_OPTIONS
+
+
 def rigid_body_modes(V) -> PETSc.NullSpace:
     """The rigid motions (2D: 3, 3D: 6) as an orthonormal near-nullspace of elasticity, for
     algebraic multigrid."""
@@ -274,7 +296,10 @@ def rigid_body_modes(V) -> PETSc.NullSpace:
         vec = PETSc.Vec().createMPI((n * d, None), bsize=d, comm=V.mesh.comm)
         vec.array[:] = mode.ravel()
         vectors.append(vec)
-    la.orthonormalize(vectors)
+    for i, vec in enumerate(vectors):           # modified Gram-Schmidt
+        for earlier in vectors[:i]:
+            vec.axpy(-earlier.dot(vec), earlier)
+        vec.normalize()
     return PETSc.NullSpace().create(vectors=vectors, comm=V.mesh.comm)
 
 
@@ -300,7 +325,7 @@ def create(problem, comm, scene_options=None) -> _Newton:
         raise SceneError("solver.linear_solver = 'iterative' needs the displacement-only "
                          "system: solver.linear_system = 'condensed' (nodal contact "
                          "quadrature)")
-    defaults = ITERATIVE_OPTIONS if kind == "iterative" else {}
+    defaults = iterative_options() if kind == "iterative" else {}
     if system == "condensed":
         newton = CondensedSNES(problem, comm, options, defaults)
     else:

@@ -12,6 +12,8 @@ import time
 import pytest
 from mpi4py import MPI
 
+from contactvisco import compat
+
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own (MPI) processes; run on one rank")
 
@@ -24,7 +26,7 @@ ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIR
 
 def command(ranks, out, *extra):
     base = [sys.executable, "-m", "contactvisco", "run", *SCENE, "--out", str(out), *extra]
-    return (["mpirun", "-n", str(ranks)] if ranks > 1 else []) + base
+    return ([*compat.mpi_launcher(), "-n", str(ranks)] if ranks > 1 else []) + base
 
 
 def last_step_rows(path):

@@ -1,0 +1,296 @@
+"""The DOLFINx API where its versions differ: 0.5 (Debian 12) and 0.10/0.11 (PyPI, conda).
+
+Every choice is made by what the installed modules offer (feature detection), never by a
+version number, so any installation of a supported DOLFINx takes the same path. The rest of
+the package calls these functions instead of the differing DOLFINx names.
+"""
+from __future__ import annotations
+
+import functools
+import inspect
+
+import numpy as np
+import ufl
+from dolfinx import fem, geometry, io
+from dolfinx.fem import petsc as fem_petsc
+from petsc4py import PETSc
+
+# ------------------------------------------------------------------ spaces and functions
+
+#: DOLFINx >= 0.8 builds every space with fem.functionspace and a value shape.
+_SHAPED_SPACES = hasattr(fem, "functionspace")
+
+
+def scalar_space(mesh, family: str, degree: int):
+    """The scalar space of a family ("CG" or "DG") and degree."""
+    if _SHAPED_SPACES:
+        return fem.functionspace(mesh, (_family(family), degree))
+    return fem.FunctionSpace(mesh, (family, degree))
+
+
+def vector_space(mesh, family: str, degree: int):
+    """The vector space (gdim components) of a family ("CG" or "DG") and degree."""
+    if _SHAPED_SPACES:
+        return fem.functionspace(mesh, (_family(family), degree, (mesh.geometry.dim,)))
+    return fem.VectorFunctionSpace(mesh, (family, degree))
+
+
+def tensor_space(mesh, family: str, degree: int):
+    """The gdim x gdim tensor space of a family ("CG" or "DG") and degree."""
+    d = mesh.geometry.dim
+    if _SHAPED_SPACES:
+        return fem.functionspace(mesh, (_family(family), degree, (d, d)))
+    return fem.TensorFunctionSpace(mesh, (family, degree))
+
+
+def _family(name: str) -> str:
+    return {"CG": "Lagrange"}.get(name, name)
+
+
+def is_discontinuous(space) -> bool:
+    """Whether a space's element is discontinuous (DG)."""
+    element = space.ufl_element()
+    if hasattr(element, "discontinuous"):            # basix.ufl elements
+        return bool(element.discontinuous)
+    return element.family() in ("Discontinuous Lagrange", "DG", "DQ")
+
+
+def element_degree(space) -> int:
+    """The polynomial degree of a space's element."""
+    degree = space.ufl_element().degree
+    return int(degree() if callable(degree) else degree)
+
+
+def interpolation_points(space) -> np.ndarray:
+    """The reference points at which an Expression is evaluated to interpolate into space."""
+    points = space.element.interpolation_points
+    return points() if callable(points) else points
+
+
+def petsc_vector(function) -> PETSc.Vec:
+    """The PETSc vector that shares the (owned and ghost) values of a Function."""
+    x = function.x
+    return x.petsc_vec if hasattr(x, "petsc_vec") else function.vector
+
+
+def cell_dofs(dofmap) -> np.ndarray:
+    """The dofs of every local cell (ghosts included), one row per cell."""
+    layout = dofmap.list
+    if isinstance(layout, np.ndarray):
+        return layout
+    return layout.array.reshape(-1, dofmap.dof_layout.num_dofs)
+
+
+def atan2(y, x):
+    """UFL's two-argument arctangent (ufl.atan_2 before UFL 2023)."""
+    return ufl.atan2(y, x) if hasattr(ufl, "atan2") else ufl.atan_2(y, x)
+
+
+# ------------------------------------------------------------------ point location
+
+def colliding_cells(mesh, points: np.ndarray) -> list[int]:
+    """Per point (n x 3), one local cell that contains it, or -1."""
+    tdim = mesh.topology.dim
+    if hasattr(geometry, "bb_tree"):
+        tree = geometry.bb_tree(mesh, tdim)
+    else:
+        tree = geometry.BoundingBoxTree(mesh, tdim)
+    points = np.ascontiguousarray(points, dtype=mesh.geometry.x.dtype)
+    candidates = geometry.compute_collisions_points(tree, points) \
+        if hasattr(geometry, "compute_collisions_points") \
+        else geometry.compute_collisions(tree, points)
+    cells = geometry.compute_colliding_cells(mesh, candidates, points)
+    return [int(cells.links(i)[0]) if len(cells.links(i)) else -1
+            for i in range(len(points))]
+
+
+# ------------------------------------------------------------------ gmsh
+
+def model_to_mesh(model, comm, rank: int, gdim: int):
+    """(mesh, facet tags) of the gmsh model held on `rank`."""
+    if hasattr(io, "gmsh") and hasattr(io.gmsh, "model_to_mesh"):
+        data = io.gmsh.model_to_mesh(model, comm, rank, gdim=gdim)
+        return data.mesh, data.facet_tags
+    from dolfinx.io import gmshio
+    mesh, _, facet_tags = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
+    return mesh, facet_tags
+
+
+# ------------------------------------------------------------------ output
+
+@functools.lru_cache(maxsize=None)
+def xdmf_writes_any_degree() -> bool:
+    """Whether XDMFFile writes Functions of another degree than the mesh (P2, DG1): DOLFINx
+    0.5 does, later versions refuse. Found by writing a P2 Function of a one-cell mesh into a
+    temporary file on this process alone."""
+    import tempfile
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+    one_cell = dmesh.create_unit_square(MPI.COMM_SELF, 1, 1)
+    function = fem.Function(scalar_space(one_cell, "CG", 2))
+    with tempfile.TemporaryDirectory() as folder:
+        try:
+            with io.XDMFFile(MPI.COMM_SELF, f"{folder}/probe.xdmf", "w") as xdmf:
+                xdmf.write_mesh(one_cell)
+                xdmf.write_function(function, 0.0)
+        except RuntimeError:
+            return False
+    return True
+
+
+# ------------------------------------------------------------------ assembly
+
+def _keyword(function, new: str, old: str) -> str:
+    """The name a DOLFINx assembly function gives a keyword argument (renamed in 0.10)."""
+    try:
+        parameters = inspect.signature(function).parameters
+    except (TypeError, ValueError):       # a compiled or dispatching function
+        return new
+    if new in parameters:
+        return new
+    if old in parameters:
+        return old
+    # functools.singledispatch: look at the registered implementations
+    registry = getattr(function, "registry", {})
+    for implementation in registry.values():
+        try:
+            names = inspect.signature(implementation).parameters
+        except (TypeError, ValueError):
+            continue
+        if new in names:
+            return new
+        if old in names:
+            return old
+    return new
+
+
+_DIAGONAL = _keyword(fem_petsc.assemble_matrix, "diag", "diagonal")
+_LIFTING_SCALE = _keyword(fem_petsc.apply_lifting, "alpha", "scale")
+_SET_BC_SCALE = _keyword(fem_petsc.set_bc, "alpha", "scale")
+
+
+def assemble_matrix(A, form, bcs, diagonal: float = 1.0):
+    """Assemble a bilinear form into A with Dirichlet rows and columns replaced by `diagonal`
+    on the diagonal."""
+    fem_petsc.assemble_matrix(A, form, bcs=bcs, **{_DIAGONAL: diagonal})
+
+
+def apply_lifting(b, forms, bcs, x0, scale: float):
+    """b -= scale A (g - x0) for the Dirichlet values g (the lifting of eq. rows)."""
+    fem_petsc.apply_lifting(b, forms, bcs=bcs, x0=x0, **{_LIFTING_SCALE: scale})
+
+
+def set_bc(b, bcs, x0, scale: float):
+    """b[dofs] = scale (g - x0)[dofs] on Dirichlet dofs."""
+    fem_petsc.set_bc(b, bcs, x0, **{_SET_BC_SCALE: scale})
+
+
+#: DOLFINx 0.5-0.9 has the *_block functions for a blocked (not nested) system; later versions
+#: do the same with the plain functions given lists of forms.
+_BLOCK_FUNCTIONS = hasattr(fem_petsc, "assemble_vector_block")
+
+
+#: create_vector takes the linear form up to DOLFINx 0.9 and its space from 0.10 on.
+_VECTOR_OF_SPACE = "L" not in inspect.signature(fem_petsc.create_vector).parameters
+
+
+def form_vector(form) -> PETSc.Vec:
+    """A ghosted vector for the values of a linear form."""
+    if _VECTOR_OF_SPACE:
+        return fem_petsc.create_vector(form.function_spaces[0])
+    return fem_petsc.create_vector(form)
+
+
+def block_vector(forms) -> PETSc.Vec:
+    """A ghosted vector for the stacked unknowns of the linear forms `forms`: on each rank the
+    owned values of every block, then the ghosts of every block."""
+    if _BLOCK_FUNCTIONS:
+        return fem_petsc.create_vector_block(forms)
+    spaces = [f.function_spaces[0] for f in forms]
+    return fem_petsc.create_vector(spaces)
+
+
+def block_matrix(forms) -> PETSc.Mat:
+    """One (aij) matrix for the blocks of bilinear forms `forms` (a nested list)."""
+    if _BLOCK_FUNCTIONS:
+        return fem_petsc.create_matrix_block(forms)
+    return fem_petsc.create_matrix(forms)
+
+
+def _block_offsets(spaces):
+    """The "_blocks" layout newer DOLFINx reads from a blocked vector: offsets of the owned
+    part of every block, then of the ghosts."""
+    sizes = [(V.dofmap.index_map.size_local * V.dofmap.index_map_bs,
+              V.dofmap.index_map.num_ghosts * V.dofmap.index_map_bs) for V in spaces]
+    owned = np.concatenate([[0], np.cumsum([s[0] for s in sizes])])
+    ghosts = owned[-1] + np.concatenate([[0], np.cumsum([s[1] for s in sizes])])
+    return tuple(int(o) for o in owned), tuple(int(g) for g in ghosts)
+
+
+def assemble_block_residual(b, F, J, bcs, x, scale: float = -1.0):
+    """b = F(x) with the rows of Dirichlet dofs set to scale (g - x) and the lifting of their
+    columns, for the stacked unknowns (the block system of the saddle point); x = None
+    stands for x = 0."""
+    if _BLOCK_FUNCTIONS:
+        fem_petsc.assemble_vector_block(b, F, J, bcs=bcs, x0=x, **{_LIFTING_SCALE: scale})
+        return
+    spaces = [f.function_spaces[0] for f in F]
+    blocks = _block_offsets(spaces)
+    for vector in (b, x):
+        if vector is not None:
+            vector.setAttr("_blocks", blocks)
+    fem_petsc.assemble_vector(b, F)
+    bcs1 = fem.bcs_by_block(fem.extract_function_spaces(J, 1), bcs)
+    apply_lifting(b, J, bcs=bcs1, x0=x, scale=scale)
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    bcs0 = fem.bcs_by_block(spaces, bcs)
+    set_bc(b, bcs0, x, scale)
+    b.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+
+
+def assemble_block_matrix(A, J, bcs, diagonal: float = 1.0):
+    """The block Jacobian J into A, Dirichlet rows and columns of every block replaced by
+    `diagonal` on the diagonal."""
+    if _BLOCK_FUNCTIONS:
+        fem_petsc.assemble_matrix_block(A, J, bcs=bcs, **{_DIAGONAL: diagonal})
+    else:
+        assemble_matrix(A, J, bcs, diagonal)
+
+
+# ------------------------------------------------------------------ PETSc
+
+def has_hypre() -> bool:
+    """Whether PETSc was built with hypre (BoomerAMG)."""
+    return bool(PETSc.Sys.hasExternalPackage("hypre"))
+
+
+# ------------------------------------------------------------------ MPI
+
+def mpi_vendor() -> str:
+    """'Open MPI', 'MPICH' or another name, from the MPI library this Python uses."""
+    from mpi4py import MPI
+    library = MPI.Get_library_version()
+    for name in ("Open MPI", "MPICH"):
+        if name in library:
+            return name
+    return library.split()[0] if library.strip() else "unknown"
+
+
+def mpi_launcher() -> list[str]:
+    """The command that starts processes of this Python's MPI: the mpiexec installed beside
+    the interpreter (an MPI from PyPI lives in the virtual environment), else mpiexec or
+    mpirun on PATH."""
+    import pathlib
+    import shutil
+    import sys
+    beside = pathlib.Path(sys.executable).parent / "mpiexec"
+    if beside.exists():
+        return [str(beside)]
+    found = shutil.which("mpirun") or shutil.which("mpiexec")
+    return [found] if found else []
+
+
+def hostfile_line(host: str, slots: int) -> str:
+    """One line of a hostfile in the launcher's syntax (Open MPI: 'host slots=N', MPICH's
+    hydra: 'host:N')."""
+    return f"{host} slots={slots}" if mpi_vendor() == "Open MPI" else f"{host}:{slots}"
