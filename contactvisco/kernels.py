@@ -171,3 +171,39 @@ def mittag_leffler(gamma: float, x) -> np.ndarray:
                                                                 + 2 * c * r**gamma + 1.0)
         out[~small] = dy * (np.exp(-np.multiply.outer(t, r)) @ K)
     return out
+
+
+def history(mem: dict, time: dict, max_cuts: int, d: int):
+    """The history of a power or fractional kernel (the resolved memory and time tables):
+    the sum of exponentials over [k / 2^max_cuts, T] (the smallest step a cut may take) run
+    by the Prony recursion, or the direct O(n) sum. Its `note` says which, with the number of
+    exponentials and the measured error of the fit."""
+    from .memory import DirectFractionalHistory, DirectHistory, FractionalHistory, History
+    alpha, beta, part = float(mem["alpha"]), float(mem["beta"]), mem["part"]
+    T, rule = float(time["T"]), time["rule"]
+    k = T / time["steps"]
+    if mem["kernel"] == "power":
+        tau = float(mem["tau"])
+        if mem["summation"] == "direct":
+            out = DirectHistory(lambda t: alpha * (1.0 + t / tau) ** -beta, k, rule, part, d)
+            out.note = ("memory: power kernel summed directly (exact kernel), O(n) work and "
+                        "memory per step")
+            return out
+        fit = power_soe(alpha, beta, tau, T, float(mem["tolerance"]))
+        out = History([(w, 1.0 / s, part) for w, s in zip(fit.weights, fit.rates)], k, rule, d)
+        span = f"[0, {T:g}]"
+    else:
+        if mem["summation"] == "direct":
+            out = DirectFractionalHistory(alpha, beta, rule, part, d, k)
+            out.note = ("memory: fractional kernel, product integration with the exact kernel, "
+                        "O(n) work and memory per step")
+            return out
+        lo = k / 2 ** max_cuts
+        fit = fractional_soe(alpha, beta, lo, T, float(mem["tolerance"]))
+        out = FractionalHistory(alpha, beta, fit, rule, part, d, k)
+        span = f"[{lo:.3g}, {T:g}]"
+    out.fit = fit
+    out.note = (f"memory: {mem['kernel']} kernel as a sum of {len(fit)} exponentials, "
+                f"measured relative error {fit.error:.2e} on {span} (memory.tolerance "
+                f"{float(mem['tolerance']):g}); O({len(fit)}) work and memory per step")
+    return out
