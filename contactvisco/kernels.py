@@ -145,9 +145,33 @@ def fractional_soe(alpha: float, beta: float, lo: float, T: float, tol: float) -
     return SOE(alpha / math.gamma(1.0 - beta) * fit.weights, fit.rates, fit.error, lo, T)
 
 
+def ml_series(gamma: float, x) -> np.ndarray:
+    """E_gamma(-x) = sum_j (-x)^j / Gamma(gamma j + 1), for 0 <= x <= 1 (no term above
+    1/Gamma(gamma j + 1) <= 1.13: no cancellation; gamma = 1 also to x = 3)."""
+    x = np.atleast_1d(np.asarray(x, float))
+    terms = np.arange(int(40.0 / gamma) + 2)     # 1 / Gamma(gamma j + 1) < 1e-30 beyond
+    coefficients = np.array([(-1.0) ** j / math.gamma(gamma * j + 1.0) for j in terms])
+    return np.power.outer(x, terms) @ coefficients
+
+
+def ml_integral(gamma: float, x) -> np.ndarray:
+    """E_gamma(-x), 0 < gamma < 1, from the integral representation of the module docstring
+    with t = x^(1/gamma), r = e^y: int K(r) r e^(-r t) dy by the trapezoid rule in y."""
+    t = np.atleast_1d(np.asarray(x, float)) ** (1.0 / gamma)
+    # The peak near r = 1 narrows like sin(gamma pi) as gamma -> 1; the r^gamma tail at 0
+    # needs y down to log(1e-17) / gamma; e^(-r t) ends it for r t > 40.
+    dy = min(0.05, 0.2 * math.sin(gamma * math.pi) / gamma)
+    top = math.log(60.0 / max(float(t.min()), 1e-300))
+    y = np.arange(min(-40.0, math.log(1e-17) / gamma), max(top, 1.0), dy)
+    r = np.exp(y)
+    c = math.cos(gamma * math.pi)
+    K = math.sin(gamma * math.pi) / math.pi * r**gamma / (r**(2 * gamma) + 2 * c * r**gamma + 1)
+    return dy * (np.exp(-np.multiply.outer(t, r)) @ K)
+
+
 def mittag_leffler(gamma: float, x) -> np.ndarray:
-    """E_gamma(-x) for x >= 0 and 0 < gamma <= 1 (module docstring: series for x <= 1, else
-    the integral representation; E_1(-x) = exp(-x))."""
+    """E_gamma(-x) for x >= 0 and 0 < gamma <= 1: the series for x <= 1, the integral
+    representation beyond; E_1(-x) = exp(-x)."""
     x = np.atleast_1d(np.asarray(x, float))
     if not 0 < gamma <= 1 or np.any(x < 0):
         raise ValueError(f"mittag_leffler needs 0 < gamma <= 1 and x >= 0; got {gamma}")
@@ -155,21 +179,9 @@ def mittag_leffler(gamma: float, x) -> np.ndarray:
         return np.exp(-x)
     out = np.empty_like(x)
     small = x <= 1.0
-    terms = np.arange(int(20.0 / gamma) + 2)     # 1 / Gamma(gamma j + 1) < 1e-17 beyond
-    coefficients = np.array([(-1.0) ** j / math.gamma(gamma * j + 1.0) for j in terms])
-    out[small] = np.power.outer(x[small], terms) @ coefficients
+    out[small] = ml_series(gamma, x[small])
     if np.any(~small):
-        t = x[~small] ** (1.0 / gamma)
-        # r = e^y: int K(r) e^(-r t) r dy; K ~ r^(gamma-1) at 0 and r^(-gamma-1) at inf.
-        # The peak near r = 1 narrows like sin(gamma pi) as gamma -> 1; the r^gamma tail at 0
-        # needs y down to log(1e-17) / gamma.
-        dy = min(0.05, 0.2 * math.sin(gamma * math.pi) / gamma)
-        y = np.arange(min(-40.0, math.log(1e-17) / gamma), 12.0, dy)
-        r = np.exp(y)
-        c = math.cos(gamma * math.pi)
-        K = math.sin(gamma * math.pi) / math.pi * r**gamma / (r**(2 * gamma)
-                                                                + 2 * c * r**gamma + 1.0)
-        out[~small] = dy * (np.exp(-np.multiply.outer(t, r)) @ K)
+        out[~small] = ml_integral(gamma, x[~small])
     return out
 
 
