@@ -123,9 +123,9 @@ def hertz(overrides=(), comm=MPI.COMM_WORLD) -> dict:
 
 
 UNIAXIAL_KERNELS = {"constant": {"kernel": "constant", "alpha": 100.0},
-                    "exponential": {"kernel": "exponential", "alpha": [300.0], "tau": [0.2]},
-                    "power": {"kernel": "power", "alpha": 300.0, "tau": 0.05, "beta": 0.7},
-                    "fractional": {"kernel": "fractional", "alpha": 100.0, "beta": 0.5}}
+                    "exponential": {"kernel": "exponential", "alpha": [300.0], "tau": [0.2]}}
+POWER_KERNELS = {"power": {"kernel": "power", "alpha": 300.0, "tau": 0.05, "beta": 0.7},
+                 "fractional": {"kernel": "fractional", "alpha": 100.0, "beta": 0.5}}
 
 
 def prony_creep(M: float, weights, rates, q: float, t) -> np.ndarray:
@@ -154,11 +154,11 @@ def uniaxial_exact(kernel: str, t: float, q: float = 10.0, E: float = 100.0, nu:
     if kernel == "constant":
         return -(q / M) * math.exp(-100.0 * t / M)
     if kernel == "fractional":
-        mem = UNIAXIAL_KERNELS[kernel]
+        mem = POWER_KERNELS[kernel]
         g = 1.0 - mem["beta"]
         return -(q / M) * float(kernels.mittag_leffler(g, mem["alpha"] / M * t**g)[0])
     if kernel == "power":
-        mem = UNIAXIAL_KERNELS[kernel]
+        mem = POWER_KERNELS[kernel]
         fit = kernels.power_soe(mem["alpha"], mem["beta"], mem["tau"], max(t, 1e-3), 1e-12)
         return float(prony_creep(M, fit.weights, fit.rates, q, t)[0])
     alpha, tau = 300.0, 0.2
@@ -173,7 +173,7 @@ def uniaxial(kernel: str, rule: str, T: float, steps: int, q: float = 10.0,
     raw = {"name": "uniaxial",
            "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [1, 1]},
            "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3},
-           "memory": {**UNIAXIAL_KERNELS[kernel], **(memory or {})},
+           "memory": {**{**UNIAXIAL_KERNELS, **POWER_KERNELS}[kernel], **(memory or {})},
            "dirichlet": [{"boundary": "bottom", "components": [1]},
                          {"boundary": "left", "components": [0]},
                          {"boundary": "right", "components": [0]}],
