@@ -112,6 +112,16 @@ def test_uniaxial_creep_closed_form_and_order(kernel, rule):
         assert observed[-1] > 1.6, observed
 
 
+def test_paper_rule_stability_limit_for_the_fractional_kernel():
+    """The explicit weight c = alpha k^(1-beta) / Gamma(2-beta) of the paper's variant against
+    the uniaxial modulus M = lambda + 2 mu = 134.6: c/M = 0.80 decays, c/M = 1.32 blows up."""
+    stable = uniaxial("fractional", "paper", 10.0, 100, memory={"alpha": 300.0})
+    unstable = uniaxial("fractional", "paper", 10.0, 100, memory={"alpha": 500.0})
+    assert abs(stable[-1]) < 0.1 * abs(stable[0])
+    assert np.all(np.abs(np.diff(stable)) < abs(stable[0]))
+    assert abs(unstable[-1]) > 1e6 * abs(unstable[0])
+
+
 PAPER = ["geometry.cells=[8, 8]", "output.probes=[]"]
 KERNELS = {"power": ["memory.kernel='power'", "memory.alpha=100.0", "memory.tau=0.1",
                      "memory.beta=0.5"],
