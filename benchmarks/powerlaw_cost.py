@@ -142,8 +142,10 @@ def write(rows, counts, cells, ranks):
         times = " / ".join("-" if math.isnan(v) else f"{v:.3f}" for v in r["history_ms"].values())
         lines.append(f"| {r['kernel']} | {r['summation']} | {fit} | {times} | "
                      f"{r['history_bytes'] / 1e6:.2f} MB after {r['steps']} steps "
-                     f"({r['history_bytes'] // r['strain_bytes']} strain arrays) |")
-    lines += ["", f"Whole step (Newton included), ms at: {head}", "",
+                     f"({r['history_bytes'] / r['strain_bytes']:.0f} strain arrays' worth) |")
+    lines += ["", f"Whole step (Newton included), ms at: {head}. These include the solve and "
+              "vary with the load of the machine (shared with other jobs while measured); the "
+              "history columns above are the part the memory adds.", "",
               "| kernel | summation | ms per step | Newton iterations | run s | final "
               "sep/compl/bound |", "|---|---|---|---|---|---|"]
     for r in rows:
