@@ -291,7 +291,8 @@ def build(scene: dict, geometry: Geometry) -> Problem:
 
 def _memory(scene, mesh, u, sigma, k, constants):
     """Add the history stress H (eq 19), a known DG field, and for the trapezoid rule the
-    implicit k/2 R(0) P eps(u) to sigma. Nothing is built without memory."""
+    implicit w P eps(u) to sigma (w = k/2 R(0), or the product-integration weight of the
+    fractional kernel: history.implicit). Nothing is built without memory."""
     terms, table, power = memory_terms(scene), memory_table(scene), memory_power(scene)
     if not terms and table is None and power is None:
         return sigma, {}

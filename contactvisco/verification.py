@@ -133,10 +133,13 @@ def prony_creep(M: float, weights, rates, q: float, t) -> np.ndarray:
     fractions (module docstring); the roots of D are found by bisection, one per bracket."""
     order = np.argsort(rates)
     a, s = np.asarray(weights)[order], np.asarray(rates)[order]
-    D = lambda z: M + np.sum(a / (z[:, None] + s), axis=1)          # noqa: E731
+
+    def D(z):
+        return M + np.sum(a / (z[:, None] + s), axis=1)
+
     left = np.concatenate([-s[1:], [-s[-1] - a.sum() / M]])
     right = -s.copy()
-    lo, hi = left.copy(), right.copy()           # D(lo+) = +inf side ... D(hi-) = -inf side
+    lo, hi = left.copy(), right.copy()           # D > 0 at lo, D < 0 at hi (D decreases)
     for _ in range(200):
         mid = 0.5 * (lo + hi)
         positive = D(mid) > 0
