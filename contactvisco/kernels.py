@@ -13,8 +13,9 @@ Both are completely monotone: with u^(-beta) = 1/Gamma(beta) int_0^inf s^(beta-1
 sum_j w_j exp(-s_j u) with a relative error below `tol` on [lo, hi]:
 - the trapezoid rule in x = log s with step h (Beylkin & Monzon, Appl. Comput.
   Harmon. Anal. 28 (2010) 131-149; McLean, "Exponential sum approximations for t^(-beta)",
-  2018): the integrand is analytic in a strip, so the error falls like exp(-c/h); the range
-  of x is cut where the dropped terms add less than tol/10;
+  in: Contemporary Computational Mathematics, Springer 2018, 911-930): the integrand is
+  analytic for |Im x| < pi/2, so the error falls like exp(-pi^2/h); the range of x is cut
+  where the dropped terms add less than tol/10;
 - the slow terms, s < e^(x_c) = 0.14/hi (nearly constant over [lo, hi]; about
   log(1/tol)/(beta h) of them), are replaced by the Gauss rule of their discrete measure with a
   few nodes (it keeps their first moments; the model reduction of McLean 2018, which uses
@@ -116,7 +117,10 @@ def soe_power(beta: float, lo: float, hi: float, tol: float) -> SOE:
         share = np.exp(np.log(w[~slow])[:, None] - np.multiply.outer(s[~slow], u)
                        + beta * logu[None, :])
         keep = np.cumsum(share[::-1], axis=0)[::-1].max(axis=1) > 0.1 * tol
-        w_slow, s_slow = _gauss_reduce(w[slow], s[slow], math.exp(x_c), gauss)
+        if slow.any():
+            w_slow, s_slow = _gauss_reduce(w[slow], s[slow], math.exp(x_c), gauss)
+        else:                            # a large beta: the tail ends above x_c
+            w_slow, s_slow = np.zeros(0), np.zeros(0)
         weights = np.concatenate([w_slow, w[~slow][keep]])
         rates = np.concatenate([s_slow, s[~slow][keep]])
         error = _measure(weights, rates, beta, u, logu)
@@ -124,7 +128,8 @@ def soe_power(beta: float, lo: float, hi: float, tol: float) -> SOE:
             return SOE(weights, rates, error, lo, hi)
         # Which part misses? The slow group alone against its full sum, at u = hi.
         full = w[slow] @ np.exp(-s[slow] * hi)
-        if abs(w_slow @ np.exp(-s_slow * hi) - full) * hi**beta > 0.2 * tol and gauss < 12:
+        if slow.any() and gauss < 12 and \
+                abs(w_slow @ np.exp(-s_slow * hi) - full) * hi**beta > 0.2 * tol:
             gauss += 1
         else:
             h *= 0.9

@@ -32,7 +32,7 @@ def test_mittag_leffler_known_values():
             < 1e-11
 
 
-@pytest.mark.parametrize("beta", [0.1, 0.5, 0.9, 2.0])
+@pytest.mark.parametrize("beta", [0.01, 0.1, 0.5, 0.9, 2.0, 20.0])
 @pytest.mark.parametrize("tol", [1e-4, 1e-8])
 def test_sum_of_exponentials_accuracy(beta, tol):
     """The fit reaches its tolerance at points it was not measured on, and the number of terms
