@@ -25,6 +25,13 @@ trapezoid rule is the Crank-Nicolson method, stable for every b.
 
 A general kernel (a table of R(t)) has no recursion. :class:`DirectHistory` sums eq (19)
 directly, at O(n) work and memory per step.
+
+Power-law kernels (contactvisco/kernels.py) become sums of exponentials: the power kernel,
+finite at 0, then runs as a Prony kernel in :class:`History`. The fractional kernel
+alpha t^-beta / Gamma(1 - beta) is infinite at 0: :class:`FractionalHistory` integrates it
+exactly against the piecewise-linear strain (product integration), the last step with the
+exact kernel and older steps through the exponentials; :class:`DirectFractionalHistory` is
+its O(n) reference with the exact kernel throughout.
 """
 from __future__ import annotations
 
