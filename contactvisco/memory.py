@@ -25,6 +25,13 @@ trapezoid rule is the Crank-Nicolson method, stable for every b.
 
 A general kernel (a table of R(t)) has no recursion. :class:`DirectHistory` sums eq (19)
 directly, at O(n) work and memory per step.
+
+Power-law kernels (contactvisco/kernels.py) become sums of exponentials: the power kernel,
+finite at 0, then runs as a Prony kernel in :class:`History`. The fractional kernel
+alpha t^-beta / Gamma(1 - beta) is infinite at 0: :class:`FractionalHistory` integrates it
+exactly against the piecewise-linear strain (product integration), the last step with the
+exact kernel and older steps through the exponentials; :class:`DirectFractionalHistory` is
+its O(n) reference with the exact kernel throughout.
 """
 from __future__ import annotations
 
@@ -93,6 +100,11 @@ class History:
         self.commit(eps, None if self.sums is None else self.k)
         return self.explicit(self.k)
 
+    def implicit(self, k: float) -> dict[str, float]:
+        """Per part, the weight of P eps_{n+1} in H_{n+1}: k/2 R(0) (trapezoid rule)."""
+        return {part: 0.5 * k * R0 for part, R0 in implicit_weights(self.terms,
+                                                                     self.rule).items()}
+
     def state(self) -> dict:
         """Arrays that restore() takes back (checkpoints)."""
         out = {f"sum{i}": s for i, s in enumerate(self.sums or [])}
@@ -107,22 +119,27 @@ class History:
 
 
 class DirectHistory:
-    """Eq (19) summed term by term for a general kernel R(t) eps = r(t) eps, any step sizes;
+    """Eq (19) summed term by term for a general kernel R(t) eps = r(t) P eps, any step sizes;
     O(n) work and memory per step."""
 
-    def __init__(self, r, k: float = None, rule: str = "paper"):
-        self.r, self.k, self.rule = r, k, rule
+    def __init__(self, r, k: float = None, rule: str = "paper", part: str = "full",
+                 d: int = 2):
+        self.r, self.k, self.rule, self.part, self.d = r, k, rule, part, d
         self.times: list[float] = []
         self.strains: list[np.ndarray] = []
         self.direct = True
+
+    def implicit(self, k: float) -> dict[str, float]:
+        return {self.part: 0.5 * k * self.r(0.0)} if self.rule == "trapezoid" else {}
 
     def commit(self, eps: np.ndarray, k: float | None):
         self.times.append(0.0 if not self.times else self.times[-1] + k)
         self.strains.append(eps.copy())
 
     def explicit(self, k: float) -> np.ndarray:
-        return direct_sum(lambda t, e: self.r(t) * e, self.times, self.strains,
-                          self.times[-1] + k, self.rule)
+        out = direct_sum(lambda t, e: self.r(t) * e, self.times, self.strains,
+                         self.times[-1] + k, self.rule)
+        return out if self.part == "full" else project(out, self.part, self.d)
 
     def advance(self, eps: np.ndarray) -> np.ndarray:
         self.commit(eps, None if not self.times else self.k)
@@ -181,3 +198,135 @@ def direct_sum(R, times, strains: list[np.ndarray], t_next: float = None,
     last = t_next - times[-1]          # the last sub-interval [t_n, t_next]
     weight = last if rule == "paper" else 0.5 * last
     return out + weight * R(last, strains[-1])
+
+
+def _phi(z: np.ndarray):
+    """phi1 = (1 - e^-z)/z and phi2 = (1 - e^-z (1 + z))/z^2, so that for a step of size k
+    int_0^k e^(-s sigma) (1 - sigma/k) dsigma = k (phi1 - phi2) and
+    int_0^k e^(-s sigma) sigma/k dsigma = k phi2 (z = s k; series below 1e-3)."""
+    small = z < 1e-3
+    zs = np.where(small, 1.0, z)
+    e = np.exp(-zs)
+    phi1 = np.where(small, 1 - z / 2 + z**2 / 6 - z**3 / 24, -np.expm1(-zs) / zs)
+    phi2 = np.where(small, 0.5 - z / 3 + z**2 / 8 - z**3 / 30,
+                    (-np.expm1(-zs) - zs * e) / zs**2)
+    return phi1, phi2
+
+
+class FractionalHistory:
+    """H(t_{n+1}) = int_0^{t_{n+1}} r(t_{n+1} - s) P eps_h(s) ds for the weakly singular kernel
+    r(t) = alpha t^(-beta) / Gamma(1 - beta), eps_h the piecewise-linear interpolant of the
+    strains (product integration: the kernel is integrated exactly, R(0) never evaluated).
+
+    Last step [t_n, t_{n+1}], exactly (sigma = t_{n+1} - s):
+        trapezoid: alpha k^(1-beta) ((1-beta) P eps_n + P eps_{n+1}) / Gamma(3 - beta)
+                   (eps_{n+1} implicit, see implicit());
+        paper:     alpha k^(1-beta) / Gamma(2 - beta) P eps_n (eps frozen at the left point,
+                   explicit, as the paper's rule).
+    Older steps, sigma >= k: r ~ sum_j w_j exp(-s_j sigma) (a fit with the stated relative
+    accuracy on [k_min, T], :mod:`kernels`), each exponential integrated exactly against eps_h:
+        U_j(t_{n+1}) = e^(-s_j k) U_j(t_n) + k phi2(s_j k) P eps_n
+                       + k (phi1 - phi2)(s_j k) P eps_{n+1},
+        H(t_{n+1}) = sum_j w_j e^(-s_j k) U_j(t_n) + (last step).
+    O(len(fit)) work and memory per step, any step sizes >= k_min. The product trapezoid rule
+    is second order for smooth strains; creep from rest has eps ~ t^(1-beta) near 0, which
+    limits the observed order (tests). The paper's variant is first order.
+    """
+
+    def __init__(self, alpha: float, beta: float, fit, rule: str = "paper",
+                 part: str = "full", d: int = 2, k: float = None):
+        self.alpha, self.beta, self.fit = alpha, beta, fit
+        self.rule, self.part, self.d, self.k = rule, part, d, k
+        self.sums: np.ndarray | None = None       # U_j, one row per exponential
+        self.last: np.ndarray | None = None       # P eps_n
+        self.direct = False
+
+    def _last_weights(self, k: float):
+        """(weight of P eps_n, weight of P eps_{n+1}) over the last step."""
+        b = self.beta
+        scale = self.alpha * k ** (1.0 - b)
+        if self.rule == "paper":
+            return scale / math.gamma(2.0 - b), 0.0
+        return scale * (1.0 - b) / math.gamma(3.0 - b), scale / math.gamma(3.0 - b)
+
+    def commit(self, eps: np.ndarray, k: float | None):
+        new = project(eps, self.part, self.d).copy()
+        if self.sums is None:
+            self.sums = np.zeros((len(self.fit.rates), eps.size))
+        else:
+            z = self.fit.rates * k
+            phi1, phi2 = _phi(z)
+            self.sums *= np.exp(-z)[:, None]
+            self.sums += np.multiply.outer(k * phi2, self.last)
+            self.sums += np.multiply.outer(k * (phi1 - phi2), new)
+        self.last = new
+
+    def explicit(self, k: float) -> np.ndarray:
+        decay = self.fit.weights * np.exp(-self.fit.rates * k)
+        return decay @ self.sums + self._last_weights(k)[0] * self.last
+
+    def implicit(self, k: float) -> dict[str, float]:
+        return {self.part: self._last_weights(k)[1]} if self.rule == "trapezoid" else {}
+
+    def advance(self, eps: np.ndarray) -> np.ndarray:
+        self.commit(eps, None if self.sums is None else self.k)
+        return self.explicit(self.k)
+
+    def state(self) -> dict:
+        out = {f"sum{i}": s for i, s in enumerate(self.sums if self.sums is not None else [])}
+        if self.last is not None:
+            out[f"last_{self.part}"] = self.last
+        return out
+
+    def restore(self, state: dict):
+        count = sum(1 for key in state if key.startswith("sum"))
+        if count:
+            self.sums = np.array([state[f"sum{i}"] for i in range(count)])
+            self.last = state[f"last_{self.part}"].copy()
+
+
+class DirectFractionalHistory(FractionalHistory):
+    """The same product integration with the exact kernel on every older step: O(n) work and
+    memory per step (the reference of the fitted one). Over [t_{m-1}, t_m], with
+    a = t_{n+1} - t_m, b = t_{n+1} - t_{m-1}, h = b - a, I0 = int_a^b sigma^-beta,
+    I1 = int_a^b sigma^(1-beta): weight (b I0 - I1)/h on eps_m and (I1 - a I0)/h on eps_{m-1},
+    times alpha / Gamma(1 - beta)."""
+
+    def __init__(self, alpha: float, beta: float, rule: str = "paper", part: str = "full",
+                 d: int = 2, k: float = None):
+        super().__init__(alpha, beta, None, rule, part, d, k)
+        self.times: list[float] = []
+        self.strains: list[np.ndarray] = []
+        self.direct = True
+
+    def commit(self, eps: np.ndarray, k: float | None):
+        self.times.append(0.0 if not self.times else self.times[-1] + k)
+        self.strains.append(project(eps, self.part, self.d).copy())
+        self.last = self.strains[-1]
+
+    def explicit(self, k: float) -> np.ndarray:
+        b_ = self.beta
+        out = self._last_weights(k)[0] * self.last
+        if len(self.times) > 1:
+            t = np.asarray(self.times)
+            t_next = t[-1] + k
+            a, b = t_next - t[1:], t_next - t[:-1]
+            h = b - a
+            I0 = (b ** (1 - b_) - a ** (1 - b_)) / (1 - b_)
+            I1 = (b ** (2 - b_) - a ** (2 - b_)) / (2 - b_)
+            weights = np.zeros(len(t))
+            weights[1:] += (b * I0 - I1) / h
+            weights[:-1] += (I1 - a * I0) / h
+            weights *= self.alpha / math.gamma(1.0 - b_)
+            out = out + weights @ np.asarray(self.strains)
+        return out
+
+    def state(self) -> dict:
+        out = {"times": np.array(self.times)}
+        out.update({f"strain{j}": e for j, e in enumerate(self.strains)})
+        return out
+
+    def restore(self, state: dict):
+        self.times = list(state["times"])
+        self.strains = [state[f"strain{j}"].copy() for j in range(len(self.times))]
+        self.last = self.strains[-1] if self.strains else None

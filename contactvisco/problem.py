@@ -34,8 +34,9 @@ from . import contact as law
 from .geometry import Geometry
 from .material import elasticity, lame_constants, strain
 from .expressions import Context
-from .memory import DirectHistory, History, implicit_weights, table_kernel
-from .scene import SceneError, memory_table, memory_terms
+from .memory import DirectHistory, History, table_kernel
+from .scene import SceneError, memory_power, memory_table, memory_terms
+from . import kernels
 
 
 def nodal_rule(d: int) -> dict:
@@ -89,7 +90,7 @@ class Problem:
     context: Context | None = None            # x and t of the scene's expressions
     updates: list = field(default_factory=list)   # callables run at each new time
     gap: fem.Function | None = None           # initial gap h at the P1 nodes
-    implicit_terms: list = field(default_factory=list)  # (Constant, R(0) part) of the trapezoid
+    implicit_terms: list = field(default_factory=list)  # (Constant, part) of the trapezoid
     history_started: bool = False
 
     @property
@@ -132,8 +133,9 @@ class Problem:
         A failed step can be prepared again with a smaller k."""
         if self.history is None:
             return
-        for constant, R0 in self.implicit_terms:
-            constant.value = 0.5 * k * R0
+        weights = self.history.implicit(k)
+        for constant, part in self.implicit_terms:
+            constant.value = weights[part]
         self.H.x.array[:] = self.history.explicit(k)
 
     def update_history(self, k: float | None = None):
@@ -290,9 +292,10 @@ def build(scene: dict, geometry: Geometry) -> Problem:
 
 def _memory(scene, mesh, u, sigma, k, constants):
     """Add the history stress H (eq 19), a known DG field, and for the trapezoid rule the
-    implicit k/2 R(0) P eps(u) to sigma. Nothing is built without memory."""
-    terms, table = memory_terms(scene), memory_table(scene)
-    if not terms and table is None:
+    implicit w P eps(u) to sigma (w = k/2 R(0), or the product-integration weight of the
+    fractional kernel: history.implicit). Nothing is built without memory."""
+    terms, table, power = memory_terms(scene), memory_table(scene), memory_power(scene)
+    if not terms and table is None and power is None:
         return sigma, {}
     rule = scene["time"]["rule"]
     d = mesh.geometry.dim
@@ -300,19 +303,21 @@ def _memory(scene, mesh, u, sigma, k, constants):
     H = fem.Function(T, name="history_stress")
     if table is not None:
         history = DirectHistory(table_kernel(*table), k, rule)
-        implicit = {"full": table[1][0]} if rule == "trapezoid" else {}
+    elif power is not None:
+        history = kernels.history(power, scene["time"], scene["solver"]["max_cuts"], d)
     else:
         history = History(terms, k, rule, d)
-        implicit = implicit_weights(terms, rule)
+    implicit = history.implicit(k)
     eps = strain(u)
     parts = {"full": eps, "deviatoric": ufl.dev(eps),
              "volumetric": ufl.tr(eps) / d * ufl.Identity(d)}
     sigma = sigma + H
     implicit_terms = []
-    for part, R0 in implicit.items():
-        # Zero at t_0, where there is no history yet; prepare(k) sets it to k/2 R(0).
+    for part in implicit:
+        # Zero at t_0, where there is no history yet; prepare(k) sets it (k/2 R(0) for a
+        # kernel finite at 0).
         constants[f"memory_implicit_{part}"] = _scalar(mesh, 0.0)
-        implicit_terms.append((constants[f"memory_implicit_{part}"], R0))
+        implicit_terms.append((constants[f"memory_implicit_{part}"], part))
         sigma = sigma + constants[f"memory_implicit_{part}"] * parts[part]
     memory = dict(history=history, H=H, eps_function=fem.Function(T),
                   eps_expression=fem.Expression(eps, compat.interpolation_points(T)), T=T,

@@ -58,9 +58,11 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
         f"{setup_s:.2f} s")
 
-    if problem.history is not None and problem.history.direct:
-        note = ("memory: a general (table) kernel has no recursion: eq (19) is summed "
-                "directly, O(n) work and memory per step")
+    if problem.history is not None and (problem.history.direct
+                                        or hasattr(problem.history, "note")):
+        note = getattr(problem.history, "note", None) or (
+            "memory: a general (table) kernel has no recursion: eq (19) is summed "
+            "directly, O(n) work and memory per step")
         say(note)
         if writer is not None:
             writer.summary["notes"] = [note]

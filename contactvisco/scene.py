@@ -42,9 +42,18 @@ DEFAULTS: dict = {
         "mu": None,
     },
     "memory": {
-        "kernel": "none",         # none | constant | exponential | prony | table
-        "alpha": 0.0,             # constant: R = alpha I; exponential: list, with tau
-        "tau": [],                # exponential: R = sum_i alpha_i exp(-t/tau_i) I
+        "kernel": "none",         # none | constant | exponential | prony | table | power |
+                                  #   fractional
+        "alpha": 0.0,             # constant: R = alpha I; exponential: list, with tau;
+                                  #   power, fractional: a number
+        "tau": [],                # exponential: R = sum_i alpha_i exp(-t/tau_i) I;
+                                  #   power: R = alpha (1 + t/tau)^(-beta) P, tau a number
+        "beta": 0.5,              # power (> 0); fractional (0 < beta < 1):
+                                  #   R = alpha t^(-beta) / Gamma(1 - beta) P
+        "part": "full",           # power, fractional: P = full | deviatoric | volumetric
+        "tolerance": 1e-6,        # power, fractional: relative error of the exponential sum
+        "summation": "soe",       # power, fractional: soe (sum of exponentials, O(1) per
+                                  #   step) | direct (exact kernel, O(n) per step)
         "terms": [],              # prony: [{alpha, tau (default inf), part = full |
                                   #   deviatoric | volumetric}]
         "times": [],              # table: R(t) = r(t) I, r linear between (times, values)
@@ -359,9 +368,12 @@ def check(scene: dict) -> None:
     upper_nu = 1.0 if mat["model"] == "plane_stress" else 0.5
     need(finite(mat["nu"]) and -1.0 < mat["nu"] < upper_nu,
          f"material.nu must lie in (-1, {upper_nu}) for {mat['model']}, got {mat['nu']}")
-    need(mem["kernel"] in ("none", "constant", "exponential", "prony", "table"),
-         f"memory.kernel must be none, constant, exponential, prony or table, "
-         f"got '{mem['kernel']}'")
+    need(mem["kernel"] in ("none", "constant", "exponential", "prony", "table", "power",
+                           "fractional"),
+         f"memory.kernel must be none, constant, exponential, prony, table, power or "
+         f"fractional, got '{mem['kernel']}'")
+    if mem["kernel"] in ("power", "fractional"):
+        _check_power(mem, need, finite)
     if mem["kernel"] == "constant":
         need(finite(mem["alpha"]), f"memory.alpha must be a number, got {mem['alpha']}")
     if mem["kernel"] == "exponential":
@@ -441,6 +453,32 @@ def check(scene: dict) -> None:
     need(scene["discretization"]["degree"] in (1, 2), "discretization.degree must be 1 or 2")
 
 
+def _check_power(mem: dict, need, finite):
+    """The keys of the power and fractional kernels."""
+    kind = mem["kernel"]
+    need(finite(mem["alpha"]), f"memory.alpha must be a number for memory.kernel = '{kind}', "
+                               f"got {mem['alpha']!r}")
+    beta = mem["beta"]
+    if kind == "power":
+        need(finite(beta) and 0 < beta <= 20,
+             f"memory.beta must be a number in (0, 20] for the power kernel, got {beta!r}")
+        need(finite(mem["tau"]) and mem["tau"] > 0,
+             f"memory.tau must be a number > 0 (the time scale of R = alpha (1 + t/tau)^-beta) "
+             f"for the power kernel, got {mem['tau']!r}")
+    else:
+        need(finite(beta) and 0.01 <= beta <= 0.99,
+             f"memory.beta must lie in [0.01, 0.99] for the fractional kernel (t^-beta must "
+             f"be integrable at 0), got {beta!r}")
+    tol = mem["tolerance"]
+    need(finite(tol) and 1e-12 <= tol <= 1e-2,
+         f"memory.tolerance must be a number in [1e-12, 1e-2] (relative error of the sum of "
+         f"exponentials), got {tol!r}")
+    need(mem["part"] in PARTS, f"memory.part must be full, deviatoric or volumetric, got "
+                               f"{mem['part']!r}")
+    need(mem["summation"] in ("soe", "direct"),
+         f"memory.summation must be soe or direct, got {mem['summation']!r}")
+
+
 def _as_list(x):
     return list(x) if isinstance(x, (list, tuple)) else [x]
 
@@ -469,8 +507,24 @@ def memory_table(scene: dict):
     return None
 
 
+def memory_power(scene: dict) -> dict | None:
+    """The memory table of a power or fractional kernel with alpha != 0, else None."""
+    mem = scene["memory"]
+    if mem["kernel"] in ("power", "fractional") and mem["alpha"] != 0:
+        return mem
+    return None
+
+
 def memory_R0(scene: dict) -> dict[str, float]:
-    """R(0) per part: the instantaneous stiffness the memory adds."""
+    """R(0) per part: the instantaneous stiffness the memory adds (for the fractional kernel,
+    infinite, the mean (1/k) int_0^k R of a step k instead)."""
+    power = memory_power(scene)
+    if power is not None:
+        alpha = float(power["alpha"])
+        if power["kernel"] == "fractional":
+            k = scene["time"]["T"] / scene["time"]["steps"]
+            alpha *= k ** -power["beta"] / math.gamma(2.0 - power["beta"])
+        return {power["part"]: alpha}
     table = memory_table(scene)
     if table is not None:
         return {"full": table[1][0]}

@@ -16,6 +16,19 @@ M e(t) + int_0^t R(t - s) e(s) ds = -q, M = lambda + 2 mu:
     R = alpha exp(-t/tau):      e(t) = -(q/M) (1/(tau beta) + (1 - 1/(tau beta)) exp(-beta t)),
                                 beta = 1/tau + alpha/M.
 Space is exact for this state, so the error at T is the time error.
+
+Power-law kernels in the same block (the full part, so the equation stays scalar):
+    fractional, R = alpha t^(-beta)/Gamma(1 - beta): the memory term is alpha I^(1-beta) e,
+        I^g the Riemann-Liouville integral of order g = 1 - beta. In Laplace variables
+        (M + alpha z^(-g)) e^(z) = -q/z, so e^(z) = -(q/M) z^(g-1) / (z^g + alpha/M), the
+        transform of e(t) = -(q/M) E_g(-(alpha/M) t^g), E_g the Mittag-Leffler function
+        (kernels.mittag_leffler). At t = 0, e = -q/M; for t -> inf, e -> 0 like t^(-g).
+    power, R = alpha (1 + t/tau)^(-beta): no elementary closed form. The kernel is replaced
+        by its sum of exponentials sum_j a_j exp(-s_j t) fitted to 1e-12 on [0, T]; for it
+        e^(z) = -q / (z D(z)), D(z) = M + sum_j a_j/(z + s_j), whose poles are z = 0 and one
+        root zeta_i of D between consecutive -s_j (and one below -s_N), so
+        e(t) = -q (1/D(0) + sum_i exp(zeta_i t) / (zeta_i D'(zeta_i))) (partial fractions).
+        Its difference to the exact kernel's creep is of the order of the fit's 1e-12.
 """
 from __future__ import annotations
 
@@ -27,6 +40,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from . import geometry as geometry_module
+from . import kernels
 from . import scene as scene_module
 from .material import elasticity, lame_constants, strain
 from .problem import build
@@ -110,6 +124,31 @@ def hertz(overrides=(), comm=MPI.COMM_WORLD) -> dict:
 
 UNIAXIAL_KERNELS = {"constant": {"kernel": "constant", "alpha": 100.0},
                     "exponential": {"kernel": "exponential", "alpha": [300.0], "tau": [0.2]}}
+POWER_KERNELS = {"power": {"kernel": "power", "alpha": 300.0, "tau": 0.05, "beta": 0.7},
+                 "fractional": {"kernel": "fractional", "alpha": 100.0, "beta": 0.5}}
+
+
+def prony_creep(M: float, weights, rates, q: float, t) -> np.ndarray:
+    """e(t) of M e + int_0^t sum_j a_j exp(-s_j (t - s)) e(s) ds = -q (a_j > 0), by partial
+    fractions (module docstring); the roots of D are found by bisection, one per bracket."""
+    order = np.argsort(rates)
+    a, s = np.asarray(weights)[order], np.asarray(rates)[order]
+
+    def D(z):
+        return M + np.sum(a / (z[:, None] + s), axis=1)
+
+    left = np.concatenate([-s[1:], [-s[-1] - a.sum() / M]])
+    right = -s.copy()
+    lo, hi = left.copy(), right.copy()           # D > 0 at lo, D < 0 at hi (D decreases)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        positive = D(mid) > 0
+        lo, hi = np.where(positive, mid, lo), np.where(positive, hi, mid)
+    zeta = 0.5 * (lo + hi)
+    dD = -np.sum(a / (zeta[:, None] + s) ** 2, axis=1)
+    t = np.atleast_1d(np.asarray(t, float))
+    return -q * (1.0 / D(np.zeros(1))[0]
+                 + np.exp(np.multiply.outer(t, zeta)) @ (1.0 / (zeta * dD)))
 
 
 def uniaxial_exact(kernel: str, t: float, q: float = 10.0, E: float = 100.0, nu: float = 0.3):
@@ -117,18 +156,27 @@ def uniaxial_exact(kernel: str, t: float, q: float = 10.0, E: float = 100.0, nu:
     M = lmbda + 2 * mu
     if kernel == "constant":
         return -(q / M) * math.exp(-100.0 * t / M)
+    if kernel == "fractional":
+        mem = POWER_KERNELS[kernel]
+        g = 1.0 - mem["beta"]
+        return -(q / M) * float(kernels.mittag_leffler(g, mem["alpha"] / M * t**g)[0])
+    if kernel == "power":
+        mem = POWER_KERNELS[kernel]
+        fit = kernels.power_soe(mem["alpha"], mem["beta"], mem["tau"], max(t, 1e-3), 1e-12)
+        return float(prony_creep(M, fit.weights, fit.rates, q, t)[0])
     alpha, tau = 300.0, 0.2
     beta = 1 / tau + alpha / M
     return -(q / M) * (1 / (tau * beta) + (1 - 1 / (tau * beta)) * math.exp(-beta * t))
 
 
 def uniaxial(kernel: str, rule: str, T: float, steps: int, q: float = 10.0,
-             comm=MPI.COMM_WORLD) -> np.ndarray:
-    """u_y at the top (= e(t)) at every step of the uniaxial block."""
+             comm=MPI.COMM_WORLD, memory: dict = None) -> np.ndarray:
+    """u_y at the top (= e(t)) at every step of the uniaxial block (memory: extra keys of
+    the memory table, e.g. the tolerance)."""
     raw = {"name": "uniaxial",
            "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [1, 1]},
            "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3},
-           "memory": UNIAXIAL_KERNELS[kernel],
+           "memory": {**{**UNIAXIAL_KERNELS, **POWER_KERNELS}[kernel], **(memory or {})},
            "dirichlet": [{"boundary": "bottom", "components": [1]},
                          {"boundary": "left", "components": [0]},
                          {"boundary": "right", "components": [0]}],

@@ -40,7 +40,7 @@ SCENE_ERRORS = [
     (["body_force.value=[1.0]"], "body_force.value must be a list of 2 components"),
     (["dirichlet.0.components=[2]"], "components 0..1 of a 2D displacement"),
     (["output.probes=[[0.5]]"], "output.probes[0] must be a list of 2 finite numbers"),
-    (["memory.kernel='power'"], "memory.kernel must be none, constant, exponential, prony"),
+    (["memory.kernel='powerlaw'"], "memory.kernel must be none, constant, exponential, prony"),
     (["memory.kernel='exponential'", "memory.alpha=[1.0]", "memory.tau=[0.0]"],
      "memory.tau must be > 0"),
     (["memory.kernel='table'", "memory.times=[0.0, 0.0]", "memory.values=[1.0, 2.0]"],
