@@ -18,7 +18,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contactvisco import geometry, scene as scene_module
+from contactvisco import compat, geometry, scene as scene_module
 from contactvisco.material import elasticity, lame_constants, strain
 from contactvisco.run import simulate
 from common import RESULTS, assemble_linear, write_markdown
@@ -31,7 +31,7 @@ def linear_elastic_solve(scene, repeat):
     memoryless, contactless elasticity problem on the scene's mesh (best of `repeat`)."""
     geo = geometry.build(scene, MPI.COMM_WORLD)
     mesh = geo.mesh
-    V = fem.VectorFunctionSpace(mesh, ("CG", 1))
+    V = compat.vector_space(mesh, "CG", 1)
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     lmbda, mu = lame_constants(scene["material"]["model"], scene["material"]["E"],
                                scene["material"]["nu"])
