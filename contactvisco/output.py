@@ -31,8 +31,10 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     Keys: x (n, d), normal (n, d), u_nu, gap (h), penetration (s = u_nu - h),
     u_tau (2D: along t = (-nu_y, nu_x); 3D: |u_tau|),
     lambda_nu, p_nu (compliance traction p_nu(min(s, g))), reaction_nu (-sigma_nu),
-    reaction_tau (sigma_tau, same convention as u_tau), radius (mu p_nu), status (0, 1, 2 as
-    in STATUSES).
+    reaction_tau (sigma_tau, same convention as u_tau), radius (the friction bound: mu p_nu,
+    or mu (p_nu + R_nu) with contact.friction = "coulomb"), slip_vector (u_tau, or the step's
+    u_tau - u_tau(t_{n-1}) with contact.slip = "increment"), status (0, 1, 2 as in STATUSES),
+    friction (0, 1, 2 as in FRICTION_STATES).
     """
     nodes = problem.nodes
     if nodes is None:
@@ -65,9 +67,17 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
         r_tau = np.linalg.norm(sig_tau - np.einsum("ij,ij->i", sig_tau, normals)[:, None]
                                * normals, axis=1)
     x = problem.Q_coordinates[own][:, :d]
+    reaction_nu = p_nu - lam_nu
+    # The friction ball's radius under the scene's law: mu p_nu or mu (p_nu + R_nu).
+    pressure = reaction_nu if contact.get("friction") == "coulomb" else p_nu
+    slip_vec = u_tau_vec
+    if problem.u_previous is not None:     # slip = "increment": the step's tangential motion
+        u_prev = problem.u_previous.x.array.reshape(-1, d)[own]
+        slip_vec = u_tau_vec - (u_prev - np.einsum("ij,ij->i", u_prev, normals)[:, None]
+                                * normals)
     local = dict(x=x, normal=normals, u_nu=u_nu, gap=gap, penetration=penetration, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
-                 reaction_nu=p_nu - lam_nu, reaction_tau=r_tau, radius=contact["mu"] * p_nu,
-                 u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau)
+                 reaction_nu=reaction_nu, reaction_tau=r_tau, radius=contact["mu"] * pressure,
+                 u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau, slip_vector=slip_vec)
     gathered = comm.allgather(local)
     table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
     # Sort by position rounded to 1e-9 of the body's size: coordinates that are zero can
@@ -76,7 +86,21 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     order = np.lexsort(key.T[::-1])
     table = {key: value[order] for key, value in table.items()}
     table["status"] = classify(table["penetration"], g, problem.length_scale)
+    table["friction"] = friction_state(table)
     return table
+
+
+FRICTION_STATES = ("none", "stick", "slip")
+
+
+def friction_state(table) -> np.ndarray:
+    """Per node: 0 no friction (zero bound), 1 stick (|sigma_tau| below the bound, so the
+    node's slip is zero), 2 slip (|sigma_tau| at the bound mu times the law's pressure),
+    with a tolerance of 1e-8 times the largest bound."""
+    radius = table["radius"]
+    tol = 1e-8 * max(float(np.max(radius, initial=0.0)), 1e-300)
+    force = np.linalg.norm(table["sigma_tau_vector"], axis=1)
+    return np.where(radius <= tol, 0, np.where(force < radius - tol, 1, 2))
 
 
 def classify(s: np.ndarray, g: float, length: float) -> np.ndarray:
@@ -154,7 +178,7 @@ class Writer:
             d = problem.geometry.mesh.geometry.dim
             header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
                 "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
-                "status"]
+                "status", "friction"]
             path = self.folder / "contact_nodes.csv"
             kept = []
             if restart_count is not None and path.exists():
@@ -187,7 +211,8 @@ class Writer:
                                   + [repr(float(table[key][i])) for key in
                                      ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
                                       "radius")]
-                                  + [STATUSES[table["status"][i]]])
+                                  + [STATUSES[table["status"][i]],
+                                     FRICTION_STATES[table["friction"][i]]])
             self.csv_file.flush()
         self._write_summary()
 

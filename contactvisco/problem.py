@@ -5,7 +5,9 @@ finite bound g, no compliance term when g = 0 (pure Signorini), no history witho
 
 Residual, with sigma_n = A eps(u_n) + H_n (H_n the history stress of eq 19) and
 R_nu = (lambda_nu - r (u_nu - g))_-, sigma_tau = P_B(lambda_tau - r u_tau), B of radius
-mu p_nu(u_nu):
+mu p_nu(u_nu) (contact.friction = "compliance", the paper's) or mu (p_nu(u_nu) + R_nu)
+("coulomb": the total normal pressure); with contact.slip = "increment", u_tau is replaced by
+the slip of the step, u_tau - u_tau(t_{n-1}):
 
     F_u   = (sigma_n, eps(v)) - (f, v) + int_C (p_nu(u_nu) + R_nu) v_nu - int_C sigma_tau . v_tau
     F_nu  = -1/r int_C (lambda_nu + R_nu) gamma_nu
@@ -90,6 +92,7 @@ class Problem:
     gap: fem.Function | None = None           # initial gap h at the P1 nodes
     implicit_terms: list = field(default_factory=list)  # (Constant, R(0) part) of the trapezoid
     history_started: bool = False
+    u_previous: fem.Function | None = None    # u(t_{n-1}), for slip = "increment" only
 
     @property
     def unknowns(self) -> list[fem.Function]:
@@ -119,7 +122,9 @@ class Problem:
 
     def commit(self, k: float | None):
         """Take eps of the current, converged u (reached by a step of size k; None at t_0)
-        into the history."""
+        into the history, and u as the origin of the next step's slip (slip = "increment")."""
+        if self.u_previous is not None:
+            self.u_previous.x.array[:] = self.u.x.array
         if self.history is None:
             return
         self.eps_function.interpolate(self.eps_expression)
@@ -196,7 +201,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
 
     unknowns, spaces = [u], [V]
     F_extra = []
-    lambda_nu = lambda_tau = None
+    lambda_nu = lambda_tau = u_previous = None
     nodes = Q = W = gap_function = None
     if contact is not None:
         if disc["contact_quadrature"] == "nodal":
@@ -249,11 +254,19 @@ def build(scene: dict, geometry: Geometry) -> Problem:
             spaces.append(Q)
         if normal_force is not None:
             F_u += normal_force * law.normal_part(v, n) * dsc
-        if contact["mu"] > 0 and p_nu is not None:
+        # The friction ball's radius: mu p_nu (the paper's law) or mu (p_nu + R_nu), Coulomb
+        # on the total normal pressure (with g = 0: Signorini-Coulomb).
+        pressure = normal_force if contact["friction"] == "coulomb" else p_nu
+        if contact["mu"] > 0 and pressure is not None:
             c["friction"] = _scalar(mesh, contact["mu"])
             lambda_tau = fem.Function(W, name="lambda_tau")
             gamma = ufl.TestFunction(W)
-            sigma_tau = law.friction_force(lambda_tau, u_tau, n, c["friction"] * p_nu, c["r"])
+            if contact["slip"] == "increment":
+                # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
+                u_previous = fem.Function(V, name="u_previous")
+                u_tau = law.tangential_part(u - u_previous, n)
+            sigma_tau = law.friction_force(lambda_tau, u_tau, n, c["friction"] * pressure,
+                                           c["r"])
             F_u -= ufl.dot(sigma_tau, law.tangential_part(v, n)) * dsc
             F_extra.append(-1.0 / c["r"] * ufl.dot(lambda_tau - sigma_tau, gamma) * dsc)
             unknowns.append(lambda_tau)
@@ -271,7 +284,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
                       bcs_u=bcs_u, u_fixed=fixed_components,
                       multiplier_free=multiplier_free,
                       nodes=nodes, context=context, updates=updates, gap=gap_function,
-                      **problem_memory)
+                      u_previous=u_previous, **problem_memory)
     if nodes is not None:
         problem.Q_coordinates = Q.tabulate_dof_coordinates()
         if degree > 1:
