@@ -77,7 +77,8 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
                                 * normals)
     local = dict(x=x, normal=normals, u_nu=u_nu, gap=gap, penetration=penetration, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
                  reaction_nu=reaction_nu, reaction_tau=r_tau, radius=contact["mu"] * pressure,
-                 u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau, slip_vector=slip_vec)
+                 u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau, slip_vector=slip_vec,
+                 weight=nodes.weights[nodes.owned])
     gathered = comm.allgather(local)
     table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
     # Sort by position rounded to 1e-9 of the body's size: coordinates that are zero can
@@ -91,6 +92,39 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
 
 
 FRICTION_STATES = ("none", "stick", "slip")
+
+
+def friction_limit(problem, comm, previous) -> str | None:
+    """Why a step of a body held by contact alone (no Dirichlet condition) failed, when the
+    reason is that it has no quasistatic equilibrium: the tangential part of the external load
+    resultant F exceeds mu times its normal part, the most that friction on the total normal
+    pressure can hold (mu F.nu >= sum_i w_i |sigma_tau,i|). nu: the contact normal at the last
+    equilibrium `previous` (a contact table), weighted by the normal reaction. Collective.
+    Returns the explanation, or None."""
+    if problem.lambda_tau is None or problem.bcs_u:
+        return None
+    known = previous is not None
+    previous = previous if known else contact_table(problem, comm)   # for weights and normals
+    w = previous["weight"] * (np.maximum(previous["reaction_nu"], 0.0) if known else 1.0)
+    normal = np.sum(w[:, None] * previous["normal"], axis=0)
+    if not np.linalg.norm(normal) > 0:
+        normal = np.sum(previous["weight"][:, None] * previous["normal"], axis=0)
+    normal /= np.linalg.norm(normal)
+    F = problem.load_resultant()
+    pressing = float(F @ normal)          # the load pushing the body onto Gamma_C (nu: outward)
+    tangential = float(np.linalg.norm(F - pressing * normal))
+    mu = problem.scene["contact"]["mu"]
+    if tangential <= mu * max(pressing, 0.0) * (1 + 1e-9):
+        return None
+    note = ""
+    if known:
+        force = np.linalg.norm(np.sum(previous["weight"][:, None]
+                                      * previous["sigma_tau_vector"], axis=0))
+        note = f"; friction force {force:.6g} at the last equilibrium"
+    return (f"no quasistatic equilibrium: the tangential load exceeds the friction limit "
+            f"(tangential load {tangential:.6g} > mu x normal load = {mu:g} x {pressing:.6g} = "
+            f"{mu * max(pressing, 0.0):.6g}{note}); reduce the tangential load, raise "
+            "contact.mu, or hold the body with a Dirichlet condition")
 
 
 def friction_state(table) -> np.ndarray:

@@ -93,6 +93,22 @@ class Problem:
     implicit_terms: list = field(default_factory=list)  # (Constant, R(0) part) of the trapezoid
     history_started: bool = False
     u_previous: fem.Function | None = None    # u(t_{n-1}), for slip = "increment" only
+    loads: object = None                      # the linear form of the external loads (UFL)
+
+    def load_resultant(self) -> np.ndarray:
+        """The resultant of the external loads at the current time, int f + int_N f_N
+        (collective; compiles its forms on first use)."""
+        d = self.V.mesh.geometry.dim
+        if self.loads is None:
+            return np.zeros(d)
+        if "_resultant" not in self.__dict__:
+            units = [fem.Function(self.V) for _ in range(d)]
+            for j, e in enumerate(units):
+                e.x.array.reshape(-1, d)[:, j] = 1.0
+            self._resultant = [fem.form(ufl.action(self.loads, e)) for e in units]
+        comm = self.V.mesh.comm
+        return np.array([comm.allreduce(fem.assemble_scalar(f), MPI.SUM)
+                         for f in self._resultant])
 
     @property
     def unknowns(self) -> list[fem.Function]:
@@ -189,13 +205,16 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     dx = ufl.dx
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
     F_u = ufl.inner(sigma, strain(v)) * dx
+    loads = []                                 # (f, v) and (f_N, v): the external loads
     body = scene["body_force"]["value"]
     if body is not None:
-        F_u -= ufl.dot(context.vector(body, "body_force.value", d), v) * dx
+        loads.append(ufl.dot(context.vector(body, "body_force.value", d), v) * dx)
     for i, traction in enumerate(scene["traction"]):
         geometry.facets(traction["boundary"])   # checks the name
         fN = context.vector(traction["value"], f"traction[{i}].value", d)
-        F_u -= ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]])
+        loads.append(ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]]))
+    for load in loads:
+        F_u -= load
 
     bcs, fixed_components = _dirichlet(scene, geometry, V, context, updates)
 
@@ -284,7 +303,8 @@ def build(scene: dict, geometry: Geometry) -> Problem:
                       bcs_u=bcs_u, u_fixed=fixed_components,
                       multiplier_free=multiplier_free,
                       nodes=nodes, context=context, updates=updates, gap=gap_function,
-                      u_previous=u_previous, **problem_memory)
+                      u_previous=u_previous, loads=sum(loads[1:], loads[0]) if loads else None,
+                      **problem_memory)
     if nodes is not None:
         problem.Q_coordinates = Q.tabulate_dof_coordinates()
         if degree > 1:
@@ -336,6 +356,13 @@ def _interpolator(function, value, space):
     """A callable that sets `function` to the UFL value or Constant `value`."""
     if isinstance(value, fem.Constant):
         return lambda: function.x.array.__setitem__(slice(None), value.value)
+    if value.ufl_domain() is None:
+        # A value in t alone (e.g. [d * t, -w]) has no mesh: fem.Expression needs one. A zero
+        # Constant times x gives it one (a float zero would be simplified away).
+        x = ufl.SpatialCoordinate(space.mesh)
+        zero = _scalar(space.mesh, 0.0)
+        value = value + zero * (x[0] if value.ufl_shape == ()
+                                else ufl.as_vector([x[0]] * value.ufl_shape[0]))
     expression = fem.Expression(value, space.element.interpolation_points())
     return lambda: function.interpolate(expression)
 
