@@ -138,9 +138,7 @@ class Problem:
 
     def commit(self, k: float | None):
         """Take eps of the current, converged u (reached by a step of size k; None at t_0)
-        into the history, and u as the origin of the next step's slip (slip = "increment")."""
-        if self.u_previous is not None:
-            self.u_previous.x.array[:] = self.u.x.array
+        into the history."""
         if self.history is None:
             return
         self.eps_function.interpolate(self.eps_expression)
@@ -149,7 +147,13 @@ class Problem:
     def prepare(self, k: float):
         """Set the history stress H of a step of size k from the committed state, and the
         implicit weight k/2 R(0) of the trapezoid rule (0 at t_0, where nothing is prepared).
-        A failed step can be prepared again with a smaller k."""
+        A failed step can be prepared again with a smaller k.
+
+        With slip = "increment" the current u, the converged state of t_{n-1}, becomes the
+        origin of the step's slip; it stays so until the next step is prepared, so that the
+        step's output still sees it."""
+        if self.u_previous is not None:
+            self.u_previous.x.array[:] = self.u.x.array
         if self.history is None:
             return
         for constant, R0 in self.implicit_terms:

@@ -188,9 +188,10 @@ def test_slip_increment_against_total_on_ironing():
                                               f"contact.slip='{slip}'"])
         scene["output"]["probes"] = []
         result = _run(scene)
-        for table in result.tables:
-            assert_contact_conditions(table, 0.03, 1e-9 * max(1.0, np.max(table["reaction_nu"])),
-                                      direction_tol=1e-6)
+        sliding = sum(assert_contact_conditions(
+            table, 0.03, 1e-9 * max(1.0, np.max(table["reaction_nu"])), direction_tol=1e-6)
+            for table in result.tables)
+        assert sliding > 20              # friction against the measured slip checked there
         tables[slip] = result.tables[-1]
         assert (result.problem.u_previous is not None) == (slip == "increment")
     assert np.max(np.abs(tables["total"]["u_tau"] - tables["increment"]["u_tau"])) > 1e-4
@@ -214,9 +215,46 @@ def test_checkpoint_keeps_the_slip_origin(tmp_path_factory):
         assert np.allclose(key, ref)
         assert np.array_equal(fresh.u_previous.x.array, result.problem.u_previous.x.array)
         assert np.array_equal(fresh.u.x.array, result.problem.u.x.array)
-    # After a converged step the slip origin is that step's u.
-    assert np.array_equal(fresh.u_previous.x.array, fresh.u.x.array)
-    assert np.max(np.abs(fresh.u.x.array)) > 0
+    # The slip origin of the last step is u(t_{n-1}): not the converged u of t_n.
+    assert np.max(np.abs(fresh.u_previous.x.array - fresh.u.x.array)) > 1e-6
+    assert np.max(np.abs(fresh.u_previous.x.array)) > 0
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_restart_continues_the_slip_per_step(tmp_path_factory, monkeypatch):
+    """A run stopped after its checkpoint of step 2 and restarted reaches the uninterrupted
+    run's answer: the restart reads the slip origin u(t_{n-1}) back (without it, the next
+    step's slip would be measured from zero)."""
+    comm = MPI.COMM_WORLD
+    folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
+               for name in ("whole", "stopped")]
+    scene = scene_module.load("ironing", ["time.steps=5", "time.T=0.25",
+                                          "contact.friction='coulomb'",
+                                          "contact.slip='increment'"])
+    scene["output"].update(probes=[], figures=False, xdmf=False)
+    whole = simulate(scene, out=folders[0], comm=comm, progress=False, keep_tables=True)
+    save = checkpoint.save
+
+    def stop_after_step_2(folder, problem, comm, t, count, step):
+        save(folder, problem, comm, t, count, step)
+        if count == 3:
+            raise _Stop
+
+    monkeypatch.setattr(checkpoint, "save", stop_after_step_2)
+    with pytest.raises(_Stop):
+        simulate(scene, out=folders[1], comm=comm, progress=False)
+    monkeypatch.setattr(checkpoint, "save", save)
+    restarted = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True,
+                         restart=True)
+    assert len(restarted.tables) == 3                    # steps 3, 4, 5
+    a, b = whole.tables[-1], restarted.tables[-1]
+    for key in ("u_nu", "u_tau", "reaction_nu", "reaction_tau"):
+        assert np.max(np.abs(a[key] - b[key])) <= 1e-9 * max(1.0, np.max(np.abs(a[key]))), key
+    assert np.array_equal(a["friction"], b["friction"])
+    assert np.max(np.abs(a["slip_vector"])) > 1e-6       # the last step did slide
 
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="needs mpirun -n 2 or more")
