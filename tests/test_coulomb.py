@@ -8,6 +8,7 @@ from mpi4py import MPI
 
 from contactvisco import checkpoint, geometry, problem as problem_module
 from contactvisco import scene as scene_module
+from contactvisco import solver as solver_module
 from contactvisco.condensed import eliminate, recover
 from contactvisco.coulomb import block_scene, cattaneo_mindlin
 from contactvisco.run import simulate
@@ -224,6 +225,42 @@ def test_checkpoint_keeps_the_slip_origin(tmp_path_factory):
     # The slip origin of the last step is u(t_{n-1}): not the converged u of t_n.
     assert np.max(np.abs(fresh.u_previous.x.array - fresh.u.x.array)) > 1e-6
     assert np.max(np.abs(fresh.u_previous.x.array)) > 0
+
+
+def test_cut_step_measures_slip_from_the_last_accepted_state(monkeypatch):
+    """A step whose Newton fails after it has moved u (forced: the first attempt of the step
+    to t = 1 converges and is then declared failed) is restored and taken in two halves: each
+    half's slip is measured from the state before it, not from the failed attempt, and the
+    run reaches the answer of the uniform run through the same times."""
+    sets = ["time.T=1.0", "contact.friction='coulomb'", "contact.slip='increment'",
+            "geometry.parameters.h=0.1"]
+    solve = solver_module._Newton.solve
+    calls = []
+
+    def fail_once_at_the_end(newton):
+        iterations = solve(newton)
+        calls.append(iterations)
+        if len(calls) == 2:                   # t_0, then the whole step to t = 1
+            raise NewtonFailure("forced", -5, [])
+        return iterations
+
+    scene = scene_module.load("ironing", sets + ["time.steps=1"])
+    scene["output"]["probes"] = []
+    monkeypatch.setattr(solver_module._Newton, "solve", fail_once_at_the_end)
+    cut = _run(scene)
+    monkeypatch.setattr(solver_module._Newton, "solve", solve)
+    scene = scene_module.load("ironing", sets + ["time.steps=2"])
+    scene["output"]["probes"] = []
+    uniform = _run(scene)
+    assert [s["cuts"] for s in cut.steps] == [0, 1, 1]
+    assert [s["t"] for s in cut.steps] == [0.0, 0.5, 1.0]
+    for before, after in zip(cut.tables, cut.tables[1:]):
+        increment = after["u_tau_vector"] - before["u_tau_vector"]
+        assert np.max(np.abs(after["slip_vector"] - increment)) < 1e-14
+        assert np.max(np.abs(increment)) > 1e-3
+    for key in ("u_nu", "u_tau", "reaction_nu", "reaction_tau"):
+        a, b = cut.tables[-1][key], uniform.tables[-1][key]
+        assert np.max(np.abs(a - b)) <= 1e-9 * max(1.0, np.max(np.abs(a))), key
 
 
 class _Stop(Exception):
