@@ -53,7 +53,10 @@ for nu, r in results.items():
 # %% [markdown]
 # ## Tangential traction and the stick zone
 # Filled markers: nodes that stick; open markers: nodes that slip (there the traction is
-# $\mu$ times the pressure to round-off). The dashed line is $\mu p$, the slip limit.
+# $\mu$ times the pressure to round-off); grey: separated nodes. The dashed line is $\mu p$
+# of Hertz's pressure, the slip limit. At $\nu = 0.49$ the sticking nodes scatter about the
+# closed form: P1 elements lock in nearly incompressible plane strain, and the nodal
+# tractions of a sticking zone (reactions, not a law) show it.
 
 # %%
 fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
@@ -64,11 +67,14 @@ for ax, (nu, r) in zip(axes, results.items()):
             label="Cattaneo-Mindlin")
     ax.plot(xs / a, np.sqrt(np.maximum(0, 1 - (xs / a) ** 2)), "k--", lw=0.8,
             label=r"$\mu p$ (Hertz)")
-    stick = r["stick"]
+    stick, touching = r["stick"], r["p"] > 0
+    slip = touching & ~stick
     ax.plot(r["x"][stick] / a, r["q"][stick] / (mu * p0), "o", color="C0", ms=4,
             label="stick")
-    ax.plot(r["x"][~stick] / a, r["q"][~stick] / (mu * p0), "o", mfc="none", color="C1",
+    ax.plot(r["x"][slip] / a, r["q"][slip] / (mu * p0), "o", mfc="none", color="C1",
             ms=4, label="slip")
+    ax.plot(r["x"][~touching] / a, r["q"][~touching] / (mu * p0), ".", color="0.6",
+            label="separated")
     for sign in (-1, 1):
         ax.axvline(sign * c / a, color="k", ls=":", lw=0.8)
     ax.set_title(rf"$\nu$ = {nu}")
