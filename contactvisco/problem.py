@@ -1,7 +1,8 @@
 """The discrete problem (20)-(21) of a scene: spaces, unknowns, UFL residual and Jacobian.
 
 Only the terms a scene needs are built: no lambda_tau without friction, no lambda_nu without a
-finite bound g, no compliance term when g = 0 (pure Signorini), no history without memory.
+finite bound g, no compliance term when g = 0 (pure Signorini), no history without memory, no
+previous-step displacement unless friction acts on the slip per step.
 
 Residual, with sigma_n = A eps(u_n) + H_n (H_n the history stress of eq 19) and
 R_nu = (lambda_nu - r (u_nu - g))_-, sigma_tau = P_B(lambda_tau - r u_tau), B of radius
