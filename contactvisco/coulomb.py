@@ -9,7 +9,8 @@ pressure N and the friction force tau:
         u = (tau / G y, -N / E y), the elastic solution with zero slip (G = E / 2);
     slip (the top moved by U > mu N H / G, tau = mu N on the sides):
         u = (U - mu N (H - y) / G, -N / E y), friction force mu N at every node.
-P1 holds both fields exactly, so the errors are round-off.
+P1 holds both fields exactly, so the errors are round-off. In 3D the same holds with the pull
+along any tangential direction e (u_tau = u_x e, friction on a disc).
 
 cattaneo_mindlin(): a cylinder (radius R, plane strain) pressed onto a rigid plane and then
 pulled tangentially through its clamped top (u = (delta t, -w)). With P and Q the normal and
@@ -36,30 +37,42 @@ from .run import simulate
 
 
 def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5,
-                cells=(8, 4), slip: str = "total") -> tuple[dict, dict]:
+                cells=(8, 4), slip: str = "total", direction=None) -> tuple[dict, dict]:
     """The sliding block in the 'stick' regime (tangential traction load x mu N on the top)
-    or the 'slip' regime (the top moved by 2 mu N H / G, twice the stick limit). Returns the
-    raw scene and the exact fields as numbers: {"ux": (a, b), "uy": c} meaning
-    u_x = a + b y, u_y = c y, and the friction force per node."""
+    or the 'slip' regime (the top moved by 2 mu N H / G, twice the stick limit), along the
+    unit tangential `direction` (2D: x; 3D: any (e_x, e_y)). Returns the raw scene and the
+    exact fields as numbers: {"ux": (a, b), "uy": c} meaning u_tau = (a + b z) direction,
+    u_normal = c z (z the height), and the friction force per node."""
     E, H = 100.0, 0.5
     G = E / 2
+    d = len(cells)
+    e = np.array(direction if direction is not None else [1.0] + [0.0] * (d - 2), float)
+    e /= np.linalg.norm(e)
+    tau = load * mu * N if regime == "stick" else mu * N
+    # sigma_tau,z = tau e: the tractions sigma n on the sides keep the stress homogeneous.
+    sides = [("left", "right"), ("front", "back")][:d - 1]
+    tractions = []
+    for k, (low, high) in enumerate(sides):
+        value = [0.0] * d
+        value[-1] = -tau * e[k]
+        tractions += [{"boundary": low, "value": list(value)},
+                      {"boundary": high, "value": [0.0] * (d - 1) + [tau * e[k]]}]
     if regime == "stick":
-        tau = load * mu * N
-        top = {"boundary": "top", "value": [tau, -N]}
+        top = {"boundary": "top", "value": [float(tau * c) for c in e] + [-N]}
         dirichlet = []
         exact = {"ux": (0.0, tau / G), "uy": -N / E, "friction": tau}
     else:
-        tau = mu * N
         U = 2 * tau * H / G
-        top = {"boundary": "top", "value": [0.0, -N]}
-        dirichlet = [{"boundary": "top", "components": [0], "value": U}]
+        top = {"boundary": "top", "value": [0.0] * (d - 1) + [-N]}
+        dirichlet = [{"boundary": "top", "components": list(range(d - 1)),
+                      "value": [float(U * c) for c in e]}]
         exact = {"ux": (U - tau * H / G, tau / G), "uy": -N / E, "friction": tau}
+    upper = [1.0] * (d - 1) + [H]
     raw = {"name": f"block-{regime}",
-           "geometry": {"lower": [0.0, 0.0], "upper": [1.0, H], "cells": list(cells)},
-           "material": {"model": "plane_strain", "E": E, "nu": 0.0},
+           "geometry": {"lower": [0.0] * d, "upper": upper, "cells": list(cells)},
+           "material": {"model": "plane_strain" if d == 2 else "3d", "E": E, "nu": 0.0},
            "dirichlet": dirichlet,
-           "traction": [top, {"boundary": "left", "value": [0.0, -tau]},
-                        {"boundary": "right", "value": [0.0, tau]}],
+           "traction": [top] + tractions,
            "contact": {"boundary": "bottom", "g": 0.0, "mu": mu, "friction": "coulomb",
                        "slip": slip},
            "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}

@@ -24,22 +24,26 @@ def _run(raw_or_scene, comm=MPI.COMM_WORLD):
     return simulate(scene, comm=comm, progress=False, keep_tables=True)
 
 
-def _block_check(regime, slip):
-    raw, exact = block_scene(regime, slip=slip)
+def _block_check(regime, slip, cells=(8, 4), direction=None):
+    raw, exact = block_scene(regime, slip=slip, cells=cells, direction=direction)
     result = _run(raw)
     table = result.tables[-1]
     problem = result.problem
-    d = 2
+    d = len(cells)
+    e = np.array(direction if direction is not None else [1.0] + [0.0] * (d - 2))
+    e /= np.linalg.norm(e)
     x = problem.V.tabulate_dof_coordinates()[:, :d]
     u = problem.u.x.array.reshape(-1, d)
     a, b = exact["ux"]
+    z = x[:, -1]
     scale = max(abs(a) + abs(b), abs(exact["uy"]))
-    assert np.max(np.abs(u[:, 0] - (a + b * x[:, 1]))) < 1e-10 * scale
-    assert np.max(np.abs(u[:, 1] - exact["uy"] * x[:, 1])) < 1e-10 * scale
+    assert np.max(np.abs(u[:, :-1] - np.outer(a + b * z, e))) < 1e-10 * scale
+    assert np.max(np.abs(u[:, -1] - exact["uy"] * z)) < 1e-10 * scale
     N = 10.0
     assert np.allclose(table["reaction_nu"], N, rtol=1e-10)
-    # The foundation holds the body back: the friction force opposes the pull (+x).
-    assert np.allclose(table["reaction_tau"], -exact["friction"], rtol=1e-9)
+    # The foundation holds the body back: the friction force opposes the pull.
+    force = table["sigma_tau_vector"][:, :-1]
+    assert np.max(np.abs(force + exact["friction"] * e)) < 1e-9 * exact["friction"]
     assert_contact_conditions(table, 0.0, 1e-10 * N)
     return table
 
@@ -59,6 +63,14 @@ def test_block_slides_above_it():
     assert np.all(table["friction"] == 2)
     assert np.allclose(np.abs(table["reaction_tau"]), table["radius"], rtol=1e-10)
     assert np.all(table["u_tau"] > 0)
+
+
+@pytest.mark.parametrize("regime", ["stick", "slip"])
+def test_block_3d(regime):
+    """The same closed forms in 3D, pulled along (3, 4)/5: friction is a disc, the force
+    mu N (slip) or the load (stick) along the pull at every node."""
+    table = _block_check(regime, "increment", cells=(3, 3, 2), direction=[3.0, 4.0])
+    assert np.all(table["friction"] == (1 if regime == "stick" else 2))
 
 
 def test_load_beyond_the_friction_limit_stops_clearly():
