@@ -143,12 +143,11 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         try:
             iterations = snes.solve()
         except NewtonFailure as err:
-            last = state["count"] == 0 or cuts >= scene["solver"]["max_cuts"]
-            # Read at the failed iterate, before it is restored.
-            limit = output.friction_limit(problem, comm, state["table"]) if last else None
             for f, values in zip(problem.unknowns, saved):
                 f.x.array[:] = values
-            if last:
+            if state["count"] == 0 or cuts >= scene["solver"]["max_cuts"]:
+                # A body held by friction alone under too large a tangential load: say so.
+                limit = output.friction_limit(problem, comm, state["table"])
                 cut_note = f" after {cuts} cuts" if cuts else ""
                 raise NewtonFailure(
                     f"step to t = {t_new:g} (from t = {state['t']:g}{cut_note}): "
