@@ -2,8 +2,12 @@
 per step (contact.slip = "increment"): closed forms (sliding block, Cattaneo-Mindlin), the
 stop when the tangential load exceeds the friction limit, the condensed system against the
 coupled one, 1 and 2 ranks, the checkpoint, and the scene checks."""
+import math
+
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from mpi4py import MPI
 
 from contactvisco import checkpoint, geometry, problem as problem_module
@@ -360,3 +364,39 @@ def test_no_friction_unknowns_without_mu(sets):
     scene = scene_module.load("hertz", ["preset='fast'"] + sets)
     problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
     assert problem.lambda_tau is None and problem.u_previous is None
+
+
+@st.composite
+def coulomb_scenes(draw):
+    g = draw(st.sampled_from([0.0, 0.05, math.inf]))
+    return [f"geometry.cells=[{draw(st.integers(2, 8))}, {draw(st.integers(2, 8))}]",
+            f"material.nu={draw(st.sampled_from([0.0, 0.3, 0.45]))}",
+            f"memory.alpha={draw(st.sampled_from([0.0, 100.0]))}",
+            f"contact.stiffness={draw(st.sampled_from([1.0, 100.0, 1e4]))}",
+            f"contact.g={'inf' if math.isinf(g) else g}",
+            f"contact.mu={draw(st.sampled_from([0.2, 0.8]))}",
+            f"contact.augmentation={draw(st.sampled_from([1.0, 100.0, 1e4]))}",
+            f"contact.slip='{draw(st.sampled_from(['total', 'increment']))}'",
+            "contact.friction='coulomb'",
+            f"time.steps={draw(st.integers(1, 4))}", "time.rule='trapezoid'",
+            "output.probes=[]"]
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="hypothesis draws per process; one rank")
+@settings(max_examples=10, deadline=None, derandomize=True, database=None,
+          suppress_health_check=list(HealthCheck))
+@given(coulomb_scenes())
+def test_coulomb_scenes_satisfy_the_contact_conditions(overrides):
+    """The paper scene under Coulomb's law with drawn parameters (Signorini, compliance with a
+    bound, compliance alone; both slip measures): every step converges with the conditions
+    held, the friction bound mu times the total pressure."""
+    scene = scene_module.load("paper", overrides)
+    result = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
+    scale = max(1.0, max(np.max(np.abs(t["reaction_nu"])) for t in result.tables))
+    for step, table in zip(result.steps, result.tables):
+        assert step["residual"] < 1e-9
+        assert np.allclose(table["radius"], scene["contact"]["mu"] * table["reaction_nu"],
+                           atol=1e-12 * scale)
+        roller = table["x"][:, 0] > 1.0 - 1e-12
+        assert_contact_conditions(table, scene["contact"]["g"], 1e-9 * scale, roller,
+                                  direction_tol=1e-6 * scale)
