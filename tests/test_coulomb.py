@@ -14,7 +14,7 @@ from contactvisco import checkpoint, geometry, problem as problem_module
 from contactvisco import scene as scene_module
 from contactvisco import solver as solver_module
 from contactvisco.condensed import eliminate, recover
-from contactvisco.coulomb import block_scene, cattaneo_mindlin
+from contactvisco.coulomb import block_scene, cattaneo_mindlin, cattaneo_scene
 from contactvisco.run import simulate
 from contactvisco.scene import SceneError
 from contactvisco.solver import NewtonFailure
@@ -327,7 +327,8 @@ def test_restart_continues_the_slip_per_step(tmp_path_factory, monkeypatch):
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="needs mpirun -n 2 or more")
 def test_ranks_agree_with_coulomb():
-    """Signorini-Coulomb with slip per step: the distributed run gives the 1-rank answer."""
+    """Signorini-Coulomb with slip per step (block, ironing strip, pulled cylinder): the
+    distributed run gives the 1-rank answer."""
     raw, _ = block_scene("stick", cells=(16, 8), slip="increment")
     raw["traction"][0]["value"] = ["2 * t", -10.0]
     raw["traction"][1]["value"] = [0.0, "-2 * t"]
@@ -338,7 +339,8 @@ def test_ranks_agree_with_coulomb():
                                           "contact.stiffness=0", "contact.slip='increment'",
                                           "geometry.parameters.h=0.1"])
     scene["output"]["probes"] = []
-    for case in (scene_module.resolve(raw), scene):
+    cylinder = scene_module.resolve(cattaneo_scene(0.01))    # curved, gmsh, Signorini
+    for case in (scene_module.resolve(raw), scene, cylinder):
         world = _run(case, MPI.COMM_WORLD)
         single = _run(case, MPI.COMM_SELF)
         for a, b in zip(world.tables, single.tables):
