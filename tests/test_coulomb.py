@@ -248,8 +248,12 @@ def test_checkpoint_keeps_the_slip_origin(tmp_path_factory):
         assert np.array_equal(fresh.u_previous.x.array, result.problem.u_previous.x.array)
         assert np.array_equal(fresh.u.x.array, result.problem.u.x.array)
     # The slip origin of the last step is u(t_{n-1}): not the converged u of t_n.
-    assert np.max(np.abs(fresh.u_previous.x.array - fresh.u.x.array)) > 1e-6
-    assert np.max(np.abs(fresh.u_previous.x.array)) > 0
+    comm = MPI.COMM_WORLD
+    change = comm.allreduce(float(np.max(np.abs(fresh.u_previous.x.array - fresh.u.x.array),
+                                         initial=0.0)), MPI.MAX)
+    assert change > 1e-6
+    assert comm.allreduce(float(np.max(np.abs(fresh.u_previous.x.array), initial=0.0)),
+                          MPI.MAX) > 0
 
 
 def test_cut_step_measures_slip_from_the_last_accepted_state(monkeypatch):
