@@ -58,6 +58,8 @@ def _cached_keys(problem, space):
 def _fields(problem):
     """(name, space, local array view) of everything a restart needs."""
     out = [(f"unknown{i}", f.function_space, f.x.array) for i, f in enumerate(problem.unknowns)]
+    if problem.u_previous is not None:     # the origin of the slip (slip = "increment")
+        out.append(("u_previous", problem.V, problem.u_previous.x.array))
     if problem.history is not None:
         out += [(f"history_{key}", problem.T, value)
                 for key, value in problem.history.state().items()]
@@ -160,7 +162,7 @@ def load(folder, problem, comm) -> dict:
 
     # The unknowns, then the history arrays the checkpoint holds (a fresh history has none).
     fields = [(name, space, array) for name, space, array in _fields(problem)
-              if name.startswith("unknown")]
+              if name.startswith("unknown") or name == "u_previous"]
     fields += [(name, problem.T, None) for name in meta["fields"]
                if name.startswith("history_")]
     mine = {name: _keys(space) for name, space, _ in fields if not _global(name)}
@@ -184,7 +186,7 @@ def load(folder, problem, comm) -> dict:
             missing = missing or (name, want[np.argmin(rows)][:3].tolist())
             continue
         values = np.concatenate(have_values)[rows].ravel()
-        if name.startswith("unknown"):
+        if array is not None:
             array[:] = values
         else:
             state[name[len("history_"):]] = values

@@ -9,7 +9,10 @@ lambda_i, and lambda_i enters only the rows of u_i. The Newton system of the cou
 is therefore made of one d x m, m x d and m x m block per node: B_i, C_i, D_i (m = 1, d or d + 1
 multiplier components). D_i is singular where a condition is active: lambda_i is then a
 reaction, and its equation a constraint on u_i (u_nu = g at a bound node, u_tau = 0 at a
-sticking one). With the SVD D_i = U S V^T split into range (r) and null (0) parts:
+sticking one). D_i need not be symmetric: with Coulomb's law (contact.friction = "coulomb")
+lambda_tau's ball has the radius mu (p_nu + R_nu), so a sliding node's lambda_tau rows depend
+on lambda_nu and not the other way round; the SVD below keeps the left (U_0) and right (V_0)
+null vectors apart, so the elimination holds for any D_i. With the SVD D_i = U S V^T split into range (r) and null (0) parts:
 
     dl_i = D_i^+ (-G_i - C_i du_i) + V_0 b_i,      D_i^+ = V_r S_r^-1 U_r^T,
     U_0^T C_i du_i = -U_0^T G_i                    (k = m - r constraints on du_i),

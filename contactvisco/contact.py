@@ -3,6 +3,11 @@
 Signs: nu is the outward unit normal, u_nu = u.nu (> 0 means penetration into the layer),
 sigma_nu = (sigma nu).nu (< 0 in compression). The foundation's normal reaction is
 -sigma_nu = p_nu(u_nu) + R_nu with R_nu >= 0 the rigid part's reaction at the bound u_nu = g.
+
+Friction: sigma_tau lies in the ball of radius mu p_nu(u_nu) (the paper's law) or
+mu (p_nu(u_nu) + R_nu) = -mu sigma_nu (Coulomb on the total normal pressure), and opposes the
+slip where it reaches the bound. The slip is u_tau (the paper's) or the step's
+u_tau - u_tau(t_{n-1}) (Coulomb's incremental law); friction_force takes either.
 """
 from __future__ import annotations
 
@@ -47,5 +52,6 @@ def project_ball(z, radius):
 
 
 def friction_force(lambda_tau, u_tau, n, radius, r):
-    """sigma_tau = P_B(lambda_tau - r u_tau) with B the ball of radius p_tau(u_nu) (eq 20)."""
+    """sigma_tau = P_B(lambda_tau - r u_tau) with B the ball of the given radius (eq 20);
+    u_tau is the slip the law acts on."""
     return project_ball(tangential_part(lambda_tau, n) - r * u_tau, radius)

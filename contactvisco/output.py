@@ -32,8 +32,10 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     Keys: x (n, d), normal (n, d), u_nu, gap (h), penetration (s = u_nu - h),
     u_tau (2D: along t = (-nu_y, nu_x); 3D: |u_tau|),
     lambda_nu, p_nu (compliance traction p_nu(min(s, g))), reaction_nu (-sigma_nu),
-    reaction_tau (sigma_tau, same convention as u_tau), radius (mu p_nu), status (0, 1, 2 as
-    in STATUSES).
+    reaction_tau (sigma_tau, same convention as u_tau), radius (the friction bound: mu p_nu,
+    or mu (p_nu + R_nu) with contact.friction = "coulomb"), slip_vector (u_tau, or the step's
+    u_tau - u_tau(t_{n-1}) with contact.slip = "increment"), status (0, 1, 2 as in STATUSES),
+    friction (0, 1, 2 as in FRICTION_STATES).
     """
     nodes = problem.nodes
     if nodes is None:
@@ -66,9 +68,18 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
         r_tau = np.linalg.norm(sig_tau - np.einsum("ij,ij->i", sig_tau, normals)[:, None]
                                * normals, axis=1)
     x = problem.Q_coordinates[own][:, :d]
+    reaction_nu = p_nu - lam_nu
+    # The friction ball's radius under the scene's law: mu p_nu or mu (p_nu + R_nu).
+    pressure = reaction_nu if contact.get("friction") == "coulomb" else p_nu
+    slip_vec = u_tau_vec
+    if problem.u_previous is not None:     # slip = "increment": the step's tangential motion
+        u_prev = problem.u_previous.x.array.reshape(-1, d)[own]
+        slip_vec = u_tau_vec - (u_prev - np.einsum("ij,ij->i", u_prev, normals)[:, None]
+                                * normals)
     local = dict(x=x, normal=normals, u_nu=u_nu, gap=gap, penetration=penetration, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
-                 reaction_nu=p_nu - lam_nu, reaction_tau=r_tau, radius=contact["mu"] * p_nu,
-                 u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau)
+                 reaction_nu=reaction_nu, reaction_tau=r_tau, radius=contact["mu"] * pressure,
+                 u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau, slip_vector=slip_vec,
+                 weight=nodes.weights[nodes.owned])
     gathered = comm.allgather(local)
     table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
     # Sort by position rounded to 1e-9 of the body's size: coordinates that are zero can
@@ -77,7 +88,54 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     order = np.lexsort(key.T[::-1])
     table = {key: value[order] for key, value in table.items()}
     table["status"] = classify(table["penetration"], g, problem.length_scale)
+    table["friction"] = friction_state(table)
     return table
+
+
+FRICTION_STATES = ("none", "stick", "slip")
+
+
+def friction_limit(problem, comm, previous) -> str | None:
+    """Why a step of a body held by contact alone (no Dirichlet condition) failed, when the
+    reason is that it has no quasistatic equilibrium: the tangential part of the external load
+    resultant F exceeds mu times its normal part, the most that friction on the total normal
+    pressure can hold (mu F.nu >= sum_i w_i |sigma_tau,i|). nu: the contact normal at the last
+    equilibrium `previous` (a contact table), weighted by the normal reaction. Collective.
+    Returns the explanation, or None."""
+    if problem.lambda_tau is None or problem.bcs_u:
+        return None
+    known = previous is not None
+    previous = previous if known else contact_table(problem, comm)   # for weights and normals
+    w = previous["weight"] * (np.maximum(previous["reaction_nu"], 0.0) if known else 1.0)
+    normal = np.sum(w[:, None] * previous["normal"], axis=0)
+    if not np.linalg.norm(normal) > 0:
+        normal = np.sum(previous["weight"][:, None] * previous["normal"], axis=0)
+    normal /= np.linalg.norm(normal)
+    F = problem.load_resultant()
+    pressing = float(F @ normal)          # the load pushing the body onto Gamma_C (nu: outward)
+    tangential = float(np.linalg.norm(F - pressing * normal))
+    mu = problem.scene["contact"]["mu"]
+    if tangential <= mu * max(pressing, 0.0) * (1 + 1e-9):
+        return None
+    note = ""
+    if known:
+        force = np.linalg.norm(np.sum(previous["weight"][:, None]
+                                      * previous["sigma_tau_vector"], axis=0))
+        note = f"; friction force {force:.6g} at the last equilibrium"
+    return (f"no quasistatic equilibrium: the tangential load exceeds the friction limit "
+            f"(tangential load {tangential:.6g} > mu x normal load = {mu:g} x {pressing:.6g} = "
+            f"{mu * max(pressing, 0.0):.6g}{note}); reduce the tangential load, raise "
+            "contact.mu, or hold the body with a Dirichlet condition")
+
+
+def friction_state(table) -> np.ndarray:
+    """Per node: 0 no friction (zero bound), 1 stick (|sigma_tau| below the bound, so the
+    node's slip is zero), 2 slip (|sigma_tau| at the bound mu times the law's pressure),
+    with a tolerance of 1e-8 times the largest bound."""
+    radius = table["radius"]
+    tol = 1e-8 * max(float(np.max(radius, initial=0.0)), 1e-300)
+    force = np.linalg.norm(table["sigma_tau_vector"], axis=1)
+    return np.where(radius <= tol, 0, np.where(force < radius - tol, 1, 2))
 
 
 def classify(s: np.ndarray, g: float, length: float) -> np.ndarray:
@@ -151,7 +209,7 @@ class Writer:
             d = problem.geometry.mesh.geometry.dim
             header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
                 "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
-                "status"]
+                "status", "friction"]
             path = self.folder / "contact_nodes.csv"
             kept = []
             if restart_count is not None and path.exists():
@@ -185,7 +243,8 @@ class Writer:
                                   + [repr(float(table[key][i])) for key in
                                      ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
                                       "radius")]
-                                  + [STATUSES[table["status"][i]]])
+                                  + [STATUSES[table["status"][i]],
+                                     FRICTION_STATES[table["friction"][i]]])
             self.csv_file.flush()
         self._write_summary()
 

@@ -1,11 +1,14 @@
 """The discrete problem (20)-(21) of a scene: spaces, unknowns, UFL residual and Jacobian.
 
 Only the terms a scene needs are built: no lambda_tau without friction, no lambda_nu without a
-finite bound g, no compliance term when g = 0 (pure Signorini), no history without memory.
+finite bound g, no compliance term when g = 0 (pure Signorini), no history without memory, no
+previous-step displacement unless friction acts on the slip per step.
 
 Residual, with sigma_n = A eps(u_n) + H_n (H_n the history stress of eq 19) and
 R_nu = (lambda_nu - r (u_nu - g))_-, sigma_tau = P_B(lambda_tau - r u_tau), B of radius
-mu p_nu(u_nu):
+mu p_nu(u_nu) (contact.friction = "compliance", the paper's) or mu (p_nu(u_nu) + R_nu)
+("coulomb": the total normal pressure); with contact.slip = "increment", u_tau is replaced by
+the slip of the step, u_tau - u_tau(t_{n-1}):
 
     F_u   = (sigma_n, eps(v)) - (f, v) + int_C (p_nu(u_nu) + R_nu) v_nu - int_C sigma_tau . v_tau
     F_nu  = -1/r int_C (lambda_nu + R_nu) gamma_nu
@@ -92,6 +95,23 @@ class Problem:
     gap: fem.Function | None = None           # initial gap h at the P1 nodes
     implicit_terms: list = field(default_factory=list)  # (Constant, part) of the trapezoid
     history_started: bool = False
+    u_previous: fem.Function | None = None    # u(t_{n-1}), for slip = "increment" only
+    loads: object = None                      # the linear form of the external loads (UFL)
+
+    def load_resultant(self) -> np.ndarray:
+        """The resultant of the external loads at the current time, int f + int_N f_N
+        (collective; compiles its forms on first use)."""
+        d = self.V.mesh.geometry.dim
+        if self.loads is None:
+            return np.zeros(d)
+        if "_resultant" not in self.__dict__:
+            units = [fem.Function(self.V) for _ in range(d)]
+            for j, e in enumerate(units):
+                e.x.array.reshape(-1, d)[:, j] = 1.0
+            self._resultant = [fem.form(ufl.action(self.loads, e)) for e in units]
+        comm = self.V.mesh.comm
+        return np.array([comm.allreduce(fem.assemble_scalar(f), MPI.SUM)
+                         for f in self._resultant])
 
     @property
     def unknowns(self) -> list[fem.Function]:
@@ -130,7 +150,13 @@ class Problem:
     def prepare(self, k: float):
         """Set the history stress H of a step of size k from the committed state, and the
         implicit weight k/2 R(0) of the trapezoid rule (0 at t_0, where nothing is prepared).
-        A failed step can be prepared again with a smaller k."""
+        A failed step can be prepared again with a smaller k.
+
+        With slip = "increment" the current u, the converged state of t_{n-1}, becomes the
+        origin of the step's slip; it stays so until the next step is prepared, so that the
+        step's output still sees it."""
+        if self.u_previous is not None:
+            self.u_previous.x.array[:] = self.u.x.array
         if self.history is None:
             return
         weights = self.history.implicit(k)
@@ -187,19 +213,22 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     dx = ufl.dx
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
     F_u = ufl.inner(sigma, strain(v)) * dx
+    loads = []                                 # (f, v) and (f_N, v): the external loads
     body = scene["body_force"]["value"]
     if body is not None:
-        F_u -= ufl.dot(context.vector(body, "body_force.value", d), v) * dx
+        loads.append(ufl.dot(context.vector(body, "body_force.value", d), v) * dx)
     for i, traction in enumerate(scene["traction"]):
         geometry.facets(traction["boundary"])   # checks the name
         fN = context.vector(traction["value"], f"traction[{i}].value", d)
-        F_u -= ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]])
+        loads.append(ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]]))
+    for load in loads:
+        F_u -= load
 
     bcs, fixed_components = _dirichlet(scene, geometry, V, context, updates)
 
     unknowns, spaces = [u], [V]
     F_extra = []
-    lambda_nu = lambda_tau = None
+    lambda_nu = lambda_tau = u_previous = None
     nodes = Q = W = gap_function = None
     if contact is not None:
         if disc["contact_quadrature"] == "nodal":
@@ -252,11 +281,19 @@ def build(scene: dict, geometry: Geometry) -> Problem:
             spaces.append(Q)
         if normal_force is not None:
             F_u += normal_force * law.normal_part(v, n) * dsc
-        if contact["mu"] > 0 and p_nu is not None:
+        # The friction ball's radius: mu p_nu (the paper's law) or mu (p_nu + R_nu), Coulomb
+        # on the total normal pressure (with g = 0: Signorini-Coulomb).
+        pressure = normal_force if contact["friction"] == "coulomb" else p_nu
+        if contact["mu"] > 0 and pressure is not None:
             c["friction"] = _scalar(mesh, contact["mu"])
             lambda_tau = fem.Function(W, name="lambda_tau")
             gamma = ufl.TestFunction(W)
-            sigma_tau = law.friction_force(lambda_tau, u_tau, n, c["friction"] * p_nu, c["r"])
+            if contact["slip"] == "increment":
+                # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
+                u_previous = fem.Function(V, name="u_previous")
+                u_tau = law.tangential_part(u - u_previous, n)
+            sigma_tau = law.friction_force(lambda_tau, u_tau, n, c["friction"] * pressure,
+                                           c["r"])
             F_u -= ufl.dot(sigma_tau, law.tangential_part(v, n)) * dsc
             F_extra.append(-1.0 / c["r"] * ufl.dot(lambda_tau - sigma_tau, gamma) * dsc)
             unknowns.append(lambda_tau)
@@ -274,6 +311,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
                       bcs_u=bcs_u, u_fixed=fixed_components,
                       multiplier_free=multiplier_free,
                       nodes=nodes, context=context, updates=updates, gap=gap_function,
+                      u_previous=u_previous, loads=sum(loads[1:], loads[0]) if loads else None,
                       **problem_memory)
     if nodes is not None:
         problem.Q_coordinates = Q.tabulate_dof_coordinates()
@@ -329,6 +367,13 @@ def _interpolator(function, value, space):
     """A callable that sets `function` to the UFL value or Constant `value`."""
     if isinstance(value, fem.Constant):
         return lambda: function.x.array.__setitem__(slice(None), value.value)
+    if ufl.domain.extract_unique_domain(value) is None:
+        # A value in t alone (e.g. [d * t, -w]) has no mesh: fem.Expression needs one. A zero
+        # Constant times x gives it one (a float zero would be simplified away).
+        x = ufl.SpatialCoordinate(space.mesh)
+        zero = _scalar(space.mesh, 0.0)
+        value = value + zero * (x[0] if value.ufl_shape == ()
+                                else ufl.as_vector([x[0]] * value.ufl_shape[0]))
     expression = fem.Expression(value, compat.interpolation_points(space))
     return lambda: function.interpolate(expression)
 

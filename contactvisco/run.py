@@ -148,10 +148,13 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
             for f, values in zip(problem.unknowns, saved):
                 f.x.array[:] = values
             if state["count"] == 0 or cuts >= scene["solver"]["max_cuts"]:
+                # A body held by friction alone under too large a tangential load: say so.
+                limit = output.friction_limit(problem, comm, state["table"])
                 cut_note = f" after {cuts} cuts" if cuts else ""
                 raise NewtonFailure(
-                    f"step to t = {t_new:g} (from t = {state['t']:g}{cut_note}): {err}; "
-                    f"{likely_cause(err, scene, state['count'])}",
+                    f"step to t = {t_new:g} (from t = {state['t']:g}{cut_note}): "
+                    + (f"{limit}; {err}" if limit else
+                       f"{err}; {likely_cause(err, scene, state['count'])}"),
                     err.reason, err.residuals) from None
             say(f"step to t = {t_new:.4g} failed (SNES reason {err.reason}); "
                 f"taking it in two halves")

@@ -115,9 +115,19 @@ CONTACT_DEFAULTS = {
                              # into the layer is u_nu - h
     "stiffness": 0.0,        # compliance stiffness c_nu in p_nu(s) = c_nu max(0, s)
     "g": math.inf,           # layer thickness (bound on u_nu); inf: no unilateral bound
-    "mu": 0.0,               # friction coefficient, p_tau = mu p_nu
+    "mu": 0.0,               # friction coefficient
+    "friction": "compliance",  # friction bound: mu p_nu (compliance, the paper's) |
+                             # mu (p_nu + R_nu) (coulomb: the total normal pressure)
+    "slip": "total",         # slip measured by u_tau (total, the paper's) | by the step's
+                             # u_tau - u_tau(t_{n-1}) (increment)
     "augmentation": None,    # augmentation parameter r; None: the stiffness, or E if that is 0
 }
+
+
+#: contact.friction: the friction ball's radius is mu p_nu(u_nu) or mu (p_nu(u_nu) + R_nu).
+FRICTION_LAWS = ("compliance", "coulomb")
+#: contact.slip: the friction law acts on u_tau or on u_tau - u_tau(t_{n-1}).
+SLIP_MEASURES = ("total", "increment")
 
 
 class SceneError(ValueError):
@@ -423,9 +433,16 @@ def check(scene: dict) -> None:
              f"contact.g must be >= 0 (inf: no bound), got {contact['g']}")
         need(contact["stiffness"] > 0 or math.isfinite(contact["g"]),
              "a contact boundary needs a compliance stiffness > 0 or a finite bound g")
-        need(contact["mu"] == 0 or (contact["stiffness"] > 0 and contact["g"] > 0),
+        need(contact["friction"] in FRICTION_LAWS,
+             f"contact.friction must be one of {', '.join(FRICTION_LAWS)}, got "
+             f"{contact['friction']!r}")
+        need(contact["slip"] in SLIP_MEASURES,
+             f"contact.slip must be one of {', '.join(SLIP_MEASURES)}, got {contact['slip']!r}")
+        need(contact["mu"] == 0 or contact["friction"] == "coulomb"
+             or (contact["stiffness"] > 0 and contact["g"] > 0),
              f"contact.mu = {contact['mu']} has no effect: the friction bound mu p_nu(u_nu) is "
-             "zero without a compliance stiffness > 0 and a layer g > 0; set contact.mu = 0")
+             "zero without a compliance stiffness > 0 and a layer g > 0; set contact.mu = 0, "
+             "or contact.friction = 'coulomb' for a bound mu times the total normal pressure")
     cuts = scene["solver"]["max_cuts"]
     need(isinstance(cuts, int) and not isinstance(cuts, bool) and 0 <= cuts <= 20,
          f"solver.max_cuts must be an integer from 0 to 20, got {cuts!r}")

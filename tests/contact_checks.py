@@ -5,8 +5,9 @@ import numpy as np
 def assert_contact_conditions(table, g, tol=1e-10, prescribed_tangential=None,
                               direction_tol=1e-8):
     """s <= g (s = u_nu - h the penetration); R = -lambda_nu >= 0 and (g - s) R = 0; the normal reaction is p_nu + R;
-    |sigma_tau| <= mu p_nu(u_nu), sigma_tau tangential; on sliding nodes
-    sigma_tau = -mu p_nu u_tau / |u_tau|. Returns the number of sliding nodes checked.
+    |sigma_tau| <= radius (mu p_nu(u_nu), or mu (p_nu + R) for Coulomb's law), sigma_tau
+    tangential; on sliding nodes sigma_tau = -radius slip / |slip| (slip: u_tau or its
+    increment over the step). Returns the number of sliding nodes checked.
 
     prescribed_tangential: boolean mask of nodes whose tangential displacement is prescribed
     (their tangential reaction is carried by the Dirichlet condition).
@@ -21,7 +22,8 @@ def assert_contact_conditions(table, g, tol=1e-10, prescribed_tangential=None,
     assert np.max(np.abs(R[free]), initial=0.0) < tol
     assert np.allclose(table["reaction_nu"], table["p_nu"] + R, atol=tol)
 
-    sig, ut, radius = table["sigma_tau_vector"], table["u_tau_vector"], table["radius"]
+    # The slip the friction law acts on: u_tau, or the step's increment (slip = "increment").
+    sig, ut, radius = table["sigma_tau_vector"], table["slip_vector"], table["radius"]
     assert np.all(np.linalg.norm(sig, axis=1) <= radius + tol)
     assert np.max(np.abs(np.einsum("ij,ij->i", sig, table["normal"]))) < tol
     sliding = (np.linalg.norm(ut, axis=1) > 1e-8) & (radius > 0)

@@ -1,0 +1,131 @@
+"""Coulomb friction measured (run by hand: python benchmarks/coulomb.py; about 3 minutes).
+
+1. Cattaneo-Mindlin under refinement (contactvisco.coulomb.cattaneo_mindlin): the cylinder
+   at nu = 0.49 with contact mesh sizes a/5.6 .. a/44: errors of the stick-zone half-width c,
+   of the transmitted force and of the nodal tractions, observed orders.
+2. The effect of the normal-tangential coupling (Dundurs' beta = (1 - 2 nu) / (2 (1 - nu))
+   against a rigid plane): the same run at nu = 0.3 .. 0.49.
+3. Linear solvers on the nonsymmetric Coulomb Jacobian: MUMPS LU and GMRES + BoomerAMG on the
+   condensed system (Newton and Krylov iterations, time, difference of the answers).
+4. Ironing with slip = "total" and "increment" (Coulomb on the total pressure in both).
+
+Writes benchmarks/results/coulomb.{json,md}.
+"""
+import json
+import math
+import time
+
+import numpy as np
+from common import RESULTS
+from mpi4py import MPI
+
+from contactvisco import scene as scene_module
+from contactvisco.coulomb import cattaneo_mindlin, cattaneo_scene
+from contactvisco.run import simulate
+from contactvisco.verification import orders
+
+KEYS = ("h", "a", "a_over_h", "nu", "load_ratio", "c", "c_h", "c_error", "stick_centre", "q_error",
+        "q_error_l2", "F_error", "p_error", "newton", "unknowns")
+
+
+def _cm(h, nu):
+    tick = time.perf_counter()
+    r = cattaneo_mindlin(h, nu=nu)
+    return dict({k: r[k] for k in KEYS}, wall_s=time.perf_counter() - tick)
+
+
+def main():
+    out = {}
+    lines = ["## Cattaneo-Mindlin under refinement (nu = 0.49, Q ~ 0.44 mu P)", "",
+             "| a/h | u unknowns | Newton | c/a exact | c/a | c error / a | order | "
+             "force error / Q | order | traction error (max, / mu p0) | "
+             "traction error (L2, rel.) | pressure error (max, / p0) | stick centre / a |",
+             "|" + "---|" * 13]
+    sizes = [0.01, 0.005, 0.0025, 0.00125]
+    rows = [_cm(h, 0.49) for h in sizes]
+    out["refinement"] = rows
+    oc = [math.nan] + orders([r["c_error"] for r in rows], sizes)
+    oF = [math.nan] + orders([r["F_error"] for r in rows], sizes)
+    for r, a, b in zip(rows, oc, oF):
+        lines.append(f"| {r['a_over_h']:.1f} | {r['unknowns']} | {r['newton']} | "
+                     f"{r['c'] / r['a']:.4f} | {r['c_h'] / r['a']:.4f} | "
+                     f"{r['c_error']:.4f} | {a:.2f} | {r['F_error']:.4f} | {b:.2f} | "
+                     f"{r['q_error']:.3f} | {r['q_error_l2']:.3f} | {r['p_error']:.3f} | "
+                     f"{r['stick_centre']:.3f} |")
+
+    lines += ["", "## Normal-tangential coupling (a/h = 22)", "",
+              "| nu | beta | Q / (mu P) | c error / a | stick centre / a | force error / Q | "
+              "traction error (L2, rel.) |", "|---|---|---|---|---|---|---|"]
+    coupling = [_cm(0.0025, nu) for nu in (0.3, 0.4, 0.45, 0.475, 0.49)]
+    out["coupling"] = coupling
+    for r in coupling:
+        beta = (1 - 2 * r["nu"]) / (2 * (1 - r["nu"]))
+        lines.append(f"| {r['nu']} | {beta:.3f} | {r['load_ratio']:.3f} | {r['c_error']:.3f} | "
+                     f"{r['stick_centre']:.3f} | {r['F_error']:.3f} | {r['q_error_l2']:.3f} |")
+
+    lines += ["", "## Linear solvers on the nonsymmetric Coulomb Jacobian (condensed system)",
+              "", "| scene | u unknowns | solver | Newton per step | Krylov max | s | "
+              "max difference of the contact tractions |", "|---|---|---|---|---|---|---|"]
+    cases = {
+        "Cattaneo-Mindlin a/h = 44": scene_module.resolve(cattaneo_scene(0.00125)),
+        "paper 128^2, coulomb, increment": scene_module.load(
+            "paper", ["geometry.cells=[128, 128]", "contact.friction='coulomb'",
+                      "contact.slip='increment'"]),
+    }
+    out["solvers"] = []
+    for name, scene in cases.items():
+        scene["output"]["probes"] = []
+        runs = {}
+        for kind in ("direct", "iterative"):
+            scene["solver"]["linear_solver"] = kind
+            tick = time.perf_counter()
+            runs[kind] = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
+            runs[kind].wall = time.perf_counter() - tick
+        a, b = runs["direct"].tables[-1], runs["iterative"].tables[-1]
+        diff = max(float(np.max(np.abs(a[k] - b[k]))) / max(1e-300, float(np.max(np.abs(a[k]))))
+                   for k in ("reaction_nu", "reaction_tau"))
+        for kind, result in runs.items():
+            krylov = [k for s in result.steps for k in s["krylov_iterations"]]
+            row = {"scene": name, "solver": result.linear_solver,
+                   "unknowns": result.problem.count_unknowns()["u"],
+                   "newton": [s["newton_iterations"] for s in result.steps],
+                   "krylov_max": max(krylov) if krylov else 0, "wall_s": result.wall,
+                   "difference": diff}
+            out["solvers"].append(row)
+            lines.append(f"| {name} | {row['unknowns']} | {row['solver']} | "
+                         f"{' '.join(map(str, row['newton']))} | {row['krylov_max']} | "
+                         f"{row['wall_s']:.1f} | {diff:.1e} |")
+
+    lines += ["", "## Ironing: slip measured in total and per step (Coulomb on the total "
+              "pressure)", "",
+              "| slip | Newton mean/max | final sep/compl/bound | nodes sliding at T | "
+              "u_tau range at T | friction force at T (sum w sigma_tau) |",
+              "|---|---|---|---|---|---|"]
+    out["ironing"] = []
+    for slip in ("total", "increment"):
+        scene = scene_module.load("ironing", ["contact.friction='coulomb'",
+                                              f"contact.slip='{slip}'"])
+        scene["output"]["probes"] = []
+        result = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
+        table = result.tables[-1]
+        newton = [s["newton_iterations"] for s in result.steps]
+        row = {"slip": slip, "newton_mean": float(np.mean(newton)), "newton_max": max(newton),
+               "status": result.steps[-1]["status_counts"],
+               "sliding": int(np.sum(table["friction"] == 2)),
+               "u_tau": [float(table["u_tau"].min()), float(table["u_tau"].max())],
+               "force": float(np.sum(table["weight"] * table["reaction_tau"]))}
+        out["ironing"].append(row)
+        s = row["status"]
+        lines.append(f"| {slip} | {row['newton_mean']:.1f}/{row['newton_max']} | "
+                     f"{s['separated']}/{s['compliance']}/{s['bound']} | {row['sliding']} | "
+                     f"{row['u_tau'][0]:.2e} .. {row['u_tau'][1]:.2e} | {row['force']:.4f} |")
+
+    if MPI.COMM_WORLD.rank == 0:
+        RESULTS.mkdir(exist_ok=True)
+        (RESULTS / "coulomb.json").write_text(json.dumps(out, indent=1, default=str))
+        (RESULTS / "coulomb.md").write_text("\n".join(lines) + "\n")
+        print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
