@@ -129,7 +129,7 @@ class _Walker:
         if isinstance(node, (ast.Compare, ast.BoolOp)) or (
                 isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not)):
             self.refuse("a comparison outside conditional(...)")
-        self.refuse(f"'{ast.unparse(node)}' (a {type(node).__name__} node)")
+        self.refuse(f"'{ast.unparse(node)}' (Python syntax of type {type(node).__name__})")
 
     def condition(self, node, depth):
         """The first argument of conditional: comparisons joined by and, or, not."""

@@ -14,9 +14,8 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from .scene import SceneError, dimension
+from .scene import MESH_DIR, SceneError, dimension
 
-MESH_DIR = pathlib.Path(__file__).resolve().parents[1] / "meshes"
 CACHE_DIR = pathlib.Path(os.environ.get("CONTACTVISCO_MESH_CACHE", MESH_DIR / ".cache"))
 
 #: Boundary names of the built-in box: the faces x = lower/upper, y = ..., z = ...
@@ -61,7 +60,34 @@ def build(scene: dict, comm=MPI.COMM_WORLD) -> Geometry:
         x = geometry.mesh.geometry.x
         c, s = np.cos(angle), np.sin(angle)
         x[:, 0], x[:, 1] = c * x[:, 0] - s * x[:, 1], s * x[:, 0] + c * x[:, 1]
+    check_probes(geometry.mesh, scene["output"]["probes"])
     return geometry
+
+
+def check_probes(mesh, points) -> None:
+    """Every probe point lies in a cell of the mesh (on some rank), else a scene error naming
+    the point and the mesh's bounding box."""
+    if not points:
+        return
+    from dolfinx import geometry as dgeometry
+    d = mesh.geometry.dim
+    xyz = np.zeros((len(points), 3))
+    for i, p in enumerate(points):
+        xyz[i, :len(p)] = p
+    tree = dgeometry.BoundingBoxTree(mesh, mesh.topology.dim)
+    cells = dgeometry.compute_colliding_cells(
+        mesh, dgeometry.compute_collisions(tree, xyz), xyz)
+    found = np.array([len(cells.links(i)) > 0 for i in range(len(points))], dtype=np.int32)
+    mesh.comm.Allreduce(MPI.IN_PLACE, found, op=MPI.MAX)
+    if found.all():
+        return
+    x = mesh.geometry.x[:, :d]
+    lower, upper = np.empty(d), np.empty(d)
+    mesh.comm.Allreduce(x.min(axis=0) if len(x) else np.full(d, np.inf), lower, op=MPI.MIN)
+    mesh.comm.Allreduce(x.max(axis=0) if len(x) else np.full(d, -np.inf), upper, op=MPI.MAX)
+    i = int(np.flatnonzero(found == 0)[0])
+    raise SceneError(f"output.probes[{i}] = {list(points[i])} is outside the body (the mesh "
+                     f"spans {np.round(lower, 6).tolist()} to {np.round(upper, 6).tolist()})")
 
 
 def _box(geo, comm) -> Geometry:
@@ -100,11 +126,15 @@ def mesh_file(geo) -> pathlib.Path:
     written atomically) and cached under a hash of the script and its parameters."""
     if geo["file"] is not None:
         path = pathlib.Path(geo["file"])
+        if path.suffix != ".msh":
+            raise SceneError(f"geometry.file must be a gmsh .msh file, got '{path}' (a .geo "
+                             "file is a gmsh script, which can run commands)")
         if not path.is_file():
             raise SceneError(f"geometry.file: no mesh file '{path}'")
         return path
-    script = MESH_DIR / f"{geo['script']}.py"
-    if not script.is_file():
+    name = geo["script"]
+    script = MESH_DIR / f"{name}.py"
+    if not (isinstance(name, str) and name.isidentifier()) or not script.is_file():
         names = sorted(p.stem for p in MESH_DIR.glob("*.py") if p.stem != "refinement")
         raise SceneError(f"geometry.script: no mesh script '{geo['script']}' in {MESH_DIR} "
                          f"(there are: {', '.join(names)})")
@@ -133,12 +163,29 @@ def _generate(geo, path: pathlib.Path, d: int):
         except TypeError as err:
             raise SceneError(f"geometry.parameters do not fit meshes/{geo['script']}.py: "
                              f"{err}") from None
+        except Exception as err:    # gmsh reports a geometry it cannot mesh as an Exception
+            raise SceneError(f"geometry.parameters: gmsh cannot mesh meshes/"
+                             f"{geo['script']}.py with {geo['parameters']}: {err}") from None
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.msh")
         gmsh.write(str(tmp))
         os.replace(tmp, path)
     finally:
         gmsh.finalize()
+
+
+def _header_error(path: pathlib.Path) -> str | None:
+    """Why a file is not a gmsh mesh, from its first bytes (gmsh would read a large file of
+    anything else to its end before giving up), or None."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(64)
+    except OSError as err:
+        return f"cannot read mesh file {path}: {err.strerror}"
+    if not head.lstrip().startswith(b"$MeshFormat"):
+        return (f"cannot read mesh file {path}: not a gmsh .msh file (it does not start with "
+                "$MeshFormat)")
+    return None
 
 
 def _gmsh(geo, d: int, comm) -> Geometry:
@@ -156,6 +203,8 @@ def _gmsh(geo, d: int, comm) -> Geometry:
         raise SceneError(error)
     names = None
     if comm.rank == 0:
+        names = _header_error(path)
+    if comm.rank == 0 and names is None:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
         try:
