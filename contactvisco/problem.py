@@ -30,6 +30,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import contact as law
+from . import rigid
 from .geometry import Geometry
 from .material import elasticity, lame_constants, strain
 from .expressions import Context
@@ -284,6 +285,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     T_out = problem.T or fem.TensorFunctionSpace(mesh, ("DG", degree - 1))
     problem.T = T_out
     problem.sigma_expression = fem.Expression(sigma, T_out.element.interpolation_points())
+    rigid.check(problem)
     return problem
 
 
