@@ -608,11 +608,11 @@ def check(scene: dict) -> None:
     need(time["rule"] != "paper" or b < 1.0 or time["allow_unstable"],
          f"time.steps = {time['steps']}: the paper's time rule is unstable here (b = "
          f"k R(0) (1 + nu) / E = {b:.3g} >= 1, the solution grows without bound); use "
-         f"time.steps > {_steps_for_stability(time['steps'], b)}, time.rule = 'trapezoid', "
+         f"time.steps > {steps_for_stability(time['steps'], b)}, time.rule = 'trapezoid', "
          "or set time.allow_unstable = true to run it anyway")
 
 
-def _steps_for_stability(steps: int, b: float) -> str:
+def steps_for_stability(steps: int, b: float) -> str:
     return f"{math.ceil(steps * b)}" if b < 1e15 else "(far more steps)"
 
 
