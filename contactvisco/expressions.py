@@ -33,6 +33,11 @@ FUNCTIONS = {
     "atan2": (ufl.atan_2, 2), "min": (ufl.min_value, 2), "max": (ufl.max_value, 2),
     "conditional": (ufl.conditional, 3),
 }
+#: The same functions on plain numbers: a constant sub-expression is computed once, and
+#: overflow, division by zero or a domain error is caught when the scene is loaded.
+FLOAT_FUNCTIONS = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp,
+                   "ln": math.log, "log": math.log, "sqrt": math.sqrt, "abs": abs,
+                   "atan2": math.atan2, "min": min, "max": max}
 NAMESPACE = dict(CONSTANTS, **{name: f for name, (f, _) in FUNCTIONS.items()})
 
 #: Longest expression text and deepest expression tree accepted.
@@ -82,7 +87,8 @@ def evaluate(text: str, where: str, x, t, d: int):
 
 class _Walker:
     """Walks an expression tree, refusing every node type that is not on the whitelist. With
-    symbols = (x, t) it builds the value; with None it only checks."""
+    symbols = (x, t) it builds the value; with None it checks, computing only the constant
+    sub-expressions (None stands for a value that depends on x or t)."""
 
     def __init__(self, text, where, d, symbols):
         self.text, self.where, self.d, self.symbols = text, where, d, symbols
@@ -99,7 +105,7 @@ class _Walker:
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
                 self.refuse(f"the constant {node.value!r}")
-            return self.finite(float(node.value)) if build else None
+            return self.finite(float(node.value))
         if isinstance(node, ast.Name):
             if node.id == "t":
                 return self.symbols[1] if build else None
@@ -120,10 +126,12 @@ class _Walker:
             return self.symbols[0][index.value] if build else None
         if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
             a, b = self.value(node.left, depth + 1), self.value(node.right, depth + 1)
-            return self.arithmetic(_BINARY[type(node.op)], a, b) if build else None
+            if a is None or b is None:
+                return None
+            return self.arithmetic(_BINARY[type(node.op)], a, b)
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
             a = self.value(node.operand, depth + 1)
-            return (-a if isinstance(node.op, ast.USub) else a) if build else None
+            return None if a is None else -a if isinstance(node.op, ast.USub) else a
         if isinstance(node, ast.Call):
             return self.call(node, depth)
         if isinstance(node, (ast.Compare, ast.BoolOp)) or (
@@ -180,10 +188,10 @@ class _Walker:
                 self.value(a, depth + 1) for a in node.args[1:]]
         else:
             args = [self.value(a, depth + 1) for a in node.args]
+        if name != "conditional" and all(isinstance(a, float) for a in args):
+            return self.arithmetic(FLOAT_FUNCTIONS[name], *args)
         if self.symbols is None:
             return None
-        if all(isinstance(a, float) for a in args):
-            return self.arithmetic(function, *args)
         return function(*args)
 
     def arithmetic(self, function, *args):

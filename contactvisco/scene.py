@@ -112,6 +112,10 @@ CONTACT_DEFAULTS = {
 }
 
 
+#: Keys of the tables in the lists [[dirichlet]] and [[traction]].
+ITEM_KEYS = {"dirichlet": ("boundary", "components", "value"), "traction": ("boundary", "value")}
+
+
 class SceneError(ValueError):
     """A scene value that is missing, misspelled or out of range."""
 
@@ -189,8 +193,9 @@ def _apply_set(scene: dict, path: list[str], value) -> None:
         node[last] = value
         return
     free_form = tuple(path[:-1]) in (("geometry", "parameters"), ("solver", "petsc_options"))
-    if last not in node and not free_form:
-        hint = difflib.get_close_matches(last, list(node), n=1)
+    allowed = ITEM_KEYS.get(path[0], ()) if len(path) == 3 else list(node)
+    if last not in node and last not in allowed and not free_form:
+        hint = difflib.get_close_matches(last, list(allowed), n=1)
         suggestion = f" (did you mean '{hint[0]}'?)" if hint else ""
         raise SceneError(f"--set: unknown scene key '{'.'.join(path)}'{suggestion}")
     table = node.get(last) or (CONTACT_DEFAULTS if path == ["contact"] else None)
@@ -434,6 +439,9 @@ def check(scene: dict) -> None:
         for i, item in enumerate(items):
             missing = [r for r in required if r not in item]
             need(not missing, f"{key}[{i}] needs {', '.join(missing)}")
+            unknown = sorted(set(item) - set(ITEM_KEYS[key]))
+            need(not unknown, f"{key}[{i}].{unknown[0] if unknown else ''}: unknown key; a "
+                              f"[[{key}]] table has {', '.join(ITEM_KEYS[key])}")
 
     geo, mat, mem, time = scene["geometry"], scene["material"], scene["memory"], scene["time"]
     d = dimension(scene)
