@@ -30,16 +30,16 @@ class Geometry:
     facet_tags: dmesh.MeshTags
     names: dict[str, int]          # boundary name -> facet tag value
 
-    def facets(self, name: str) -> np.ndarray:
+    def facets(self, name: str, where: str = "boundary") -> np.ndarray:
         """The local facets of a named boundary; a name that is unknown, has no facet, or
-        names facets inside the body is a scene error."""
+        names facets inside the body is a scene error naming the key `where`."""
         if name not in self.names:
-            raise SceneError(f"no boundary named '{name}'; this geometry has "
+            raise SceneError(f"{where}: no boundary named '{name}'; this geometry has "
                              f"{', '.join(sorted(self.names))}")
         found = self.facet_tags.find(self.names[name])
         comm = self.mesh.comm
         if comm.allreduce(found.size, MPI.SUM) == 0:
-            raise SceneError(f"boundary '{name}' has no facets in this mesh")
+            raise SceneError(f"{where}: boundary '{name}' has no facets in this mesh")
         # A facet with two cells (ghosts included) is inside the body; a boundary facet never
         # has two, and an inner one has two on at least one rank.
         fdim = self.mesh.topology.dim - 1
@@ -47,8 +47,8 @@ class Geometry:
         cells_per_facet = np.diff(self.mesh.topology.connectivity(fdim, fdim + 1).offsets)
         inside = comm.allreduce(int(np.sum(cells_per_facet[found] == 2)), MPI.SUM)
         if inside:
-            raise SceneError(f"boundary '{name}' has facets inside the body, not on its "
-                             "boundary")
+            raise SceneError(f"{where}: boundary '{name}' has facets inside the body, not "
+                             "on its boundary")
         return found
 
 

@@ -563,7 +563,8 @@ def check(scene: dict) -> None:
                  f"{MODULUS_RANGE:g}] (change the units), got {contact[key]}")
         _check_expression(contact["gap"], "contact.gap", d)
         need(contact["stiffness"] > 0 or math.isfinite(contact["g"]),
-             "a contact boundary needs a compliance stiffness > 0 or a finite bound g")
+             "contact.stiffness: a contact boundary needs a compliance stiffness > 0 or a finite "
+             "bound g")
         need(contact["mu"] == 0 or (contact["stiffness"] > 0 and contact["g"] > 0),
              f"contact.mu = {contact['mu']} has no effect: the friction bound mu p_nu(u_nu) is "
              "zero without a compliance stiffness > 0 and a layer g > 0; set contact.mu = 0")
