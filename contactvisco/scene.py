@@ -366,7 +366,7 @@ def apply_preset(scene: dict, name: str) -> None:
     if geo["type"] == "box":
         geo["cells"] = [max(1, round(n * preset["mesh"])) for n in geo["cells"]]
     else:
-        geo["parameters"] = {k: (v / preset["mesh"] if k.startswith("h")
+        geo["parameters"] = {k: (v / preset["mesh"] if is_mesh_size(k)
                                  and isinstance(v, (int, float)) else v)
                              for k, v in geo["parameters"].items()}
     scene["time"]["steps"] = max(1, round(scene["time"]["steps"] * preset["steps"]))
@@ -643,6 +643,15 @@ def _check_expression(value, where: str, d: int) -> None:
                          f"got {value!r}")
 
 
+#: Script parameters that are lengths but not extents of the body (a refinement distance).
+NOT_EXTENTS = ("refine",)
+
+
+def is_mesh_size(key: str) -> bool:
+    """Mesh-size parameters of the scripts are h and h_<where> (h_bottom, h_contact, ...)."""
+    return key == "h" or key.startswith("h_")
+
+
 def _script_signature(name: str) -> dict:
     """Keyword parameters of build() in meshes/<name>.py with their default values, read from
     the script's syntax tree (nothing is run)."""
@@ -681,14 +690,16 @@ def _check_script(geo: dict, d: int) -> None:
              and math.isfinite(value) and value > 0,
              f"geometry.parameters.{key} must be a finite number > 0 (a length or a mesh "
              f"size), got {value!r}")
-    sizes = [v for k, v in values.items() if k.startswith("h") and v is not None]
-    lengths = [v for k, v in values.items() if not k.startswith("h") and v is not None]
+    sizes = {k: v for k, v in values.items() if is_mesh_size(k) and v is not None}
+    lengths = [v for k, v in values.items() if not is_mesh_size(k) and v is not None
+               and k not in NOT_EXTENTS]
     if sizes and lengths:
-        cells = (max(lengths) / min(sizes)) ** d
+        finest = min(sizes, key=sizes.get)
+        cells = (max(lengths) / sizes[finest]) ** d
         need(cells <= MAX_SCRIPT_CELLS,
-             f"geometry.parameters.{min((k for k in values if k.startswith('h') and values[k] is not None), key=lambda k: values[k])}"
-             f": mesh size {min(sizes):g} for lengths up to {max(lengths):g} would make about "
-             f"{cells:.2g} cells (at most {MAX_SCRIPT_CELLS:.0g})")
+             f"geometry.parameters.{finest}: mesh size {sizes[finest]:g} for a body up to "
+             f"{max(lengths):g} long would make about {cells:.2g} cells (at most "
+             f"{MAX_SCRIPT_CELLS:.0g})")
 
 
 def _as_list(x):
