@@ -633,7 +633,8 @@ def steps_for_stability(steps: int, b: float) -> str:
 
 
 def _check_expression(value, where: str, d: int) -> None:
-    """A number, or an expression text that passes the whitelist (nothing is evaluated)."""
+    """A number, or an expression text that passes the whitelist (only its constant parts are
+    computed, to catch overflow and domain errors)."""
     if isinstance(value, str):
         from .expressions import parse
         parse(value, where, d)

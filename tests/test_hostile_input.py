@@ -131,7 +131,7 @@ SCENE_ERRORS = [  # (scene, overrides, words)
     ("ironing", ["geometry.parameters.depth=1"], "has no parameter depth; it has length"),
     ("hertz", ["geometry.parameters.radius=0"], "geometry.parameters.radius must be"),
     ("ironing", ["geometry.parameters.length=1e5"], "geometry.parameters.h: mesh size 0.05 for "
-                                                     "a body up to 1e+05 long"),
+                                                     "a body up to 100000 long"),
     ("block3d", ["geometry.parameters.h=0.001"], "would make about 1e+09 cells"),
     ("paper", ["name='../outside'"], "name must be a plain folder name"),
     ("paper", ["name='/tmp/abs'"], "name must be a plain folder name"),
