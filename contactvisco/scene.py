@@ -310,7 +310,7 @@ def origin(message: str, path, text: str, overrides) -> str:
     dotted = key.replace("[", ".").replace("]", "")
     if dotted.split(".")[0] not in DEFAULTS:
         return ""
-    for text_set in overrides:
+    for text_set in reversed(list(overrides)):      # the last --set of a key wins
         set_key = text_set.split("=", 1)[0].strip()
         if dotted == set_key or dotted.startswith(set_key + "."):
             return f" (from --set {text_set})"

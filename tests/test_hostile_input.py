@@ -310,11 +310,22 @@ def test_builtin_scenes_are_held(name):
 
 def test_friction_counts_as_a_tangential_restraint():
     """The documented rule: with mu > 0 and a compliance law the layer holds sliding, so the
-    paper scene without Dirichlet conditions is accepted (and without friction refused)."""
-    problem = build("paper", ["geometry.cells=[4, 4]", "dirichlet=[]"])
-    assert problem.lambda_tau is not None
+    paper scene without Dirichlet conditions is accepted (and without friction refused). Its
+    answer is then the unique one: loads and layer are symmetric about x = 1/2, so u_x = 0 on
+    that line, and 1 and 2 ranks agree."""
     with pytest.raises(SceneError, match="translation along x"):
         build("paper", ["geometry.cells=[4, 4]", "dirichlet=[]", "contact.mu=0"])
+    from contactvisco.run import simulate
+    scene = scene_module.load("paper", ["geometry.cells=[8, 8]", "dirichlet=[]",
+                                        "time.steps=3", "geometry.diagonal='crossed'",
+                                        "output.probes=[[0.5, 0.0], [0.5, 1.0], [1.0, 0.0]]"])
+    result = simulate(scene, comm=COMM, progress=False)
+    alone = simulate(scene, comm=MPI.COMM_SELF, progress=False)
+    for step, single in zip(result.steps, alone.steps):
+        u = np.array([p["u"] for p in step["probes"]])
+        assert np.all(np.abs(u[:2, 0]) < 1e-9 * np.abs(u).max())      # symmetric
+        assert np.abs(u[2, 1]) > 1e-3                                     # pressed down
+        assert np.allclose(u, [p["u"] for p in single["probes"]], rtol=1e-7, atol=1e-12)
 
 
 # ---- the command line: exit codes and messages (one rank; each starts its own process) ----
