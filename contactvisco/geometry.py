@@ -181,10 +181,10 @@ def _header_error(path: pathlib.Path) -> str | None:
         with open(path, "rb") as f:
             head = f.read(64)
     except OSError as err:
-        return f"cannot read mesh file {path}: {err.strerror}"
+        return f"geometry.file: cannot read mesh file {path}: {err.strerror}"
     if not head.lstrip().startswith(b"$MeshFormat"):
-        return (f"cannot read mesh file {path}: not a gmsh .msh file (it does not start with "
-                "$MeshFormat)")
+        return (f"geometry.file: cannot read mesh file {path}: not a gmsh .msh file (it does "
+                "not start with $MeshFormat)")
     return None
 
 
@@ -212,7 +212,7 @@ def _gmsh(geo, d: int, comm) -> Geometry:
             names = {gmsh.model.getPhysicalName(d - 1, tag): tag
                      for _, tag in gmsh.model.getPhysicalGroups(d - 1)}
         except Exception as err:   # gmsh reports a bad file as a plain Exception
-            names = f"cannot read mesh file {path}: {err}"
+            names = f"geometry.file: cannot read mesh file {path}: {err}"
             gmsh.finalize()
     names = comm.bcast(names, root=0)
     if isinstance(names, str):
