@@ -1,4 +1,5 @@
-"""Hostile and malformed input on the command line (run by hand: python benchmarks/hostile_input.py).
+"""Hostile and malformed input on the command line (run by hand:
+python benchmarks/hostile_input.py).
 
 Each case runs `contactvisco` in a fresh working folder and records the exit code, whether a
 traceback was printed, whether any file appeared outside the output folder (or a marker file

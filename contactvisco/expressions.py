@@ -53,10 +53,11 @@ _COMPARE = {ast.Lt: ufl.lt, ast.LtE: ufl.le, ast.Gt: ufl.gt, ast.GtE: ufl.ge,
 def allowed(d: int = 3) -> str:
     """What an expression may contain (for error messages)."""
     xs = ", ".join(f"x[{i}]" for i in range(d))
+    functions = ", ".join(f"{name}({arity} args)" if arity > 1 else name
+                          for name, (_, arity) in FUNCTIONS.items())
     return (f"allowed: numbers, {xs}, t, + - * / ** and unary -, comparisons < <= > >= == != "
             f"(with and, or, not) as the first argument of conditional, the constants "
-            f"{', '.join(CONSTANTS)} and the functions "
-            f"{', '.join(f'{n}({FUNCTIONS[n][1]} args)' if FUNCTIONS[n][1] > 1 else n for n in FUNCTIONS)}")
+            f"{', '.join(CONSTANTS)} and the functions {functions}")
 
 
 def parse(text: str, where: str, d: int = 3) -> ast.Expression:

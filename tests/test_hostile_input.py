@@ -2,7 +2,6 @@
 value the model cannot use stops the run before solving with a message that names the value,
 where it came from and what is allowed. The command-line cases (exit codes) run on one rank."""
 import json
-import math
 import pathlib
 import subprocess
 import sys
