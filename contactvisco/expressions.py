@@ -1,8 +1,8 @@
 """Scene values that may depend on position and time.
 
 A value is a number, or a string in `x` (the position, x[0], x[1], x[2]) and `t` (the time),
-with the functions of NAMESPACE; a vector value is a list of such components. Constant values
-become DOLFINx Constants (no recompilation when they change); expressions become UFL
+with the CONSTANTS and FUNCTIONS below; a vector value is a list of such components. Constant
+values become DOLFINx Constants (no recompilation when they change); expressions become UFL
 expressions compiled into the forms, with `t` a Constant set at each step.
 
     value = [0.0, "-20 * min(t, 1)"]
@@ -38,7 +38,6 @@ FUNCTIONS = {
 FLOAT_FUNCTIONS = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp,
                    "ln": math.log, "log": math.log, "sqrt": math.sqrt, "abs": abs,
                    "atan2": math.atan2, "min": min, "max": max}
-NAMESPACE = dict(CONSTANTS, **{name: f for name, (f, _) in FUNCTIONS.items()})
 
 #: Longest expression text and deepest expression tree accepted.
 MAX_LENGTH = 1000
