@@ -167,10 +167,23 @@ class _Newton:
                                  f"{named}") from None
             raise SceneError(f"PETSc rejected a command-line option value ({reason}); the "
                              f"given options it had read: {named}") from None
+        self._scene_read = []
         for key in self._inserted:
-            if key in self._scene_options and option_used(key) is False:
-                UNUSED_SCENE_OPTIONS.add(key)
+            if key in self._scene_options:
+                used = option_used(key)
+                if used is False:
+                    UNUSED_SCENE_OPTIONS.add(key)
+                elif used:
+                    self._scene_read.append(f"-{key} {opts.getString(key, '')}".strip())
             opts.delValue(key)
+
+    def _given_read(self) -> list[str]:
+        """Options of the scene and of the command line that PETSc has read."""
+        inserted = set(self._inserted)
+        command_line = [f"-{key} {value or ''}".strip()
+                        for key, value in PETSc.Options().getAll().items()
+                        if key not in inserted and option_used(key)]
+        return self._scene_read + command_line
 
     def _monitor(self, snes, it, norm):
         self.residuals.append(float(norm))
@@ -188,7 +201,17 @@ class _Newton:
         self.residuals = []
         self.krylov_iterations = []
         self._from_functions(self.x)
-        self.snes.solve(None, self.x)
+        try:
+            self.snes.solve(None, self.x)
+        except PETSc.Error as err:
+            # An option value PETSc checks only when it sets up the solve (a factorization
+            # package, a MUMPS parameter): name the given options it had read.
+            given = self._given_read()
+            if not given:
+                raise
+            raise SceneError(f"PETSc stopped with error {err.ierr} while setting up the solve "
+                             f"(its message is above); given options it had read: "
+                             f"{', '.join(given)}") from None
         self._to_functions(self.x)
         reason = self.snes.getConvergedReason()
         if reason > 0 and not np.isfinite(self.x.norm()):

@@ -357,6 +357,9 @@ SMALL = ["--set", "geometry.cells=[4, 4]", "--set", "time.steps=2", "--quiet"]
     (["run", "paper", "-ksp_type", "nonsense", *SMALL], 2,
      "PETSc rejected a command-line option value (PETSc error 86: unknown type); the given "
      "options it had read: -ksp_type nonsense"),
+    (["run", "paper", "-pc_factor_mat_solver_type", "nonsense", *SMALL], 2,
+     "while setting up the solve (its message is above); given options it had read: "
+     "-pc_factor_mat_solver_type nonsense"),
     (["run", "paper", "--set", "solver.petsc_options.snes_rtol='abc'", *SMALL], 2,
      "solver.petsc_options.snes_rtol: PETSc rejected an option value"),
     (["run", "paper", "-snes_monitr", "-snes_rtol", "1e-9", *SMALL], 0,
