@@ -270,7 +270,7 @@ def load(name_or_path: str, overrides: list[str] = ()) -> dict:
         raise SceneError(f"no scene '{name_or_path}': not a built-in scene "
                          f"({', '.join(builtin_names())}) and no such file")
     try:
-        text = path.read_text()
+        text = _read_text(path)
         raw = tomllib.loads(text)
     except (OSError, UnicodeDecodeError) as err:
         raise SceneError(f"cannot read scene file {path}: {err}") from None
@@ -298,10 +298,23 @@ def locate(err: SceneError, name_or_path: str, overrides=()) -> SceneError:
     if not path.suffix and (SCENE_DIR / f"{name_or_path}.toml").exists():
         path = SCENE_DIR / f"{name_or_path}.toml"
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError):
+        text = _read_text(path)
+    except (OSError, UnicodeDecodeError, SceneError):
         text = ""
     return located(err, path, text, overrides)
+
+
+#: Largest scene file read (a scene is a page of TOML; /dev/zero is not one).
+MAX_SCENE_BYTES = 1_000_000
+
+
+def _read_text(path: pathlib.Path) -> str:
+    with open(path, "rb") as f:
+        data = f.read(MAX_SCENE_BYTES + 1)
+    if len(data) > MAX_SCENE_BYTES:
+        raise SceneError(f"scene file {path} is larger than {MAX_SCENE_BYTES} bytes: not a "
+                         "scene")
+    return data.decode()
 
 
 def origin(message: str, path, text: str, overrides) -> str:

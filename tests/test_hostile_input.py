@@ -195,6 +195,15 @@ def test_a_large_file_that_is_no_mesh_is_refused_from_its_header(tmp_path):
         geometry.build(scene, COMM)
 
 
+def test_endless_or_binary_scene_files(tmp_path):
+    with pytest.raises(SceneError, match="larger than 1000000 bytes: not a scene"):
+        scene_module.load("/dev/zero")
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfe\x00name")
+    with pytest.raises(SceneError, match="cannot read scene file .*binary.toml"):
+        scene_module.load(str(binary))
+
+
 def test_material_pairs_conflict_names_both(tmp_path):
     path = tmp_path / "lame.toml"
     path.write_text('[material]\nmodel = "plane_strain"\nlambda = 57.7\nmu = 38.5\n'
