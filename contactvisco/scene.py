@@ -266,7 +266,7 @@ def load(name_or_path: str, overrides: list[str] = ()) -> dict:
     path = pathlib.Path(name_or_path)
     if not path.suffix and (SCENE_DIR / f"{name_or_path}.toml").exists():
         path = SCENE_DIR / f"{name_or_path}.toml"
-    if not path.exists():
+    if not path.is_file():          # a device or a pipe could be read for ever
         raise SceneError(f"no scene '{name_or_path}': not a built-in scene "
                          f"({', '.join(builtin_names())}) and no such file")
     try:

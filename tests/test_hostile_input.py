@@ -196,8 +196,13 @@ def test_a_large_file_that_is_no_mesh_is_refused_from_its_header(tmp_path):
 
 
 def test_endless_or_binary_scene_files(tmp_path):
-    with pytest.raises(SceneError, match="larger than 1000000 bytes: not a scene"):
+    with pytest.raises(SceneError, match="not a built-in scene .* and no such file"):
         scene_module.load("/dev/zero")
+    large = tmp_path / "large.toml"
+    with open(large, "wb") as f:
+        f.truncate(10 * 2**20)
+    with pytest.raises(SceneError, match="larger than 1000000 bytes: not a scene"):
+        scene_module.load(str(large))
     binary = tmp_path / "binary.toml"
     binary.write_bytes(b"\xff\xfe\x00name")
     with pytest.raises(SceneError, match="cannot read scene file .*binary.toml"):
