@@ -39,6 +39,7 @@ CASES = [  # (input, arguments after 'contactvisco'; {out} is the output folder)
     ("2001-character expression", ["run", "paper", *expression("1" + "+1" * 1000)]),
     ("`x[7]` in 2D", ["run", "paper", *expression("x[7]")]),
     ("contact.gap with a call", ["run", "hertz", "--set", "contact.gap='exec(1)'"]),
+    ("scene file /dev/zero", ["run", "/dev/zero"]),
     ("geometry.script = absolute path", ["run", "hertz", "--set", "geometry.script='/tmp/x'"]),
     ("geometry.script = '../meshes/rectangle'",
      ["run", "hertz", "--set", "geometry.script='../meshes/rectangle'"]),
