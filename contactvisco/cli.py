@@ -120,10 +120,12 @@ def _plot(folder):
         print(f"contactvisco: {folder} has no summary.json: not a contactvisco output folder",
               file=sys.stderr)
         return 2
+    import zipfile
     from .figures import draw_all
     try:
         paths = draw_all(folder)
-    except (ValueError, KeyError, IndexError, OSError) as err:   # damaged or cut files
+    except (ValueError, KeyError, IndexError, OSError, EOFError,
+            zipfile.BadZipFile) as err:          # damaged or cut files
         print(f"contactvisco: cannot draw the figures of {folder}: its files are damaged or "
               f"incomplete ({type(err).__name__}: {err})", file=sys.stderr)
         return 2

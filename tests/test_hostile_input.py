@@ -404,8 +404,13 @@ def test_command_line_attack_runs_nothing(tmp_path):
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="starts its own processes; run on one rank")
-def test_plot_on_a_cut_summary(tmp_path):
+def test_plot_on_cut_files(tmp_path):
     (tmp_path / "summary.json").write_text('{"scene": {"name": "paper", "contact": {"g": 0.')
     proc = cli("plot", str(tmp_path))
     assert proc.returncode == 2 and "damaged or incomplete" in proc.stderr, proc.stderr
+    assert "JSONDecodeError" in proc.stderr and "Traceback" not in proc.stderr
+    (tmp_path / "summary.json").write_text('{"scene": {"contact": {"g": 0.05}}, "steps": []}')
+    (tmp_path / "snapshots.npz").write_bytes(b"PK\x03\x04cut")
+    proc = cli("plot", str(tmp_path))
+    assert proc.returncode == 2 and "BadZipFile" in proc.stderr, proc.stderr
     assert "Traceback" not in proc.stderr
