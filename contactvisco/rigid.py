@@ -66,7 +66,7 @@ def free_motions(problem) -> list[str]:
 
     owned = problem.V.dofmap.index_map.size_local
     X = problem.V.tabulate_dof_coordinates()[:owned, :d]
-    modes, names = _basis(X, centre, scale)
+    names = _basis(np.zeros((0, d)), centre, scale)[1]
     m = len(names)
     kinds = {"dirichlet": [np.zeros((m, m)), 0], "normal": [np.zeros((m, m)), 0],
              "tangential": [np.zeros((m, m)), 0]}
@@ -76,8 +76,8 @@ def free_motions(problem) -> list[str]:
         kinds[kind][1] += rows.shape[1]
 
     fixed = problem.u_fixed[:owned] > 0
-    for c in range(d):
-        add("dirichlet", modes[:, fixed[:, c], c])
+    for c in range(d):          # the motions evaluated at the constrained nodes only
+        add("dirichlet", _basis(X[fixed[:, c]], centre, scale)[0][:, :, c])
     nodes = problem.nodes
     if nodes is not None:
         on = nodes.owned
