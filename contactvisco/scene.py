@@ -376,13 +376,19 @@ def apply_preset(scene: dict, name: str) -> None:
                          + f"; allowed: {', '.join(PRESETS)}")
     preset = PRESETS[name]
     geo = scene["geometry"]
+
+    def integer(x):     # only valid values are scaled; check() refuses the others as given
+        return isinstance(x, int) and not isinstance(x, bool) and x >= 1
+
     if geo["type"] == "box":
-        geo["cells"] = [max(1, round(n * preset["mesh"])) for n in geo["cells"]]
-    else:
-        geo["parameters"] = {k: (v / preset["mesh"] if is_mesh_size(k)
-                                 and isinstance(v, (int, float)) else v)
+        if isinstance(geo["cells"], list) and all(integer(n) for n in geo["cells"]):
+            geo["cells"] = [max(1, round(n * preset["mesh"])) for n in geo["cells"]]
+    elif isinstance(geo["parameters"], dict):
+        geo["parameters"] = {k: (v / preset["mesh"] if is_mesh_size(k) and not
+                                 isinstance(v, bool) and isinstance(v, (int, float)) else v)
                              for k, v in geo["parameters"].items()}
-    scene["time"]["steps"] = max(1, round(scene["time"]["steps"] * preset["steps"]))
+    if integer(scene["time"]["steps"]):
+        scene["time"]["steps"] = max(1, round(scene["time"]["steps"] * preset["steps"]))
     scene["time"]["rule"] = preset["rule"]
     scene["discretization"]["degree"] = preset["degree"]
     if preset["degree"] > 1:

@@ -195,6 +195,19 @@ def test_a_large_file_that_is_no_mesh_is_refused_from_its_header(tmp_path):
         geometry.build(scene, COMM)
 
 
+def test_presets_do_not_launder_booleans(tmp_path):
+    """A preset scales cells and steps: true * 0.5 would round to a valid 1."""
+    path = tmp_path / "bools.toml"
+    path.write_text('[geometry]\ncells = [true, 4]\n[[dirichlet]]\nboundary = "left"\n')
+    with pytest.raises(SceneError, match="geometry.cells must be positive integers"):
+        scene_module.load(str(path), ["preset='fast'"])
+    path.write_text('[time]\nsteps = true\n[[dirichlet]]\nboundary = "left"\n')
+    with pytest.raises(SceneError, match="time.steps must be an integer >= 1, got True"):
+        scene_module.load(str(path), ["preset='accurate'"])
+    assert scene_module.load("ironing", ["preset='fast'"])["geometry"]["parameters"] == {
+        "length": 3.0, "height": 0.5, "h": 0.1}          # sizes scaled, lengths kept
+
+
 def test_endless_or_binary_scene_files(tmp_path):
     with pytest.raises(SceneError, match="not a built-in scene .* and no such file"):
         scene_module.load("/dev/zero")
