@@ -126,12 +126,16 @@ class SceneError(ValueError):
 #: Folder of the built-in mesh scripts (geometry.script names one of them).
 MESH_DIR = pathlib.Path(__file__).resolve().parents[1] / "meshes"
 
-#: Scene moduli (E, lambda, mu, stiffness, ...) must lie in [1/MODULUS_RANGE, MODULUS_RANGE]:
-#: products of moduli, displacements and their squares then stay far inside double precision.
+#: Scene moduli (E, lambda, mu, stiffness, ...) and box sizes must lie in
+#: [1/MODULUS_RANGE, MODULUS_RANGE]: products of moduli, lengths, displacements and their
+#: squares then stay far inside double precision.
 MODULUS_RANGE = 1e100
 
 #: Most cells a gmsh script may be asked for, estimated as (largest length / smallest size)^d.
 MAX_SCRIPT_CELLS = 1e7
+
+#: Most boxes (each 2 triangles or 6 tetrahedra) of a box geometry.
+MAX_BOX_CELLS = 1e8
 
 
 def builtin_names() -> list[str]:
@@ -503,11 +507,20 @@ def check(scene: dict) -> None:
         need(all(isinstance(n, int) and not isinstance(n, bool) and n >= 1
                  for n in geo["cells"]),
              f"geometry.cells must be positive integers, got {geo['cells']}")
+        need(math.prod(geo["cells"]) <= MAX_BOX_CELLS,
+             f"geometry.cells = {geo['cells']} asks for {math.prod(geo['cells']):.3g} boxes "
+             f"(at most {MAX_BOX_CELLS:.0g}: the mesh is made on one rank before it is "
+             "distributed)")
         need(geo["diagonal"] in ("left", "right", "crossed", "left_right", "right_left"),
              f"geometry.diagonal must be left, right, crossed, left_right or right_left, "
              f"got '{geo['diagonal']}'")
         need(all(finite(a) and finite(b) and b > a for a, b in zip(geo["lower"], geo["upper"])),
              f"geometry.upper must exceed geometry.lower, got {geo['lower']}, {geo['upper']}")
+        need(all(abs(a) <= MODULUS_RANGE and abs(b) <= MODULUS_RANGE
+                 and b - a >= 1 / MODULUS_RANGE for a, b in zip(geo["lower"], geo["upper"])),
+             f"geometry.lower and upper must lie within +-{MODULUS_RANGE:g} and be at least "
+             f"{1 / MODULUS_RANGE:g} apart (change the units), got {geo['lower']}, "
+             f"{geo['upper']}")
     else:
         need((geo["script"] is None) != (geo["file"] is None),
              "geometry.type = 'gmsh' needs exactly one of geometry.script or geometry.file")

@@ -132,6 +132,9 @@ SCENE_ERRORS = [  # (scene, overrides, words)
     ("ironing", ["geometry.parameters.length=1e5"], "geometry.parameters.h: mesh size 0.05 for "
                                                      "a body up to 100000 long"),
     ("block3d", ["geometry.parameters.h=0.001"], "would make about 1e+09 cells"),
+    ("paper", ["geometry.cells=[1000000, 1000000]"], "asks for 1e+12 boxes (at most 1e+08"),
+    ("paper", ["geometry.lower=[-1e308, 0]", "geometry.upper=[1e308, 1]"],
+     "must lie within +-1e+100"),
     ("paper", ["name='../outside'"], "name must be a plain folder name"),
     ("paper", ["name='/tmp/abs'"], "name must be a plain folder name"),
     ("paper", ["name='..'"], "name must be a plain folder name"),
