@@ -51,6 +51,13 @@ def main(argv=None):
     bad = [a for a in petsc_args if a.startswith("--")]
     if bad:
         _parser().error(f"unrecognized arguments: {' '.join(bad)}")
+    # A word that follows no -option is no PETSc value: a stray argument.
+    stray = [a for i, a in enumerate(petsc_args) if not a.startswith("-")
+             and (i == 0 or not petsc_args[i - 1].startswith("-"))]
+    if stray or (petsc_args and args.command != "run"):
+        _parser().error(f"unrecognized arguments: {' '.join(stray or petsc_args)}")
+    if getattr(args, "out", None) == "":
+        _parser().error("--out needs a folder name (leave it out for results/<scene name>)")
     # PETSc reads its command line only if told before anything imports it.
     import petsc4py
     petsc4py.init([sys.argv[0]] + petsc_args)
@@ -58,12 +65,12 @@ def main(argv=None):
     from . import scene as scene_module
     if args.command == "plot":
         return _plot(args.folder)
+    preset = [f"preset='{args.preset}'"] if getattr(args, "preset", None) else []
     try:
         if args.command == "scenes":
             for name in scene_module.builtin_names():
                 print(f"{name:12s} {scene_module.load(name)['description']}")
             return 0
-        preset = [f"preset='{args.preset}'"] if getattr(args, "preset", None) else []
         scene = scene_module.load(args.scene, preset + args.set)
         if args.command == "show":
             from .output import jsonable
@@ -87,8 +94,15 @@ def main(argv=None):
                   "--traceback for the details)", file=sys.stderr)
             return 1
     except scene_module.SceneError as err:
+        if getattr(args, "scene", None):     # errors found while building name their origin too
+            err = scene_module.locate(err, args.scene, preset + args.set)
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
+    from .solver import unused_options
+    unused = unused_options(petsc_args)
+    if unused:
+        print(f"contactvisco: warning: PETSc options no solver used: {', '.join(unused)} "
+              "(misspelled, or for a solver this scene does not use)", file=sys.stderr)
     return 0
 
 
@@ -139,8 +153,16 @@ def _plot(folder):
         print(f"contactvisco: {folder} has no summary.json: not a contactvisco output folder",
               file=sys.stderr)
         return 2
+    import zipfile
     from .figures import draw_all
-    for path in draw_all(folder):
+    try:
+        paths = draw_all(folder)
+    except (ValueError, KeyError, IndexError, OSError, EOFError,
+            zipfile.BadZipFile) as err:          # damaged or cut files
+        print(f"contactvisco: cannot draw the figures of {folder}: its files are damaged or "
+              f"incomplete ({type(err).__name__}: {err})", file=sys.stderr)
+        return 2
+    for path in paths:
         print(path)
     return 0
 

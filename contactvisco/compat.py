@@ -10,7 +10,6 @@ import functools
 import inspect
 
 import numpy as np
-import ufl
 from dolfinx import fem, geometry, io
 from dolfinx.fem import petsc as fem_petsc
 from petsc4py import PETSc
@@ -79,11 +78,6 @@ def cell_dofs(dofmap) -> np.ndarray:
     if isinstance(layout, np.ndarray):
         return layout
     return layout.array.reshape(-1, dofmap.dof_layout.num_dofs)
-
-
-def atan2(y, x):
-    """UFL's two-argument arctangent (ufl.atan_2 before UFL 2023)."""
-    return ufl.atan2(y, x) if hasattr(ufl, "atan2") else ufl.atan_2(y, x)
 
 
 # ------------------------------------------------------------------ point location

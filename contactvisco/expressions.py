@@ -1,32 +1,222 @@
 """Scene values that may depend on position and time.
 
 A value is a number, or a string in `x` (the position, x[0], x[1], x[2]) and `t` (the time),
-with the functions of NAMESPACE; a vector value is a list of such components. Constant values
-become DOLFINx Constants (no recompilation when they change); expressions become UFL
+with the CONSTANTS and FUNCTIONS below; a vector value is a list of such components. Constant
+values become DOLFINx Constants (no recompilation when they change); expressions become UFL
 expressions compiled into the forms, with `t` a Constant set at each step.
 
     value = [0.0, "-20 * min(t, 1)"]
     value = [0.0, "-50 * exp(-((x[0] - 0.2 - 0.6 * t) / 0.08)**2)"]
+
+An expression is data, never code: its syntax tree is walked node by node against a whitelist
+(numbers, x[i] with a literal index, t, + - * / ** and unary -, comparisons inside
+conditional, the constants and functions below) and nothing else is ever evaluated; no
+attribute, no other subscript or call. The text is at most MAX_LENGTH characters and the tree
+at most MAX_DEPTH levels deep.
 """
 from __future__ import annotations
 
 import ast
 import math
 import numbers
+import operator
 
 import ufl
-from dolfinx import fem
-from petsc4py import PETSc
 
-from . import compat
 from .scene import SceneError
 
-NAMESPACE = {
-    "pi": math.pi, "e": math.e,
-    "sin": ufl.sin, "cos": ufl.cos, "tan": ufl.tan, "exp": ufl.exp, "ln": ufl.ln,
-    "log": ufl.ln, "sqrt": ufl.sqrt, "abs": abs, "atan2": compat.atan2,
-    "min": ufl.min_value, "max": ufl.max_value, "conditional": ufl.conditional,
+#: UFL's two-argument arctangent (ufl.atan_2 before UFL 2023).
+_ATAN2 = getattr(ufl, "atan2", None) or getattr(ufl, "atan_2")
+
+#: Constants and functions an expression may use, with the number of arguments of each.
+CONSTANTS = {"pi": math.pi, "e": math.e}
+FUNCTIONS = {
+    "sin": (ufl.sin, 1), "cos": (ufl.cos, 1), "tan": (ufl.tan, 1), "exp": (ufl.exp, 1),
+    "ln": (ufl.ln, 1), "log": (ufl.ln, 1), "sqrt": (ufl.sqrt, 1), "abs": (abs, 1),
+    "atan2": (_ATAN2, 2), "min": (ufl.min_value, 2), "max": (ufl.max_value, 2),
+    "conditional": (ufl.conditional, 3),
 }
+#: The same functions on plain numbers: a constant sub-expression is computed once, and
+#: overflow, division by zero or a domain error is caught when the scene is loaded.
+FLOAT_FUNCTIONS = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp,
+                   "ln": math.log, "log": math.log, "sqrt": math.sqrt, "abs": abs,
+                   "atan2": math.atan2, "min": min, "max": max}
+
+#: Longest expression text and deepest expression tree accepted.
+MAX_LENGTH = 1000
+MAX_DEPTH = 50
+
+_BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
+           ast.Div: operator.truediv, ast.Pow: operator.pow}
+_COMPARE = {ast.Lt: ufl.lt, ast.LtE: ufl.le, ast.Gt: ufl.gt, ast.GtE: ufl.ge,
+            ast.Eq: ufl.eq, ast.NotEq: ufl.ne}
+
+
+def allowed(d: int = 3) -> str:
+    """What an expression may contain (for error messages)."""
+    xs = ", ".join(f"x[{i}]" for i in range(d))
+    functions = ", ".join(f"{name}({arity} args)" if arity > 1 else name
+                          for name, (_, arity) in FUNCTIONS.items())
+    return (f"allowed: numbers, {xs}, t, + - * / ** and unary -, comparisons < <= > >= == != "
+            f"(with and, or, not) as the first argument of conditional, the constants "
+            f"{', '.join(CONSTANTS)} and the functions {functions}")
+
+
+def parse(text: str, where: str, d: int = 3) -> ast.Expression:
+    """The syntax tree of an expression text, checked against the whitelist of node types
+    (see :func:`allowed`) without evaluating anything; a SceneError names what is refused."""
+    if not isinstance(text, str):
+        raise SceneError(f"{where} must be a number or an expression string, got {text!r}")
+    if len(text) > MAX_LENGTH:
+        raise SceneError(f"{where}: the expression has {len(text)} characters; at most "
+                         f"{MAX_LENGTH} are allowed")
+    try:
+        tree = ast.parse(text, mode="eval")
+    except SyntaxError as err:
+        raise SceneError(f"{where} = '{text}' is not a valid expression: {err.msg}") from None
+    except (RecursionError, MemoryError, ValueError):
+        raise SceneError(f"{where}: the expression is nested too deeply (at most {MAX_DEPTH} "
+                         "levels)") from None
+    _Walker(text, where, d, None).value(tree.body, 0)
+    return tree
+
+
+def evaluate(text: str, where: str, x, t, d: int):
+    """The value of an expression: a float when it depends on neither x nor t, else a UFL
+    expression in the SpatialCoordinate x and the Constant t."""
+    tree = parse(text, where, d)
+    return _Walker(text, where, d, (x, t)).value(tree.body, 0)
+
+
+class _Walker:
+    """Walks an expression tree, refusing every node type that is not on the whitelist. With
+    symbols = (x, t) it builds the value; with None it checks, computing only the constant
+    sub-expressions (None stands for a value that depends on x or t)."""
+
+    def __init__(self, text, where, d, symbols):
+        self.text, self.where, self.d, self.symbols = text, where, d, symbols
+
+    def refuse(self, what):
+        raise SceneError(f"{self.where} = '{self.text}': {what} is not allowed; "
+                         f"{allowed(self.d)}")
+
+    def value(self, node, depth):
+        if depth > MAX_DEPTH:
+            raise SceneError(f"{self.where}: the expression is nested too deeply (at most "
+                             f"{MAX_DEPTH} levels)")
+        build = self.symbols is not None
+        if isinstance(node, ast.Constant):
+            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+                self.refuse(f"the constant {node.value!r}")
+            return self.finite(float(node.value))
+        if isinstance(node, ast.Name):
+            if node.id == "t":
+                return self.symbols[1] if build else None
+            if node.id in CONSTANTS:
+                return CONSTANTS[node.id]
+            if node.id == "x":
+                self.refuse("x without an index")
+            if node.id in FUNCTIONS:
+                self.refuse(f"the function {node.id} without a call")
+            self.refuse(f"the name '{node.id}'")
+        if isinstance(node, ast.Subscript):
+            index = node.slice
+            if not (isinstance(node.value, ast.Name) and node.value.id == "x"
+                    and isinstance(index, ast.Constant) and type(index.value) is int
+                    and 0 <= index.value < self.d):
+                self.refuse(f"the subscript '{ast.unparse(node)}' (only x[0]..x[{self.d - 1}] "
+                            f"of the {self.d}D position)")
+            return self.symbols[0][index.value] if build else None
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            a, b = self.value(node.left, depth + 1), self.value(node.right, depth + 1)
+            if a is None or b is None:
+                return None
+            return self.arithmetic(_BINARY[type(node.op)], a, b)
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+            a = self.value(node.operand, depth + 1)
+            return None if a is None else -a if isinstance(node.op, ast.USub) else a
+        if isinstance(node, ast.Call):
+            return self.call(node, depth)
+        if isinstance(node, (ast.Compare, ast.BoolOp)) or (
+                isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not)):
+            self.refuse("a comparison outside conditional(...)")
+        self.refuse(f"'{ast.unparse(node)}' (Python syntax of type {type(node).__name__})")
+
+    def condition(self, node, depth):
+        """The first argument of conditional: comparisons joined by and, or, not."""
+        build = self.symbols is not None
+        if depth > MAX_DEPTH:
+            raise SceneError(f"{self.where}: the expression is nested too deeply (at most "
+                             f"{MAX_DEPTH} levels)")
+        if isinstance(node, ast.Compare):
+            operands = [self.value(node.left, depth + 1)] + [
+                self.value(c, depth + 1) for c in node.comparators]
+            for op in node.ops:
+                if type(op) not in _COMPARE:
+                    self.refuse(f"the comparison '{type(op).__name__}'")
+            if not build:
+                return None
+            parts = [(_COMPARE[type(op)], a, b)
+                     for op, a, b in zip(node.ops, operands, operands[1:])]
+            conditions = [f(ufl.as_ufl(a), ufl.as_ufl(b)) for f, a, b in parts]
+            out = conditions[0]
+            for c in conditions[1:]:
+                out = ufl.And(out, c)
+            return out
+        if isinstance(node, ast.BoolOp):
+            values = [self.condition(v, depth + 1) for v in node.values]
+            if not build:
+                return None
+            join = ufl.And if isinstance(node.op, ast.And) else ufl.Or
+            out = values[0]
+            for v in values[1:]:
+                out = join(out, v)
+            return out
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
+            c = self.condition(node.operand, depth + 1)
+            return ufl.Not(c) if build else None
+        self.refuse(f"'{ast.unparse(node)}' as a condition (conditional needs a comparison)")
+
+    def call(self, node, depth):
+        if not (isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS):
+            self.refuse(f"the call '{ast.unparse(node.func)}(...)'")
+        name = node.func.id
+        function, arity = FUNCTIONS[name]
+        if node.keywords or len(node.args) != arity or any(
+                isinstance(a, ast.Starred) for a in node.args):
+            self.refuse(f"'{ast.unparse(node)}' ({name} takes {arity} positional "
+                        f"argument{'s' if arity > 1 else ''})")
+        if name == "conditional":
+            args = [self.condition(node.args[0], depth + 1)] + [
+                self.value(a, depth + 1) for a in node.args[1:]]
+        else:
+            args = [self.value(a, depth + 1) for a in node.args]
+        if name != "conditional" and all(isinstance(a, float) for a in args):
+            return self.arithmetic(FLOAT_FUNCTIONS[name], *args)
+        if self.symbols is None:
+            return None
+        return function(*args)
+
+    def arithmetic(self, function, *args):
+        """function(*args); on floats the result must be a finite real number."""
+        floats = all(isinstance(a, float) for a in args)
+        try:
+            result = function(*args)
+        except OverflowError:
+            raise SceneError(f"{self.where} = '{self.text}' overflows") from None
+        except (ArithmeticError, ValueError) as err:
+            raise SceneError(f"{self.where} = '{self.text}' cannot be evaluated: "
+                             f"{err}") from None
+        if floats:
+            if isinstance(result, complex) or not isinstance(result, numbers.Real):
+                raise SceneError(f"{self.where} = '{self.text}' gives a complex number")
+            return self.finite(float(result))
+        return result
+
+    def finite(self, value: float) -> float:
+        if not math.isfinite(value):
+            raise SceneError(f"{self.where} = '{self.text}' overflows (gives {value})")
+        return value
 
 
 class Context:
@@ -35,7 +225,7 @@ class Context:
     def __init__(self, mesh):
         self.mesh = mesh
         self.x = ufl.SpatialCoordinate(mesh)
-        self.t = fem.Constant(mesh, PETSc.ScalarType(0.0))
+        self.t = _constant(mesh, 0.0)
 
     def depends_on_time(self, value) -> bool:
         items = value if isinstance(value, (list, tuple)) else [value]
@@ -51,7 +241,7 @@ class Context:
                 return value
         if not math.isfinite(value):
             raise SceneError(f"{where} must be finite, got {value}")
-        return fem.Constant(self.mesh, PETSc.ScalarType(value))
+        return _constant(self.mesh, value)
 
     def vector(self, value, where: str, d: int):
         """A list of d numbers -> vector Constant; with any string -> UFL vector."""
@@ -61,7 +251,7 @@ class Context:
         if all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in value):
             if not all(math.isfinite(v) for v in value):
                 raise SceneError(f"{where} must be finite, got {value}")
-            return fem.Constant(self.mesh, PETSc.ScalarType(tuple(float(v) for v in value)))
+            return _constant(self.mesh, tuple(float(v) for v in value))
         return ufl.as_vector([self._evaluate(v, f"{where}[{i}]") if isinstance(v, str)
                               else self._number(v, f"{where}[{i}]")
                               for i, v in enumerate(value)])
@@ -73,15 +263,8 @@ class Context:
         return float(value)
 
     def _evaluate(self, text: str, where: str):
-        unknown = _names(text, where) - set(NAMESPACE) - {"x", "t"}
-        if unknown:
-            raise SceneError(f"{where} = '{text}': unknown name(s) {', '.join(sorted(unknown))};"
-                             f" allowed: x, t, {', '.join(sorted(NAMESPACE))}")
-        try:
-            result = eval(compile(text, where, "eval"), {"__builtins__": {}},
-                          dict(NAMESPACE, x=self.x, t=self.t))
-        except Exception as err:   # any error in a user expression is a scene error
-            raise SceneError(f"{where} = '{text}' cannot be evaluated: {err}") from None
+        d = self.mesh.geometry.dim
+        result = evaluate(text, where, self.x, self.t, d)
         if isinstance(result, numbers.Real):
             return float(result)
         if not isinstance(result, ufl.core.expr.Expr) or result.ufl_shape != ():
@@ -89,9 +272,13 @@ class Context:
         return result
 
 
+def _constant(mesh, value):
+    # dolfinx is imported here so that checking a scene's expressions does not need it.
+    from dolfinx import fem
+    from petsc4py import PETSc
+    return fem.Constant(mesh, PETSc.ScalarType(value))
+
+
 def _names(text: str, where: str) -> set[str]:
-    try:
-        tree = ast.parse(text, mode="eval")
-    except SyntaxError as err:
-        raise SceneError(f"{where} = '{text}' is not a valid expression: {err.msg}") from None
+    tree = parse(text, where)
     return {node.id for node in ast.walk(tree) if isinstance(node, ast.Name)}

@@ -15,13 +15,7 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from . import compat
-from .scene import SceneError, dimension
-
-def _mesh_dir() -> pathlib.Path:
-    """The gmsh scripts: installed inside the package, or meshes/ beside it in a source tree."""
-    here = pathlib.Path(__file__).resolve().parent
-    installed = here / "meshes"
-    return installed if installed.is_dir() else here.parent / "meshes"
+from .scene import MESH_DIR, SceneError, dimension
 
 
 def _cache_dir() -> pathlib.Path:
@@ -32,7 +26,6 @@ def _cache_dir() -> pathlib.Path:
     return pathlib.Path(base) / "contactvisco" / "meshes"
 
 
-MESH_DIR = _mesh_dir()
 CACHE_DIR = _cache_dir()
 
 #: Boundary names of the built-in box: the faces x = lower/upper, y = ..., z = ...
@@ -47,16 +40,16 @@ class Geometry:
     facet_tags: dmesh.MeshTags
     names: dict[str, int]          # boundary name -> facet tag value
 
-    def facets(self, name: str) -> np.ndarray:
+    def facets(self, name: str, where: str = "boundary") -> np.ndarray:
         """The local facets of a named boundary; a name that is unknown, has no facet, or
-        names facets inside the body is a scene error."""
+        names facets inside the body is a scene error naming the key `where`."""
         if name not in self.names:
-            raise SceneError(f"no boundary named '{name}'; this geometry has "
+            raise SceneError(f"{where}: no boundary named '{name}'; this geometry has "
                              f"{', '.join(sorted(self.names))}")
         found = self.facet_tags.find(self.names[name])
         comm = self.mesh.comm
         if comm.allreduce(found.size, MPI.SUM) == 0:
-            raise SceneError(f"boundary '{name}' has no facets in this mesh")
+            raise SceneError(f"{where}: boundary '{name}' has no facets in this mesh")
         # A facet with two cells (ghosts included) is inside the body; a boundary facet never
         # has two, and an inner one has two on at least one rank.
         fdim = self.mesh.topology.dim - 1
@@ -64,8 +57,8 @@ class Geometry:
         cells_per_facet = np.diff(self.mesh.topology.connectivity(fdim, fdim + 1).offsets)
         inside = comm.allreduce(int(np.sum(cells_per_facet[found] == 2)), MPI.SUM)
         if inside:
-            raise SceneError(f"boundary '{name}' has facets inside the body, not on its "
-                             "boundary")
+            raise SceneError(f"{where}: boundary '{name}' has facets inside the body, not "
+                             "on its boundary")
         return found
 
 
@@ -77,7 +70,34 @@ def build(scene: dict, comm=MPI.COMM_WORLD) -> Geometry:
         x = geometry.mesh.geometry.x
         c, s = np.cos(angle), np.sin(angle)
         x[:, 0], x[:, 1] = c * x[:, 0] - s * x[:, 1], s * x[:, 0] + c * x[:, 1]
+    check_probes(geometry.mesh, scene["output"]["probes"])
     return geometry
+
+
+def check_probes(mesh, points) -> None:
+    """Every probe point lies in a cell of the mesh (on some rank), else a scene error naming
+    the point and the mesh's bounding box."""
+    if not points:
+        return
+    from dolfinx import geometry as dgeometry
+    d = mesh.geometry.dim
+    xyz = np.zeros((len(points), 3))
+    for i, p in enumerate(points):
+        xyz[i, :len(p)] = p
+    tree = dgeometry.BoundingBoxTree(mesh, mesh.topology.dim)
+    cells = dgeometry.compute_colliding_cells(
+        mesh, dgeometry.compute_collisions(tree, xyz), xyz)
+    found = np.array([len(cells.links(i)) > 0 for i in range(len(points))], dtype=np.int32)
+    mesh.comm.Allreduce(MPI.IN_PLACE, found, op=MPI.MAX)
+    if found.all():
+        return
+    x = mesh.geometry.x[:, :d]
+    lower, upper = np.empty(d), np.empty(d)
+    mesh.comm.Allreduce(x.min(axis=0) if len(x) else np.full(d, np.inf), lower, op=MPI.MIN)
+    mesh.comm.Allreduce(x.max(axis=0) if len(x) else np.full(d, -np.inf), upper, op=MPI.MAX)
+    i = int(np.flatnonzero(found == 0)[0])
+    raise SceneError(f"output.probes[{i}] = {list(points[i])} is outside the body (the mesh "
+                     f"spans {np.round(lower, 6).tolist()} to {np.round(upper, 6).tolist()})")
 
 
 def _box(geo, comm) -> Geometry:
@@ -116,11 +136,15 @@ def mesh_file(geo) -> pathlib.Path:
     written atomically) and cached under a hash of the script and its parameters."""
     if geo["file"] is not None:
         path = pathlib.Path(geo["file"])
+        if path.suffix != ".msh":
+            raise SceneError(f"geometry.file must be a gmsh .msh file, got '{path}' (a .geo "
+                             "file is a gmsh script, which can run commands)")
         if not path.is_file():
             raise SceneError(f"geometry.file: no mesh file '{path}'")
         return path
-    script = MESH_DIR / f"{geo['script']}.py"
-    if not script.is_file():
+    name = geo["script"]
+    script = MESH_DIR / f"{name}.py"
+    if not (isinstance(name, str) and name.isidentifier()) or not script.is_file():
         names = sorted(p.stem for p in MESH_DIR.glob("*.py") if p.stem != "refinement")
         raise SceneError(f"geometry.script: no mesh script '{geo['script']}' in {MESH_DIR} "
                          f"(there are: {', '.join(names)})")
@@ -152,12 +176,29 @@ def _generate(geo, path: pathlib.Path, d: int):
         except TypeError as err:
             raise SceneError(f"geometry.parameters do not fit meshes/{geo['script']}.py: "
                              f"{err}") from None
+        except Exception as err:    # gmsh reports a geometry it cannot mesh as an Exception
+            raise SceneError(f"geometry.parameters: gmsh cannot mesh meshes/"
+                             f"{geo['script']}.py with {geo['parameters']}: {err}") from None
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.msh")
         gmsh.write(str(tmp))
         os.replace(tmp, path)
     finally:
         gmsh.finalize()
+
+
+def _header_error(path: pathlib.Path) -> str | None:
+    """Why a file is not a gmsh mesh, from its first bytes (gmsh would read a large file of
+    anything else to its end before giving up), or None."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(64)
+    except OSError as err:
+        return f"geometry.file: cannot read mesh file {path}: {err.strerror}"
+    if not head.lstrip().startswith(b"$MeshFormat"):
+        return (f"geometry.file: cannot read mesh file {path}: not a gmsh .msh file (it does "
+                "not start with $MeshFormat)")
+    return None
 
 
 def _gmsh(geo, d: int, comm) -> Geometry:
@@ -174,6 +215,8 @@ def _gmsh(geo, d: int, comm) -> Geometry:
         raise SceneError(error)
     names = None
     if comm.rank == 0:
+        names = _header_error(path)
+    if comm.rank == 0 and names is None:
         gmsh.initialize()
         gmsh.option.setNumber("General.Terminal", 0)
         try:
@@ -181,7 +224,7 @@ def _gmsh(geo, d: int, comm) -> Geometry:
             names = {gmsh.model.getPhysicalName(d - 1, tag): tag
                      for _, tag in gmsh.model.getPhysicalGroups(d - 1)}
         except Exception as err:   # gmsh reports a bad file as a plain Exception
-            names = f"cannot read mesh file {path}: {err}"
+            names = f"geometry.file: cannot read mesh file {path}: {err}"
             gmsh.finalize()
     names = comm.bcast(names, root=0)
     if isinstance(names, str):

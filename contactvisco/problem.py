@@ -34,6 +34,7 @@ from petsc4py import PETSc
 
 from . import compat
 from . import contact as law
+from . import rigid
 from .geometry import Geometry
 from .material import elasticity, lame_constants, strain
 from .expressions import Context
@@ -218,7 +219,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     if body is not None:
         loads.append(ufl.dot(context.vector(body, "body_force.value", d), v) * dx)
     for i, traction in enumerate(scene["traction"]):
-        geometry.facets(traction["boundary"])   # checks the name
+        geometry.facets(traction["boundary"], f"traction[{i}].boundary")   # checks the name
         fN = context.vector(traction["value"], f"traction[{i}].value", d)
         loads.append(ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]]))
     for load in loads:
@@ -241,7 +242,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         names = contact["boundary"]
         names = [names] if isinstance(names, str) else list(names)
         for name in names:
-            geometry.facets(name)                 # checks the name
+            geometry.facets(name, "contact.boundary")     # checks the name
         dsc = ds(tuple(geometry.names[name] for name in names), metadata=metadata)
 
         # P1 spaces for the multipliers and for the node tables of the output.
@@ -325,6 +326,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     T_out = problem.T or compat.tensor_space(mesh, "DG", degree - 1)
     problem.T = T_out
     problem.sigma_expression = fem.Expression(sigma, compat.interpolation_points(T_out))
+    rigid.check(problem)
     return problem
 
 
@@ -392,7 +394,7 @@ def _dirichlet(scene, geometry, V, context, updates):
         if unknown or "boundary" not in item:
             raise SceneError(f"{where} needs 'boundary' and may have 'components', 'value'; "
                              f"got {sorted(item)}")
-        facets = geometry.facets(item["boundary"])
+        facets = geometry.facets(item["boundary"], f"{where}.boundary")
         comps = item.get("components", "all")
         value = item.get("value", 0.0)
         if comps == "all":

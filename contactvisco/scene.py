@@ -68,6 +68,7 @@ DEFAULTS: dict = {
         "steps": 10,
         "rule": "paper",          # memory quadrature on the last sub-interval: paper (eq 19,
                                   # left point, explicit) | trapezoid (implicit, always stable)
+        "allow_unstable": False,  # run the paper's rule where it amplifies errors (b >= 1)
     },
     "discretization": {
         "degree": 1,
@@ -129,9 +130,37 @@ FRICTION_LAWS = ("compliance", "coulomb")
 #: contact.slip: the friction law acts on u_tau or on u_tau - u_tau(t_{n-1}).
 SLIP_MEASURES = ("total", "increment")
 
+#: Keys of the tables in the lists [[dirichlet]] and [[traction]].
+ITEM_KEYS = {"dirichlet": ("boundary", "components", "value"), "traction": ("boundary", "value")}
+
 
 class SceneError(ValueError):
     """A scene value that is missing, misspelled or out of range."""
+
+    #: True once the message says where the value came from (scene file line or --set).
+    located = False
+
+
+def _mesh_dir() -> pathlib.Path:
+    """The gmsh scripts: installed inside the package, or meshes/ beside it in a source tree."""
+    here = pathlib.Path(__file__).resolve().parent
+    installed = here / "meshes"
+    return installed if installed.is_dir() else here.parent / "meshes"
+
+
+#: Folder of the built-in mesh scripts (geometry.script names one of them).
+MESH_DIR = _mesh_dir()
+
+#: Scene moduli (E, lambda, mu, stiffness, ...) and box sizes must lie in
+#: [1/MODULUS_RANGE, MODULUS_RANGE]: products of moduli, lengths, displacements and their
+#: squares then stay far inside double precision.
+MODULUS_RANGE = 1e100
+
+#: Most cells a gmsh script may be asked for, estimated as (largest length / smallest size)^d.
+MAX_SCRIPT_CELLS = 1e7
+
+#: Most boxes (each 2 triangles or 6 tetrahedra) of a box geometry.
+MAX_BOX_CELLS = 1e8
 
 
 def builtin_names() -> list[str]:
@@ -171,36 +200,55 @@ def parse_assignment(text: str) -> tuple[list[str], object]:
 
 def _apply_set(scene: dict, path: list[str], value) -> None:
     node = scene
-    for i, key in enumerate(path[:-1]):
+    for i, key in enumerate(path):
+        dotted = ".".join(path[:i + 1])
         if isinstance(node, list):
+            if not (key.isdigit() and int(key) < len(node)):
+                raise SceneError(f"--set {dotted}: '{'.'.join(path[:i])}' is a list of "
+                                 f"{len(node)} table(s); the index must be 0..{len(node) - 1}")
             key = int(key)
-        elif key not in node:
-            raise SceneError(f"--set: no scene key '{'.'.join(path[:i + 1])}'")
+        elif not isinstance(node, dict):
+            raise SceneError(f"--set {dotted}: '{'.'.join(path[:i])}' is a value "
+                             f"({node!r}), not a table with keys")
+        if i == len(path) - 1:
+            break
+        if isinstance(node, dict) and key not in node:
+            raise SceneError(f"--set: no scene key '{dotted}'")
         if node[key] is None and key == "contact":
             node[key] = dict(CONTACT_DEFAULTS)
         node = node[key]
-    last = path[-1]
+    last = key
     if isinstance(node, list):
-        node[int(last)] = value
+        node[last] = value
         return
     free_form = tuple(path[:-1]) in (("geometry", "parameters"), ("solver", "petsc_options"))
-    if last not in node and not free_form:
-        hint = difflib.get_close_matches(last, list(node), n=1)
+    allowed = ITEM_KEYS.get(path[0], ()) if len(path) == 3 else list(node)
+    if last not in node and last not in allowed and not free_form:
+        hint = difflib.get_close_matches(last, list(allowed), n=1)
         suggestion = f" (did you mean '{hint[0]}'?)" if hint else ""
         raise SceneError(f"--set: unknown scene key '{'.'.join(path)}'{suggestion}")
+    table = node.get(last) or (CONTACT_DEFAULTS if path == ["contact"] else None)
+    if isinstance(table, dict) and table and not free_form:
+        # A whole table: its keys are checked and the defaults kept.
+        if not isinstance(value, dict):
+            raise SceneError(f"--set {'.'.join(path)}: '{'.'.join(path)}' is a table; set "
+                             f"its keys ({'.'.join(path)}.{next(iter(table))}=...) or give "
+                             f"a table {{...}}, got {value!r}")
+        value = _merge(table, value, f"{'.'.join(path)}.")
     node[last] = value
 
 
 def resolve(raw: dict, overrides: list[str] = ()) -> dict:
     """Fill defaults into a raw scene dict and apply ``key=value`` overrides."""
     scene = _merge(DEFAULTS, {k: v for k, v in raw.items() if k != "contact"})
-    material = {k: v for k, v in raw.get("material", {}).items() if v is not None}
-    if "lambda" in material or "mu" in material:
-        if "E" in material or "nu" in material:
-            raise SceneError("material: give either E and nu or lambda and mu, not both")
+    if not isinstance(scene["material"], dict):
+        raise SceneError(f"material must be a table, got {scene['material']!r}")
     if raw.get("contact") is not None:
+        if not isinstance(raw["contact"], dict):
+            raise SceneError(f"contact must be a table, got {raw['contact']!r}")
         scene["contact"] = _merge(CONTACT_DEFAULTS, raw["contact"], "contact.")
     assignments = [parse_assignment(text) for text in overrides]
+    _check_material_pairs(raw.get("material", {}), assignments)
     for path, value in assignments:          # a preset from --set first, then the rest
         if path == ["preset"]:
             scene["preset"] = value
@@ -224,16 +272,34 @@ def resolve(raw: dict, overrides: list[str] = ()) -> dict:
     return scene
 
 
+def _check_material_pairs(raw_material: dict, assignments) -> None:
+    """Either (E, nu) or (lambda, mu), from the file and --set together: a value of one pair
+    next to the other pair would be dropped without a word."""
+    given = {k: "the scene file" for k, v in raw_material.items() if v is not None}
+    for path, value in assignments:
+        if path[0] == "material" and len(path) == 2 and value is not None:
+            given[path[1]] = f"--set material.{path[1]}"
+        elif path == ["material"] and isinstance(value, dict):
+            given.update({k: "--set material" for k, v in value.items() if v is not None})
+    young = [k for k in ("E", "nu") if k in given]
+    lame = [k for k in ("lambda", "mu") if k in given]
+    if young and lame:
+        def named(keys):
+            return ", ".join(f"material.{k} ({given[k]})" for k in keys)
+        raise SceneError(f"material.{young[0]}: give either E and nu or lambda and mu, not "
+                         f"both; got {named(young)} and {named(lame)}")
+
+
 def load(name_or_path: str, overrides: list[str] = ()) -> dict:
     """A built-in scene by name, or a TOML scene file by path."""
     path = pathlib.Path(name_or_path)
     if not path.suffix and (SCENE_DIR / f"{name_or_path}.toml").exists():
         path = SCENE_DIR / f"{name_or_path}.toml"
-    if not path.exists():
+    if not path.is_file():          # a device or a pipe could be read for ever
         raise SceneError(f"no scene '{name_or_path}': not a built-in scene "
                          f"({', '.join(builtin_names())}) and no such file")
     try:
-        text = path.read_text()
+        text = _read_text(path)
         raw = tomllib.loads(text)
     except (OSError, UnicodeDecodeError) as err:
         raise SceneError(f"cannot read scene file {path}: {err}") from None
@@ -242,7 +308,42 @@ def load(name_or_path: str, overrides: list[str] = ()) -> dict:
     try:
         return resolve(raw, overrides)
     except SceneError as err:
-        raise SceneError(f"{err}{origin(str(err), path, text, overrides)}") from None
+        raise located(err, path, text, overrides) from None
+
+
+def located(err: SceneError, path, text: str, overrides) -> SceneError:
+    """The error with the origin of the value it names appended (once)."""
+    if err.located:
+        return err
+    out = SceneError(f"{err}{origin(str(err), pathlib.Path(path), text, overrides)}")
+    out.located = True
+    return out
+
+
+def locate(err: SceneError, name_or_path: str, overrides=()) -> SceneError:
+    """`located` for an error raised after loading (while building): the scene file is read
+    again to find the line."""
+    path = pathlib.Path(name_or_path)
+    if not path.suffix and (SCENE_DIR / f"{name_or_path}.toml").exists():
+        path = SCENE_DIR / f"{name_or_path}.toml"
+    try:
+        text = _read_text(path)
+    except (OSError, UnicodeDecodeError, SceneError):
+        text = ""
+    return located(err, path, text, overrides)
+
+
+#: Largest scene file read (a scene is a page of TOML; /dev/zero is not one).
+MAX_SCENE_BYTES = 1_000_000
+
+
+def _read_text(path: pathlib.Path) -> str:
+    with open(path, "rb") as f:
+        data = f.read(MAX_SCENE_BYTES + 1)
+    if len(data) > MAX_SCENE_BYTES:
+        raise SceneError(f"scene file {path} is larger than {MAX_SCENE_BYTES} bytes: not a "
+                         "scene")
+    return data.decode()
 
 
 def origin(message: str, path, text: str, overrides) -> str:
@@ -251,10 +352,14 @@ def origin(message: str, path, text: str, overrides) -> str:
     dotted = key.replace("[", ".").replace("]", "")
     if dotted.split(".")[0] not in DEFAULTS:
         return ""
-    for text_set in overrides:
+    for text_set in reversed(list(overrides)):      # the last --set of a key wins
         set_key = text_set.split("=", 1)[0].strip()
         if dotted == set_key or dotted.startswith(set_key + "."):
             return f" (from --set {text_set})"
+    found = _line_of(dotted, text)
+    if found:
+        number, line = found
+        return f" ({path.name}, line {number}: {line.strip()})"
     last = [part for part in dotted.split(".") if not part.isdigit()][-1]
     for number, line in enumerate(text.splitlines(), start=1):
         if "=" in line and line.split("=", 1)[0].strip() == last:
@@ -266,6 +371,31 @@ def origin(message: str, path, text: str, overrides) -> str:
     return " (a default value)"
 
 
+def _line_of(dotted: str, text: str):
+    """(number, line) of the TOML line that sets the dotted key (or a table holding it), with
+    the [table] and [[array]] headers followed; None if no line does."""
+    prefix, counts, best = [], {}, None
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.split("#", 1)[0].strip()
+        if stripped.startswith("[[") and stripped.endswith("]]"):
+            name = stripped[2:-2].strip()
+            counts[name] = counts.get(name, -1) + 1
+            prefix = [name, str(counts[name])]
+            full = ".".join(prefix)
+            if dotted == full or dotted.startswith(full + "."):
+                best = best or (number, line)
+            continue
+        if stripped.startswith("[") and stripped.endswith("]"):
+            prefix = stripped[1:-1].strip().split(".")
+            continue
+        if "=" in stripped:
+            key = stripped.split("=", 1)[0].strip().strip('"')
+            full = ".".join(prefix + [key])
+            if dotted == full or dotted.startswith(full + "."):
+                return number, line
+    return best
+
+
 def apply_preset(scene: dict, name: str) -> None:
     """Scale the scene's discretization by the preset `name` (see PRESETS)."""
     if not isinstance(name, str) or name not in PRESETS:
@@ -275,12 +405,19 @@ def apply_preset(scene: dict, name: str) -> None:
                          + f"; allowed: {', '.join(PRESETS)}")
     preset = PRESETS[name]
     geo = scene["geometry"]
+
+    def integer(x):     # only valid values are scaled; check() refuses the others as given
+        return isinstance(x, int) and not isinstance(x, bool) and x >= 1
+
     if geo["type"] == "box":
-        geo["cells"] = [max(1, round(n * preset["mesh"])) for n in geo["cells"]]
-    else:
-        geo["parameters"] = {k: (v / preset["mesh"] if k.startswith("h") else v)
+        if isinstance(geo["cells"], list) and all(integer(n) for n in geo["cells"]):
+            geo["cells"] = [max(1, round(n * preset["mesh"])) for n in geo["cells"]]
+    elif isinstance(geo["parameters"], dict):
+        geo["parameters"] = {k: (v / preset["mesh"] if is_mesh_size(k) and not
+                                 isinstance(v, bool) and isinstance(v, (int, float)) else v)
                              for k, v in geo["parameters"].items()}
-    scene["time"]["steps"] = max(1, round(scene["time"]["steps"] * preset["steps"]))
+    if integer(scene["time"]["steps"]):
+        scene["time"]["steps"] = max(1, round(scene["time"]["steps"] * preset["steps"]))
     scene["time"]["rule"] = preset["rule"]
     scene["discretization"]["degree"] = preset["degree"]
     if preset["degree"] > 1:
@@ -291,7 +428,9 @@ def _lame_to_young(material: dict) -> None:
     lam, mu = material["lambda"], material["mu"]
     if lam is None and mu is None:
         return
-    if lam is None or mu is None or not (mu > 0 and lam + mu > 0):
+    def number(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    if not (number(lam) and number(mu) and mu > 0 and lam + mu > 0):
         raise SceneError(f"material.lambda and material.mu must both be given with mu > 0 and "
                          f"lambda + mu > 0, got lambda = {lam}, mu = {mu}")
     material["E"] = mu * (3 * lam + 2 * mu) / (lam + mu)
@@ -311,6 +450,30 @@ def check(scene: dict) -> None:
     def finite(x):
         return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
+    def integer(x):
+        return isinstance(x, int) and not isinstance(x, bool)
+
+    def modulus(x):
+        return finite(x) and 1.0 / MODULUS_RANGE <= abs(x) <= MODULUS_RANGE
+
+    for key, default in DEFAULTS.items():
+        if isinstance(default, dict) and default:
+            need(isinstance(scene[key], dict),
+                 f"{key} must be a table ([{key}] in TOML), got {scene[key]!r}")
+    for key in ("name", "description"):
+        need(isinstance(scene[key], str), f"{key} must be a string, got {scene[key]!r}")
+    # The name is the default output folder results/<name>: one plain folder name.
+    need(0 < len(scene["name"]) <= 100 and "/" not in scene["name"]
+         and "\\" not in scene["name"] and scene["name"] not in (".", "..")
+         and scene["name"].isprintable(),
+         f"name must be a plain folder name (1 to 100 printable characters, no '/' or '\\',"
+         f" not '.' or '..'): it is the default output folder results/<name>; "
+         f"got {scene['name']!r}")
+    for table, key in (("output", "xdmf"), ("output", "figures"), ("output", "checkpoint"),
+                       ("time", "allow_unstable")):
+        need(isinstance(scene[table][key], bool),
+             f"{table}.{key} must be true or false, got {scene[table][key]!r}")
+
     def number_list(value, where, length=None):
         need(isinstance(value, list) and all(finite(v) for v in value)
              and (length is None or len(value) == length),
@@ -324,6 +487,9 @@ def check(scene: dict) -> None:
         for i, item in enumerate(items):
             missing = [r for r in required if r not in item]
             need(not missing, f"{key}[{i}] needs {', '.join(missing)}")
+            unknown = sorted(set(item) - set(ITEM_KEYS[key]))
+            need(not unknown, f"{key}[{i}].{unknown[0] if unknown else ''}: unknown key; a "
+                              f"[[{key}]] table has {', '.join(ITEM_KEYS[key])}")
 
     geo, mat, mem, time = scene["geometry"], scene["material"], scene["memory"], scene["time"]
     d = dimension(scene)
@@ -366,15 +532,34 @@ def check(scene: dict) -> None:
         need(all(isinstance(n, int) and not isinstance(n, bool) and n >= 1
                  for n in geo["cells"]),
              f"geometry.cells must be positive integers, got {geo['cells']}")
+        need(math.prod(geo["cells"]) <= MAX_BOX_CELLS,
+             f"geometry.cells = {geo['cells']} asks for {math.prod(geo['cells']):.3g} boxes "
+             f"(at most {MAX_BOX_CELLS:.0g}: the mesh is made on one rank before it is "
+             "distributed)")
         need(geo["diagonal"] in ("left", "right", "crossed", "left_right", "right_left"),
              f"geometry.diagonal must be left, right, crossed, left_right or right_left, "
              f"got '{geo['diagonal']}'")
         need(all(finite(a) and finite(b) and b > a for a, b in zip(geo["lower"], geo["upper"])),
              f"geometry.upper must exceed geometry.lower, got {geo['lower']}, {geo['upper']}")
+        need(all(abs(a) <= MODULUS_RANGE and abs(b) <= MODULUS_RANGE
+                 and b - a >= 1 / MODULUS_RANGE for a, b in zip(geo["lower"], geo["upper"])),
+             f"geometry.lower and upper must lie within +-{MODULUS_RANGE:g} and be at least "
+             f"{1 / MODULUS_RANGE:g} apart (change the units), got {geo['lower']}, "
+             f"{geo['upper']}")
     else:
         need((geo["script"] is None) != (geo["file"] is None),
              "geometry.type = 'gmsh' needs exactly one of geometry.script or geometry.file")
+        if geo["script"] is not None:
+            _check_script(geo, d)
+        else:
+            need(isinstance(geo["file"], str) and geo["file"].endswith(".msh"),
+                 f"geometry.file must be a gmsh .msh file, got {geo['file']!r} (a .geo file "
+                 "is a gmsh script, which can run commands: mesh it into a .msh first)")
+            need(not geo["parameters"], "geometry.parameters belong to a geometry.script; a "
+                                        "geometry.file has none")
     need(finite(mat["E"]) and mat["E"] > 0, f"material.E must be > 0, got {mat['E']}")
+    need(modulus(mat["E"]), f"material.E must lie in [{1 / MODULUS_RANGE:g}, "
+                            f"{MODULUS_RANGE:g}] (change the units), got {mat['E']}")
     upper_nu = 1.0 if mat["model"] == "plane_stress" else 0.5
     need(finite(mat["nu"]) and -1.0 < mat["nu"] < upper_nu,
          f"material.nu must lie in (-1, {upper_nu}) for {mat['model']}, got {mat['nu']}")
@@ -402,7 +587,7 @@ def check(scene: dict) -> None:
                  f"got {term}")
             need(finite(term["alpha"]), f"memory.terms[{i}].alpha must be a number")
             tau = term.get("tau", math.inf)
-            need(isinstance(tau, (int, float)) and tau > 0,
+            need(isinstance(tau, (int, float)) and not isinstance(tau, bool) and tau > 0,
                  f"memory.terms[{i}].tau must be > 0 (inf: constant), got {tau}")
             need(term.get("part", "full") in PARTS,
                  f"memory.terms[{i}].part must be full, deviatoric or volumetric")
@@ -415,7 +600,7 @@ def check(scene: dict) -> None:
         need(all(b > a for a, b in zip(times, times[1:])),
              "memory.times must increase")
     need(finite(time["T"]) and time["T"] > 0, f"time.T must be > 0, got {time['T']}")
-    need(isinstance(time["steps"], int) and time["steps"] >= 1,
+    need(integer(time["steps"]) and time["steps"] >= 1,
          f"time.steps must be an integer >= 1, got {time['steps']}")
     need(time["rule"] in ("paper", "trapezoid"),
          f"time.rule must be paper or trapezoid, got '{time['rule']}'")
@@ -429,10 +614,17 @@ def check(scene: dict) -> None:
         need(isinstance(names, str) or (isinstance(names, list) and names
                                         and all(isinstance(b, str) for b in names)),
              f"contact.boundary must be a boundary name or a list of names, got {names!r}")
-        need(isinstance(contact["g"], (int, float)) and contact["g"] >= 0,
+        need(isinstance(contact["g"], (int, float)) and not isinstance(contact["g"], bool)
+             and contact["g"] >= 0,
              f"contact.g must be >= 0 (inf: no bound), got {contact['g']}")
+        for key in ("stiffness", "augmentation"):
+            need(contact[key] == 0 or modulus(contact[key]),
+                 f"contact.{key} must be 0 or lie in [{1 / MODULUS_RANGE:g}, "
+                 f"{MODULUS_RANGE:g}] (change the units), got {contact[key]}")
+        _check_expression(contact["gap"], "contact.gap", d)
         need(contact["stiffness"] > 0 or math.isfinite(contact["g"]),
-             "a contact boundary needs a compliance stiffness > 0 or a finite bound g")
+             "contact.stiffness: a contact boundary needs a compliance stiffness > 0 or a finite "
+             "bound g")
         need(contact["friction"] in FRICTION_LAWS,
              f"contact.friction must be one of {', '.join(FRICTION_LAWS)}, got "
              f"{contact['friction']!r}")
@@ -467,7 +659,115 @@ def check(scene: dict) -> None:
          f"output.fields must be a list of {', '.join(allowed)}, got {fields!r}")
     need(scene["discretization"]["contact_quadrature"] in ("nodal", "gauss"),
          "discretization.contact_quadrature must be nodal or gauss")
-    need(scene["discretization"]["degree"] in (1, 2), "discretization.degree must be 1 or 2")
+    need(integer(scene["discretization"]["degree"]) and scene["discretization"]["degree"]
+         in (1, 2), f"discretization.degree must be 1 or 2, got "
+                    f"{scene['discretization']['degree']!r}")
+    options = scene["solver"]["petsc_options"]
+    need(isinstance(options, dict), f"solver.petsc_options must be a table, got {options!r}")
+    for key, value in options.items():
+        need(key.replace("_", "").isalnum() and not key.startswith("_"),
+             f"solver.petsc_options: '{key}' is not a PETSc option name (letters, digits "
+             "and _, without the leading '-')")
+        need(isinstance(value, (str, int, float, bool)),
+             f"solver.petsc_options.{key} must be a string, number or boolean, got {value!r}")
+    for i, item in enumerate(scene["dirichlet"]):
+        value = item.get("value", 0.0)
+        for j, v in enumerate(value if isinstance(value, list) else [value]):
+            _check_expression(v, f"dirichlet[{i}].value" + (f"[{j}]" if isinstance(value, list)
+                                                             else ""), d)
+    for i, item in enumerate(scene["traction"]):
+        for j, v in enumerate(item["value"]):
+            _check_expression(v, f"traction[{i}].value[{j}]", d)
+    for j, v in enumerate(body or []):
+        _check_expression(v, f"body_force.value[{j}]", d)
+    b = stability_number(scene)
+    need(time["rule"] != "paper" or not amplifies(b, time["steps"]) or time["allow_unstable"],
+         f"time.steps = {time['steps']}: the paper's time rule is unstable here (b = "
+         f"k R(0) (1 + nu) / E = {b:.3g} >= 1, the solution grows without bound); use "
+         f"time.steps > {steps_for_stability(time['steps'], b)}, time.rule = 'trapezoid', "
+         "or set time.allow_unstable = true to run it anyway")
+
+
+def amplifies(b: float, steps: int) -> bool:
+    """Whether the paper's rule amplifies errors: its scalar analogue (see stability_number) is
+    u_1 = (1 - b) u_0 (one forward Euler step), then u_{n+1} = (1 - 3b/2) u_n + b/2 u_{n-1}
+    with a root of modulus > 1 once b > 1. A single step amplifies only from b = 2 on."""
+    return b >= 1.0 and (steps >= 2 or b >= 2.0)
+
+
+def steps_for_stability(steps: int, b: float) -> str:
+    return f"{math.ceil(steps * b)}" if b < 1e15 else "(far more steps)"
+
+
+def _check_expression(value, where: str, d: int) -> None:
+    """A number, or an expression text that passes the whitelist (only its constant parts are
+    computed, to catch overflow and domain errors)."""
+    if isinstance(value, str):
+        from .expressions import parse
+        parse(value, where, d)
+    elif isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(value):
+        raise SceneError(f"{where} must be a finite number or an expression string, "
+                         f"got {value!r}")
+
+
+#: Script parameters that are lengths but not extents of the body (a refinement distance).
+NOT_EXTENTS = ("refine",)
+
+
+def is_mesh_size(key: str) -> bool:
+    """Mesh-size parameters of the scripts are h and h_<where> (h_bottom, h_contact, ...)."""
+    return key == "h" or key.startswith("h_")
+
+
+def _script_signature(name: str) -> dict:
+    """Keyword parameters of build() in meshes/<name>.py with their default values, read from
+    the script's syntax tree (nothing is run)."""
+    import ast
+    tree = ast.parse((MESH_DIR / f"{name}.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef) and node.name == "build":
+            names = [a.arg for a in node.args.args][1:]          # after gmsh
+            defaults = [ast.literal_eval(v) for v in node.args.defaults]
+            return dict(zip(names[len(names) - len(defaults):], defaults))
+    return {}
+
+
+def _check_script(geo: dict, d: int) -> None:
+    """geometry.script names a built-in script of meshes/ (never a path), and its parameters
+    are the script's, positive and finite, and not so fine that the mesh cannot be made."""
+    def need(ok, message):
+        if not ok:
+            raise SceneError(message)
+    scripts = sorted(p.stem for p in MESH_DIR.glob("*.py") if p.stem != "refinement")
+    name = geo["script"]
+    need(isinstance(name, str) and name in scripts,
+         f"geometry.script must be the name of a built-in mesh script ({', '.join(scripts)}), "
+         f"not a path; got {name!r}")
+    signature = _script_signature(name)
+    parameters = geo["parameters"]
+    need(isinstance(parameters, dict), f"geometry.parameters must be a table, got "
+                                       f"{parameters!r}")
+    unknown = sorted(set(parameters) - set(signature))
+    need(not unknown, f"geometry.parameters.{unknown[0] if unknown else ''}: meshes/{name}.py "
+                      f"has no parameter {', '.join(unknown)}; it has "
+                      f"{', '.join(signature)}")
+    values = dict(signature, **parameters)
+    for key, value in parameters.items():
+        need(isinstance(value, (int, float)) and not isinstance(value, bool)
+             and math.isfinite(value) and value > 0,
+             f"geometry.parameters.{key} must be a finite number > 0 (a length or a mesh "
+             f"size), got {value!r}")
+    sizes = {k: v for k, v in values.items() if is_mesh_size(k) and v is not None}
+    lengths = [v for k, v in values.items() if not is_mesh_size(k) and v is not None
+               and k not in NOT_EXTENTS]
+    if sizes and lengths:
+        finest = min(sizes, key=sizes.get)
+        cells = (max(lengths) / sizes[finest]) ** d
+        need(cells <= MAX_SCRIPT_CELLS,
+             f"geometry.parameters.{finest}: mesh size {sizes[finest]:g} for a body up to "
+             f"{max(lengths):g} long would make about {cells:.2g} cells (at most "
+             f"{MAX_SCRIPT_CELLS:.0g})")
 
 
 def _check_power(mem: dict, need, finite):
@@ -555,6 +855,8 @@ def stability_number(scene: dict) -> float:
     """b = k |R(0)| / (2 mu): the paper's rule is stable for b < 1 (NOTES: the scalar analogue
     u_{n+1} = (1 - 3b/2) u_n + b/2 u_{n-1}); 2 mu = E / (1 + nu) is the deviatoric modulus."""
     R0 = sum(abs(a) for a in memory_R0(scene).values())
+    if R0 == 0.0:
+        return 0.0
     k = scene["time"]["T"] / scene["time"]["steps"]
     mat = scene["material"]
     return k * R0 * (1.0 + mat["nu"]) / mat["E"]

@@ -79,6 +79,56 @@ GAMG_OPTIONS = {
 #: on (by dimension), where it was measured to beat MUMPS (benchmarks/scaling.py).
 AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
 
+#: Scene options (solver.petsc_options) that no solver had read when they were removed.
+UNUSED_SCENE_OPTIONS: set[str] = set()
+
+
+def _petsc_library():
+    """The loaded PETSc library, for PetscOptionsUsed (petsc4py 3.18 does not wrap it)."""
+    import ctypes
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = sorted({line.split()[-1] for line in maps if "libpetsc" in line})
+        return ctypes.CDLL(paths[0]) if paths else None
+    except (OSError, IndexError):
+        return None
+
+
+_LIBRARY = []
+
+
+def option_used(name: str) -> bool | None:
+    """Whether PETSc has read the option `name` (without '-'); None if that is unknown."""
+    import ctypes
+    if not _LIBRARY:
+        _LIBRARY.append(_petsc_library())
+    library = _LIBRARY[0]
+    if library is None:
+        return None
+    flag = ctypes.c_int(0)
+    if library.PetscOptionsUsed(None, name.encode(), ctypes.byref(flag)) != 0:
+        return None
+    return bool(flag.value)
+
+
+def unused_options(arguments) -> list[str]:
+    """Options of the command line (arguments, e.g. ['-snes_monitor', '-ksp_type', 'cg']) and
+    of scenes that no solver read: misspelled, or for a solver that was not used."""
+    names = [a.lstrip("-") for a in arguments if a.startswith("-") and len(a) > 1
+             and not _is_number(a)]
+    unused = [f"-{name}" for name in names if option_used(name) is False]
+    unused += [f"-{name} (solver.petsc_options)" for name in sorted(UNUSED_SCENE_OPTIONS)]
+    return unused
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
 _FORWARD = PETSc.ScatterMode.FORWARD
 
@@ -105,6 +155,7 @@ class _Newton:
         merged = dict(DEFAULT_OPTIONS)
         merged.update(defaults or {})
         merged.update(scene_options or {})
+        self._scene_options = set(scene_options or {})
         self._inserted = [key for key in merged if not opts.hasName(key)]
         for key in self._inserted:
             opts[key] = merged[key]
@@ -112,10 +163,41 @@ class _Newton:
 
     def _finish_setup(self):
         self.snes.setMonitor(self._monitor)
-        self.snes.setFromOptions()
         opts = PETSc.Options()
+        try:
+            self.snes.setFromOptions()
+        except PETSc.Error as err:
+            given = {key: value for key, value in opts.getAll().items()
+                     if key in self._scene_options or key not in self._inserted}
+            read = [key for key in given if option_used(key)]
+            for key in self._inserted:
+                opts.delValue(key)
+            reason = f"PETSc error {err.ierr}" + (": unknown type" if err.ierr == 86 else "")
+            named = ", ".join(f"-{k} {given[k] or ''}".strip() for k in read) or "none"
+            scene_keys = [k for k in read if k in self._scene_options]
+            if scene_keys:        # named by its scene key, so the message gets its origin
+                raise SceneError(f"solver.petsc_options.{scene_keys[0]}: PETSc rejected an "
+                                 f"option value ({reason}); the given options it had read: "
+                                 f"{named}") from None
+            raise SceneError(f"PETSc rejected a command-line option value ({reason}); the "
+                             f"given options it had read: {named}") from None
+        self._scene_read = []
         for key in self._inserted:
+            if key in self._scene_options:
+                used = option_used(key)
+                if used is False:
+                    UNUSED_SCENE_OPTIONS.add(key)
+                elif used:
+                    self._scene_read.append(f"-{key} {opts.getString(key, '')}".strip())
             opts.delValue(key)
+
+    def _given_read(self) -> list[str]:
+        """Options of the scene and of the command line that PETSc has read."""
+        inserted = set(self._inserted)
+        command_line = [f"-{key} {value or ''}".strip()
+                        for key, value in PETSc.Options().getAll().items()
+                        if key not in inserted and option_used(key)]
+        return self._scene_read + command_line
 
     def _monitor(self, snes, it, norm):
         self.residuals.append(float(norm))
@@ -133,7 +215,17 @@ class _Newton:
         self.residuals = []
         self.krylov_iterations = []
         self._from_functions(self.x)
-        self.snes.solve(None, self.x)
+        try:
+            self.snes.solve(None, self.x)
+        except PETSc.Error as err:
+            # An option value PETSc checks only when it sets up the solve (a factorization
+            # package, a MUMPS parameter): name the given options it had read.
+            given = self._given_read()
+            if not given:
+                raise
+            raise SceneError(f"PETSc stopped with error {err.ierr} while setting up the solve "
+                             f"(its message is above); given options it had read: "
+                             f"{', '.join(given)}") from None
         self._to_functions(self.x)
         reason = self.snes.getConvergedReason()
         if reason > 0 and not np.isfinite(self.x.norm()):

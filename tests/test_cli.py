@@ -67,16 +67,21 @@ def test_summary_is_strict_json_without_a_bound(tmp_path):
     assert summary["final"]["status_counts"]["bound"] == 0
 
 
-def test_unstable_time_step_is_warned(tmp_path):
-    """k alpha (1 + nu) / E = 2.6 >= 1 with the paper's rule: warned before the first step."""
-    proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
-               "--set", "time.T=10", "--set", "time.steps=5", "--quiet")
+def test_unstable_time_step_is_refused_unless_allowed(tmp_path):
+    """k alpha (1 + nu) / E = 2.6 >= 1 with the paper's rule: refused before anything is built
+    (exit 2, naming the key); with time.allow_unstable = true it runs, warned."""
+    unstable = ["--set", "geometry.cells=[4, 4]", "--set", "time.T=10", "--set", "time.steps=5"]
+    proc = cli("run", "paper", "--out", str(tmp_path), *unstable, "--quiet")
+    assert proc.returncode == 2 and "unstable here" in proc.stderr and "2.6" in proc.stderr
+    assert "time.allow_unstable" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "summary.json").exists()
+    proc = cli("run", "paper", "--out", str(tmp_path), *unstable,
+               "--set", "time.allow_unstable=true", "--quiet")
     assert proc.returncode == 0, proc.stderr
     assert "unstable here" in proc.stderr and "2.6" in proc.stderr
     assert "unstable" in json.loads((tmp_path / "summary.json").read_text())["warnings"][0]
-    proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
-               "--set", "time.T=10", "--set", "time.steps=5", "--set", "time.rule=trapezoid",
-               "--quiet")
+    proc = cli("run", "paper", "--out", str(tmp_path), *unstable, "--set",
+               "time.rule=trapezoid", "--quiet")
     assert proc.returncode == 0 and "unstable" not in proc.stderr
 
 

@@ -19,7 +19,7 @@ def test_paper_scene_values():
     assert scene["contact"]["g"] == 0.05 and scene["contact"]["mu"] == 0.2
     assert scene["contact"]["augmentation"] == 100.0       # defaults to the stiffness
     assert scene_module.memory_terms(scene) == [(100.0, math.inf, "full")]
-    assert scene["time"] == {"T": 1.0, "steps": 10, "rule": "paper"}
+    assert scene["time"] == {"T": 1.0, "steps": 10, "rule": "paper", "allow_unstable": False}
 
 
 def test_set_overrides():

@@ -1,0 +1,432 @@
+"""Hostile input: a scene is data and never runs code, creates no file outside --out, and every
+value the model cannot use stops the run before solving with a message that names the value,
+where it came from and what is allowed. The command-line cases (exit codes) run on one rank."""
+import json
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+
+from contactvisco import expressions, geometry, problem as problem_module, scene as scene_module
+
+COMM = MPI.COMM_WORLD
+SceneError = scene_module.SceneError
+
+
+def attacks(marker: pathlib.Path) -> list[str]:
+    """Expressions that would run code or exhaust the machine if they were evaluated."""
+    return [
+        "().__class__.__base__.__subclasses__()",
+        "sin.__globals__['__builtins__']['__import__']('os').system('touch " + str(marker) + "')",
+        f"__import__('os').system('touch {marker}')",
+        f"open('{marker}', 'w')",
+        "(lambda: 1)()",
+        "[c for c in ().__class__.__base__.__subclasses__()][0]",
+        "{'a': 1}['a']",
+        "x.__class__",
+        "x[0].__class__",
+        "exp.__module__",
+        "x[0:1]",
+        "x[7]",
+        "'text'",
+        "9**9**9",
+        "2.0**1e10",
+        "-" * 60 + "1",
+        "sin(" * 60 + "x[0]" + ")" * 60,
+        "x[0] + " * 200 + "1",
+        "min(x[0], x[1], t)",
+        "x[0] < 1",
+        "conditional(1, 2, 3)",
+    ]
+
+
+@pytest.mark.parametrize("key", ["traction.0.value", "body_force.value", "dirichlet.0.value",
+                                 "contact.gap"])
+def test_attack_expressions_are_refused_at_load(tmp_path, key):
+    marker = tmp_path / "pwn"
+    for text in attacks(marker):
+        value = json.dumps(text) if key == "contact.gap" else f"[0.0, {json.dumps(text)}]"
+        with pytest.raises(SceneError) as err:
+            scene_module.load("paper", [f"{key}={value}"])
+        message = str(err.value)
+        assert f"(from --set {key}=" in message, message
+        assert "not allowed" in message or "overflows" in message or "characters" in message \
+            or "nested too deeply" in message, message
+    assert not marker.exists()
+
+
+def test_attack_expressions_are_refused_at_build(tmp_path):
+    """The same texts placed into a resolved scene (past the load check) stop at the build."""
+    marker = tmp_path / "pwn"
+    mesh = geometry.build(scene_module.load("paper", ["geometry.cells=[2, 2]"]), COMM).mesh
+    context = expressions.Context(mesh)
+    for text in attacks(marker):
+        with pytest.raises(SceneError, match="traction\\[0\\]"):
+            context.scalar(text, "traction[0].value[1]")
+    assert not marker.exists()
+
+
+def test_limits_name_what_is_allowed():
+    with pytest.raises(SceneError, match="1001 characters; at most 1000"):
+        expressions.parse("1" + "+1" * 500, "w")
+    with pytest.raises(SceneError, match="nested too deeply \\(at most 50"):
+        expressions.parse("(" * 40 + "-" * 55 + "1" + ")" * 40, "w")
+    with pytest.raises(SceneError, match="allowed: numbers, x\\[0\\], x\\[1\\], t, .*sqrt"):
+        expressions.parse("x.real", "w", 2)
+
+
+def test_whitelisted_expressions_evaluate_like_numpy():
+    """The walker builds the UFL a Python reading of the text means: precedence, unary minus
+    with **, chained comparisons, and/or/not, every function; compared at the mesh nodes."""
+    scene = scene_module.load("paper", ["geometry.cells=[6, 6]"])
+    mesh = geometry.build(scene, COMM).mesh
+    context = expressions.Context(mesh)
+    context.t.value = 0.3
+    V = fem.FunctionSpace(mesh, ("CG", 2))
+    X = V.tabulate_dof_coordinates()
+    x0, x1, t = X[:, 0], X[:, 1], 0.3
+    cases = [
+        ("-x[0]**2 + 2*x[1]/3 - t", -x0**2 + 2 * x1 / 3 - t),
+        ("conditional(0.2 < x[0] <= 0.6 and not x[1] > 0.5, 1.0, -2.0)",
+         np.where((0.2 < x0) & (x0 <= 0.6) & ~(x1 > 0.5), 1.0, -2.0)),
+        ("conditional(x[0] < 0.3 or x[1] >= 0.7, sin(pi*x[0]), exp(-x[1]))",
+         np.where((x0 < 0.3) | (x1 >= 0.7), np.sin(np.pi * x0), np.exp(-x1))),
+        ("sqrt(1 + x[0]) * ln(2 + x[1]) + log(e) + abs(x[0] - 0.5) + atan2(x[1], 1 + x[0])",
+         np.sqrt(1 + x0) * np.log(2 + x1) + 1 + np.abs(x0 - 0.5) + np.arctan2(x1, 1 + x0)),
+        ("max(x[0], t) - min(x[1], 0.5) + cos(x[0]) * tan(0.1 * x[1])",
+         np.maximum(x0, t) - np.minimum(x1, 0.5) + np.cos(x0) * np.tan(0.1 * x1)),
+        ("2**0.5 * -3 + 10 / 4", np.full_like(x0, 2**0.5 * -3 + 10 / 4)),
+    ]
+    f = fem.Function(V)
+    for text, expected in cases:
+        value = context.scalar(text, "w")
+        f.interpolate(fem.Expression(ufl.as_ufl(value), V.element.interpolation_points()))
+        assert np.allclose(f.x.array, expected, rtol=1e-13, atol=1e-13), text
+
+
+def test_constant_expressions_that_overflow_or_turn_complex():
+    for text, words in [("9**9**9", "overflows"), ("1e308 * 10", "overflows"),
+                        ("(-8)**(1/3)", "complex"), ("1 / (2 - 2)", "division by zero"),
+                        ("x[0] + exp(1000)", "overflows"), ("sqrt(-1) * t", "domain error")]:
+        with pytest.raises(SceneError, match=words):
+            scene_module.load("paper", [f"body_force.value=[0.0, '{text}']"])
+
+
+SCENE_ERRORS = [  # (scene, overrides, words)
+    ("hertz", ["geometry.script='/tmp/evil'"], "not a path; got '/tmp/evil'"),
+    ("hertz", ["geometry.script='../meshes/rectangle'"], "built-in mesh script"),
+    ("hertz", ["geometry.script='refinement'"], "built-in mesh script"),
+    ("hertz", ["geometry.script=''"], "built-in mesh script"),
+    ("ironing", ["geometry.parameters.h=0"], "geometry.parameters.h must be a finite number > 0"),
+    ("ironing", ["geometry.parameters.h=-0.1"], "must be a finite number > 0"),
+    ("ironing", ["geometry.parameters.h=nan"], "must be a finite number > 0"),
+    ("ironing", ["geometry.parameters.h=true"], "must be a finite number > 0"),
+    ("ironing", ["geometry.parameters.h=1e-5"], "would make about 9e+10 cells"),
+    ("ironing", ["geometry.parameters.depth=1"], "has no parameter depth; it has length"),
+    ("hertz", ["geometry.parameters.radius=0"], "geometry.parameters.radius must be"),
+    ("ironing", ["geometry.parameters.length=1e5"], "geometry.parameters.h: mesh size 0.05 for "
+                                                     "a body up to 100000 long"),
+    ("block3d", ["geometry.parameters.h=0.001"], "would make about 1e+09 cells"),
+    ("paper", ["geometry.cells=[1000000, 1000000]"], "asks for 1e+12 boxes (at most 1e+08"),
+    ("paper", ["geometry.lower=[-1e308, 0]", "geometry.upper=[1e308, 1]"],
+     "must lie within +-1e+100"),
+    ("paper", ["name='../outside'"], "name must be a plain folder name"),
+    ("paper", ["name='/tmp/abs'"], "name must be a plain folder name"),
+    ("paper", ["name='..'"], "name must be a plain folder name"),
+    ("paper", ["name=''"], "name must be a plain folder name"),
+    ("paper", ["time.steps=true"], "time.steps must be an integer >= 1, got True"),
+    ("paper", ["geometry.cells=[true, 4]"], "geometry.cells must be positive integers"),
+    ("paper", ["solver.max_cuts=false"], "solver.max_cuts must be an integer"),
+    ("paper", ["discretization.degree=true"], "discretization.degree must be 1 or 2, got True"),
+    ("paper", ["contact.g=true"], "contact.g must be >= 0"),
+    ("paper", ["output.snapshot_max_nodes=true"], "output.snapshot_max_nodes must be an int"),
+    ("paper", ["output.xdmf=1"], "output.xdmf must be true or false, got 1"),
+    ("paper", ["time.allow_unstable='yes'"], "time.allow_unstable must be true or false"),
+    ("paper", ["memory.kernel='prony'", "memory.terms=[{alpha=1.0, tau=true}]"],
+     "memory.terms[0].tau must be > 0"),
+    ("paper", ["material.E=1e-320"], "material.E must lie in [1e-100, 1e+100]"),
+    ("paper", ["material.E=1e200"], "material.E must lie in"),
+    ("paper", ["contact.stiffness=1e-200"], "contact.stiffness must be 0 or lie in"),
+    ("paper", ["contact.g.x=1"], "'contact.g' is a value (0.05), not a table"),
+    ("paper", ["dirichlet.7.value=1"], "'dirichlet' is a list of 2 table(s); the index must "
+                                       "be 0..1"),
+    ("paper", ["dirichlet.first.value=1"], "the index must be 0..1"),
+    ("paper", ["material=5"], "'material' is a table; set its keys"),
+    ("paper", ["time=5"], "'time' is a table"),
+    ("paper", ["material={E=5, poisson=0.3}"], "unknown scene key 'material.poisson'"),
+    ("paper", ["geometry.file='mesh.geo'", "geometry.type='gmsh'"],
+     "geometry.file must be a gmsh .msh file, got 'mesh.geo' (a .geo file is a gmsh script"),
+    ("hertz", ["geometry.script=nan", "geometry.file='mesh.geo'"], "exactly one of"),
+    ("paper", ["solver.petsc_options={'ksp type'='cg'}"], "is not a PETSc option name"),
+    ("paper", ["solver.petsc_options.ksp_type=[1]"], "must be a string, number or boolean"),
+]
+
+
+@pytest.mark.parametrize("name, overrides, words", SCENE_ERRORS,
+                         ids=[f"{n} {' '.join(o)}" for n, o, _ in SCENE_ERRORS])
+def test_scene_errors(name, overrides, words):
+    with pytest.raises(SceneError) as err:
+        scene_module.load(name, overrides)
+    assert words in str(err.value)
+
+
+def test_geo_files_are_refused(tmp_path):
+    scene = {"geometry": {"type": "gmsh", "file": str(tmp_path / "body.geo")}}
+    with pytest.raises(SceneError, match="must be a gmsh .msh file.*can run commands"):
+        scene_module.resolve(scene)
+    resolved = scene_module.resolve({"geometry": {"type": "gmsh", "file": "x.msh"}})
+    resolved["geometry"]["file"] = str(tmp_path / "body.geo")   # past the scene check
+    with pytest.raises(SceneError, match="must be a gmsh .msh file"):
+        geometry.build(resolved, COMM)
+
+
+def test_a_large_file_that_is_no_mesh_is_refused_from_its_header(tmp_path):
+    """200 MB of zeros (a sparse file): refused from its first bytes, not read through."""
+    path = tmp_path / "zeros.msh"
+    if COMM.rank == 0:
+        with open(path, "wb") as f:
+            f.truncate(200 * 2**20)
+    path = COMM.bcast(str(path), root=0)
+    scene = scene_module.resolve({"geometry": {"type": "gmsh", "file": path}})
+    with pytest.raises(SceneError, match="not a gmsh .msh file \\(it does not start with "
+                                         "\\$MeshFormat\\)"):
+        geometry.build(scene, COMM)
+
+
+def test_presets_do_not_launder_booleans(tmp_path):
+    """A preset scales cells and steps: true * 0.5 would round to a valid 1."""
+    path = tmp_path / "bools.toml"
+    path.write_text('[geometry]\ncells = [true, 4]\n[[dirichlet]]\nboundary = "left"\n')
+    with pytest.raises(SceneError, match="geometry.cells must be positive integers"):
+        scene_module.load(str(path), ["preset='fast'"])
+    path.write_text('[time]\nsteps = true\n[[dirichlet]]\nboundary = "left"\n')
+    with pytest.raises(SceneError, match="time.steps must be an integer >= 1, got True"):
+        scene_module.load(str(path), ["preset='accurate'"])
+    assert scene_module.load("ironing", ["preset='fast'"])["geometry"]["parameters"] == {
+        "length": 3.0, "height": 0.5, "h": 0.1}          # sizes scaled, lengths kept
+
+
+def test_endless_or_binary_scene_files(tmp_path):
+    with pytest.raises(SceneError, match="not a built-in scene .* and no such file"):
+        scene_module.load("/dev/zero")
+    large = tmp_path / "large.toml"
+    with open(large, "wb") as f:
+        f.truncate(10 * 2**20)
+    with pytest.raises(SceneError, match="larger than 1000000 bytes: not a scene"):
+        scene_module.load(str(large))
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfe\x00name")
+    with pytest.raises(SceneError, match="cannot read scene file .*binary.toml"):
+        scene_module.load(str(binary))
+
+
+def test_material_pairs_conflict_names_both(tmp_path):
+    path = tmp_path / "lame.toml"
+    path.write_text('[material]\nmodel = "plane_strain"\nlambda = 57.7\nmu = 38.5\n'
+                    '[[dirichlet]]\nboundary = "left"\n')
+    scene = scene_module.load(str(path))
+    assert scene["material"]["E"] == pytest.approx(38.5 * (3 * 57.7 + 2 * 38.5) / (57.7 + 38.5))
+    with pytest.raises(SceneError) as err:
+        scene_module.load(str(path), ["material.E=5"])
+    message = str(err.value)
+    assert "material.E (--set material.E)" in message
+    assert "material.lambda (the scene file), material.mu (the scene file)" in message
+    with pytest.raises(SceneError, match="not both"):
+        scene_module.load(str(path), ["material.nu=0.2"])
+    with pytest.raises(SceneError, match="not both"):
+        scene_module.load("paper", ["material.mu=5"])
+
+
+def test_unstable_paper_rule_needs_allow_unstable():
+    """b = k alpha (1 + nu) / E: 2.6 at 5 steps over T = 10 is refused with the fix named;
+    time.allow_unstable = true lets it run; a single step amplifies only from b = 2 on."""
+    unstable = ["time.T=10", "time.steps=5"]
+    assert scene_module.stability_number(scene_module.load(
+        "paper", unstable + ["time.rule='trapezoid'"])) == pytest.approx(2.6)
+    with pytest.raises(SceneError) as err:
+        scene_module.load("paper", unstable)
+    message = str(err.value)
+    assert "b = k R(0) (1 + nu) / E = 2.6 >= 1" in message and "time.steps > 13" in message
+    assert "time.allow_unstable = true" in message and "(from --set time.steps=5)" in message
+    assert scene_module.load("paper", unstable + ["time.allow_unstable=true"])
+    assert scene_module.load("paper", ["time.steps=1"])                  # b = 1.3, one step
+    with pytest.raises(SceneError, match="unstable"):
+        scene_module.load("paper", ["time.steps=1", "time.T=2"])       # b = 2.6, one step
+
+
+def test_origin_follows_toml_tables(tmp_path):
+    """The origin of a value in the second [[dirichlet]] table is that table's line, not the
+    first line with the same key."""
+    path = tmp_path / "two.toml"
+    path.write_text('name = "two"\n[[dirichlet]]\nboundary = "left"\nvalue = 0.0\n'
+                    '[[dirichlet]]\nboundary = "right"\ncomponents = [0]\n'
+                    'value = "x.__class__"\n')
+    with pytest.raises(SceneError, match="two.toml, line 8: value = \"x.__class__\""):
+        scene_module.load(str(path))
+
+
+def test_probe_outside_the_body_is_named():
+    scene = scene_module.load("paper", ["geometry.cells=[4, 4]",
+                                        "output.probes=[[0.5, 0.5], [0.5, 1.25]]"])
+    with pytest.raises(SceneError) as err:
+        geometry.build(scene, COMM)
+    message = str(err.value)
+    assert "output.probes[1] = [0.5, 1.25] is outside the body" in message
+    assert "spans [0.0, 0.0] to [1.0, 1.0]" in message
+    rotated = scene_module.load("paper", ["geometry.cells=[4, 4]", "geometry.rotation=90",
+                                          "output.probes=[[-0.5, 0.5]]"])
+    geometry.build(rotated, COMM)                # inside once the body is rotated
+
+
+def build(name, overrides):
+    scene = scene_module.load(name, overrides)
+    return problem_module.build(scene, geometry.build(scene, COMM))
+
+
+@pytest.mark.parametrize("overrides, free", [
+    (["dirichlet=[]", "contact.mu=0"], "(translation along x)"),
+    (["dirichlet=[]", "contact.mu=0", "geometry.rotation=30", "output.probes=[]"],
+     "(translation along (0.866, 0.5))"),
+    (["contact.mu=0", "dirichlet=[{boundary='left', components=[1]}]"],
+     "(translation along x)"),
+])
+def test_free_rigid_motions_are_named(overrides, free):
+    """A body pressed on a frictionless compliance layer and held by no Dirichlet condition
+    can slide along the layer: stopped before solving, with the sliding direction."""
+    with pytest.raises(SceneError) as err:
+        build("paper", ["geometry.cells=[4, 4]"] + overrides)
+    assert f"free to move rigidly {free}" in str(err.value)
+    assert "contact.mu = 0" in str(err.value)
+
+
+def test_free_rotation_about_a_point():
+    """u_y = 0 on the left side alone leaves x-translation and the rotation about (0, y) free,
+    for any y: named with the point on x = 0."""
+    scene = scene_module.resolve({"geometry": {"cells": [3, 3]},
+                                  "dirichlet": [{"boundary": "left", "components": [1]}]})
+    with pytest.raises(SceneError) as err:
+        problem_module.build(scene, geometry.build(scene, COMM))
+    assert "(translation along x; rotation about z about the point (0, 0.5))" in str(err.value)
+
+
+def test_frictionless_cylinder_may_rotate_about_its_centre():
+    """Hertz without its symmetry condition: the frictionless arc holds both translations but
+    not the rotation about the cylinder's centre (0, R)."""
+    with pytest.raises(SceneError) as err:
+        build("hertz", ["dirichlet=[]"])
+    message = str(err.value)
+    start = message.index("about the point (") + len("about the point (")
+    point = [float(v) for v in message[start:message.index(")", start)].split(",")]
+    assert abs(point[0]) < 0.01 and abs(point[1] - 1.0) < 0.01
+
+
+@pytest.mark.parametrize("name", scene_module.builtin_names())
+def test_builtin_scenes_are_held(name):
+    """Every built-in scene passes the rigid-motion check (built on a coarse mesh)."""
+    coarse = {"paper": ["geometry.cells=[4, 4]"], "block3d": ["geometry.parameters.h=0.25"],
+              "ironing": ["geometry.parameters.h=0.1"],
+              "creep": ["geometry.parameters.h=0.2", "geometry.parameters.h_bottom=0.2"],
+              "hertz": []}[name]
+    problem = build(name, coarse)
+    from contactvisco.rigid import free_motions
+    assert free_motions(problem) == []
+
+
+def test_friction_counts_as_a_tangential_restraint():
+    """The documented rule: with mu > 0 and a compliance law the layer holds sliding, so the
+    paper scene without Dirichlet conditions is accepted (and without friction refused). Its
+    answer is then the unique one: loads and layer are symmetric about x = 1/2, so u_x = 0 on
+    that line, and 1 and 2 ranks agree."""
+    with pytest.raises(SceneError, match="translation along x"):
+        build("paper", ["geometry.cells=[4, 4]", "dirichlet=[]", "contact.mu=0"])
+    from contactvisco.run import simulate
+    scene = scene_module.load("paper", ["geometry.cells=[8, 8]", "dirichlet=[]",
+                                        "time.steps=3", "geometry.diagonal='crossed'",
+                                        "output.probes=[[0.5, 0.0], [0.5, 1.0], [1.0, 0.0]]"])
+    result = simulate(scene, comm=COMM, progress=False)
+    alone = simulate(scene, comm=MPI.COMM_SELF, progress=False)
+    for step, single in zip(result.steps, alone.steps):
+        u = np.array([p["u"] for p in step["probes"]])
+        assert np.all(np.abs(u[:2, 0]) < 1e-9 * np.abs(u).max())      # symmetric
+        assert np.abs(u[2, 1]) > 1e-3                                     # pressed down
+        assert np.allclose(u, [p["u"] for p in single["probes"]], rtol=1e-7, atol=1e-12)
+
+
+# ---- the command line: exit codes and messages (one rank; each starts its own process) ----
+
+def cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "contactvisco", *args], capture_output=True,
+                          text=True, timeout=300, cwd=cwd)
+
+
+SMALL = ["--set", "geometry.cells=[4, 4]", "--set", "time.steps=2", "--quiet"]
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own processes; run on one rank")
+@pytest.mark.parametrize("args, code, words", [
+    (["run", "paper", "--set", "material.E=1e-320"], 2, "material.E must lie in"),
+    (["run", "ironing", "--set", "geometry.parameters.h=0"], 2,
+     "geometry.parameters.h must be a finite number > 0"),
+    (["run", "hertz", "--set", "geometry.parameters.radius=0"], 2, "radius must be"),
+    (["run", "paper", "--set", "contact.g.x=1"], 2, "not a table"),
+    (["run", "paper", "--set", "dirichlet.7.value=1"], 2, "the index must be 0..1"),
+    (["run", "paper", "--set", "material=5"], 2, "'material' is a table"),
+    (["run", "paper", "stray"], 2, "unrecognized arguments: stray"),
+    (["run", "paper", "--out", ""], 2, "--out needs a folder name"),
+    (["run", "paper", "--set", "time.steps=true"], 2, "time.steps must be an integer"),
+    (["run", "paper", "--set", "output.probes=[[0.5, 2.0]]", *SMALL], 2,
+     "output.probes[0] = [0.5, 2.0] is outside the body (the mesh spans [0.0, 0.0] to "
+     "[1.0, 1.0]) (from --set output.probes=[[0.5, 2.0]])"),
+    (["run", "paper", "--set", "dirichlet=[]", "--set", "contact.mu=0", *SMALL], 2,
+     "free to move rigidly (translation along x)"),
+    (["run", "paper", "-ksp_type", "nonsense", *SMALL], 2,
+     "PETSc rejected a command-line option value (PETSc error 86: unknown type); the given "
+     "options it had read: -ksp_type nonsense"),
+    (["run", "paper", "-pc_factor_mat_solver_type", "nonsense", *SMALL], 2,
+     "while setting up the solve (its message is above); given options it had read: "
+     "-pc_factor_mat_solver_type nonsense"),
+    (["run", "paper", "--set", "solver.petsc_options.snes_rtol='abc'", *SMALL], 2,
+     "solver.petsc_options.snes_rtol: PETSc rejected an option value"),
+    (["run", "paper", "-snes_monitr", "-snes_rtol", "1e-9", *SMALL], 0,
+     "PETSc options no solver used: -snes_monitr (misspelled"),
+])
+def test_command_line(tmp_path, args, code, words):
+    marker = tmp_path / "out"
+    if "--out" not in args:
+        args = args + ["--out", str(marker)]
+    proc = cli(*args, cwd=tmp_path)
+    assert proc.returncode == code, proc.stderr
+    assert words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    if code == 0:
+        assert "-snes_rtol" not in proc.stderr         # a used option is not reported
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own processes; run on one rank")
+def test_command_line_attack_runs_nothing(tmp_path):
+    marker = tmp_path / "pwn"
+    text = f"sin.__globals__['__builtins__']['__import__']('os').system('touch {marker}')"
+    proc = cli("run", "paper", "--set", f"traction.0.value=[0.0, {json.dumps(text)}]",
+               "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert proc.returncode == 2 and "is not allowed" in proc.stderr, proc.stderr
+    assert not marker.exists() and not (tmp_path / "out").exists()
+    proc = cli("run", "paper", "--set", "name='../escaped'", cwd=tmp_path / "..")
+    assert proc.returncode == 2 and "plain folder name" in proc.stderr
+    assert not (tmp_path.parent / "escaped").exists()
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own processes; run on one rank")
+def test_plot_on_cut_files(tmp_path):
+    (tmp_path / "summary.json").write_text('{"scene": {"name": "paper", "contact": {"g": 0.')
+    proc = cli("plot", str(tmp_path))
+    assert proc.returncode == 2 and "damaged or incomplete" in proc.stderr, proc.stderr
+    assert "JSONDecodeError" in proc.stderr and "Traceback" not in proc.stderr
+    (tmp_path / "summary.json").write_text('{"scene": {"contact": {"g": 0.05}}, "steps": []}')
+    (tmp_path / "snapshots.npz").write_bytes(b"PK\x03\x04cut")
+    proc = cli("plot", str(tmp_path))
+    assert proc.returncode == 2 and "BadZipFile" in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
