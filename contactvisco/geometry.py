@@ -79,15 +79,11 @@ def check_probes(mesh, points) -> None:
     the point and the mesh's bounding box."""
     if not points:
         return
-    from dolfinx import geometry as dgeometry
     d = mesh.geometry.dim
     xyz = np.zeros((len(points), 3))
     for i, p in enumerate(points):
         xyz[i, :len(p)] = p
-    tree = dgeometry.BoundingBoxTree(mesh, mesh.topology.dim)
-    cells = dgeometry.compute_colliding_cells(
-        mesh, dgeometry.compute_collisions(tree, xyz), xyz)
-    found = np.array([len(cells.links(i)) > 0 for i in range(len(points))], dtype=np.int32)
+    found = (np.array(compat.colliding_cells(mesh, xyz)) >= 0).astype(np.int32)
     mesh.comm.Allreduce(MPI.IN_PLACE, found, op=MPI.MAX)
     if found.all():
         return

@@ -12,7 +12,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from contactvisco import expressions, geometry, problem as problem_module, scene as scene_module
+from contactvisco import compat, expressions, geometry, problem as problem_module, scene as scene_module
 
 COMM = MPI.COMM_WORLD
 SceneError = scene_module.SceneError
@@ -87,7 +87,7 @@ def test_whitelisted_expressions_evaluate_like_numpy():
     mesh = geometry.build(scene, COMM).mesh
     context = expressions.Context(mesh)
     context.t.value = 0.3
-    V = fem.FunctionSpace(mesh, ("CG", 2))
+    V = compat.scalar_space(mesh, "CG", 2)
     X = V.tabulate_dof_coordinates()
     x0, x1, t = X[:, 0], X[:, 1], 0.3
     cases = [
@@ -105,7 +105,7 @@ def test_whitelisted_expressions_evaluate_like_numpy():
     f = fem.Function(V)
     for text, expected in cases:
         value = context.scalar(text, "w")
-        f.interpolate(fem.Expression(ufl.as_ufl(value), V.element.interpolation_points()))
+        f.interpolate(fem.Expression(ufl.as_ufl(value), compat.interpolation_points(V)))
         assert np.allclose(f.x.array, expected, rtol=1e-13, atol=1e-13), text
 
 

@@ -21,7 +21,7 @@ def test_mittag_leffler_known_values():
     """E_1(-z) = exp(-z), E_1/2(-z) = exp(z^2) erfc(z); the series and the integral
     representation agree where both apply."""
     z = np.linspace(0.0, 3.0, 13)
-    assert np.max(np.abs(kernels.ml_series(1.0, z) - np.exp(-z))) < 1e-15
+    assert np.max(np.abs(kernels.ml_series(1.0, z) / np.exp(-z) - 1.0)) < 1e-13
     z = np.array([0.05, 0.3, 0.7, 1.0, 2.0, 5.0, 12.0])
     exact = np.array([math.exp(v * v) * math.erfc(v) for v in z])
     assert np.max(np.abs(kernels.mittag_leffler(0.5, z) / exact - 1)) < 1e-12
