@@ -12,7 +12,8 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from contactvisco import compat, expressions, geometry, problem as problem_module, scene as scene_module
+from contactvisco import compat, expressions, geometry
+from contactvisco import problem as problem_module, scene as scene_module
 
 COMM = MPI.COMM_WORLD
 SceneError = scene_module.SceneError
