@@ -28,6 +28,8 @@ def _parser():
     run.add_argument("--quiet", action="store_true", help="no progress output")
     run.add_argument("--restart", action="store_true",
                      help="continue the run in --out from its last checkpoint")
+    run.add_argument("--overwrite", action="store_true",
+                     help="replace the files of an earlier run in --out")
     run.add_argument("--traceback", action="store_true",
                      help="show the Python traceback of an unexpected error")
     sub.add_parser("scenes", help="list the built-in scenes")
@@ -52,6 +54,8 @@ def main(argv=None):
     from . import scene as scene_module
     if args.command == "plot":
         return _plot(args.folder)
+    if args.command == "run":
+        return _run(args, scene_module)
     try:
         if args.command == "scenes":
             for name in scene_module.builtin_names():
@@ -63,27 +67,51 @@ def main(argv=None):
             from .output import jsonable
             print(json.dumps(jsonable(scene), indent=2))
             return 0
-        from .run import simulate
-        from .solver import NewtonFailure
-        out = args.out or f"results/{scene['name']}"
-        _check_writable(out)
-        try:
-            simulate(scene, out, progress=not args.quiet, restart=args.restart)
-        except NewtonFailure as err:
-            print(f"contactvisco: {err}", file=sys.stderr)
-            return 3
-        except scene_module.SceneError:
-            raise
-        except Exception as err:          # no bare traceback for users; --traceback shows it
-            if args.traceback:
-                raise
-            print(f"contactvisco: error: {type(err).__name__}: {err} (run again with "
-                  "--traceback for the details)", file=sys.stderr)
-            return 1
     except scene_module.SceneError as err:
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
     return 0
+
+
+def _run(args, scene_module):
+    """`contactvisco run`: every error, on any rank, ends every rank with one message
+    (contactvisco.parallel): exit 2 for a scene or folder error, 3 for a Newton failure,
+    128 + signal for SIGINT/SIGTERM, 1 for anything else."""
+    from mpi4py import MPI
+    from . import parallel
+    from .solver import NewtonFailure
+    comm = MPI.COMM_WORLD
+    parallel.prepare(comm)
+    try:
+        preset = [f"preset='{args.preset}'"] if args.preset else []
+        scene = scene_module.load(args.scene, preset + args.set)
+        from .run import simulate
+        out = args.out or f"results/{scene['name']}"
+        _check_writable(out)
+        simulate(scene, out, comm=comm, progress=not args.quiet, restart=args.restart,
+                 overwrite=args.overwrite)
+    except scene_module.SceneError as err:
+        return parallel.fail_together(comm, 2, f"contactvisco: scene error: {err}")
+    except NewtonFailure as err:
+        return parallel.fail_together(comm, 3, f"contactvisco: {err}")
+    except parallel.Stopped as err:
+        return parallel.fail_together(comm, err.exit_code, f"contactvisco: {err}")
+    except Exception as err:              # no bare traceback for users; --traceback shows it
+        if args.traceback:
+            import traceback
+            traceback.print_exc()
+        return parallel.fail_together(
+            comm, 1, f"contactvisco: error: {_describe(err)} (run again with --traceback "
+            "for the details)")
+    return 0
+
+
+def _describe(err: Exception) -> str:
+    """What went wrong, with the file for an OSError (a full disk names the file)."""
+    if isinstance(err, OSError) and err.strerror:
+        where = f" ({err.filename})" if err.filename else ""
+        return f"{type(err).__name__}: {err.strerror}{where}"
+    return f"{type(err).__name__}: {err}"
 
 
 def _check_writable(folder):

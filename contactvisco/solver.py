@@ -15,6 +15,8 @@ linear solver.
 """
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import ufl
 from dolfinx import fem, la
@@ -97,11 +99,27 @@ class _Newton:
         self.snes = PETSc.SNES().create(comm)
 
     def _finish_setup(self):
-        self.snes.setMonitor(self._monitor)
-        self.snes.setFromOptions()
+        self.snes.setMonitor(_weak(self._monitor))
+        try:
+            self.snes.setFromOptions()
+        finally:                       # also when PETSc rejects an option
+            self.remove_options()
+
+    def remove_options(self):
+        """Take the options this solver set out of PETSc's global database (idempotent)."""
         opts = PETSc.Options()
         for key in self._inserted:
             opts.delValue(key)
+        self._inserted = []
+
+    def destroy(self):
+        """Free the SNES and its vectors and matrices (idempotent); the object is unusable
+        afterwards."""
+        self.remove_options()
+        for name in ("snes", "b", "x", "A", "_x_jacobian", "_du"):
+            obj = self.__dict__.get(name)
+            if obj is not None:
+                obj.destroy()
 
     def _monitor(self, snes, it, norm):
         self.residuals.append(float(norm))
@@ -172,8 +190,8 @@ class BlockSNES(_Newton):
         self.b = create_vector_block(self.F)
         self.x = create_vector_block(self.F)
         self.A = create_matrix_block(self.J)
-        self.snes.setFunction(self._residual, self.b)
-        self.snes.setJacobian(self._jacobian, self.A)
+        self.snes.setFunction(_weak(self._residual), self.b)
+        self.snes.setJacobian(_weak(self._jacobian), self.A)
         self._finish_setup()
 
     def _residual(self, snes, x, b):
@@ -207,11 +225,11 @@ class CondensedSNES(_Newton):
         self._x_jacobian = problem.u.vector.copy()   # the iterate of the last Jacobian
         self._du = problem.u.vector.copy()
         self._pending = False            # a step from _x_jacobian awaits its multiplier update
-        self.snes.setFunction(self._residual, self.b)
-        self.snes.setJacobian(self._jacobian, self.system.J_red)
+        self.snes.setFunction(_weak(self._residual), self.b)
+        self.snes.setJacobian(_weak(self._jacobian), self.system.J_red)
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
         # as with BlockSNES; the condensed residual alone leaves out the multiplier rows.
-        self.snes.setConvergenceTest(self._converged)
+        self.snes.setConvergenceTest(_weak(self._converged))
         self.system.J_red.setNearNullSpace(rigid_body_modes(problem.V))
         self._finish_setup()
 
@@ -252,6 +270,18 @@ class CondensedSNES(_Newton):
         if it >= max_it:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         return PETSc.SNES.ConvergedReason.CONVERGED_ITERATING
+
+
+def _weak(method):
+    """A callback for the SNES that calls `method` through a weak reference to its object:
+    the SNES keeps the callback, and a bound method would keep the solver (and through it the
+    problem, mesh and communicators) in a reference cycle through PETSc that Python's
+    collector cannot see."""
+    ref = weakref.WeakMethod(method)
+
+    def call(*args):
+        return ref()(*args)
+    return call
 
 
 def rigid_body_modes(V) -> PETSc.NullSpace:
