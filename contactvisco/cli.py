@@ -82,6 +82,7 @@ def _run(args, scene_module):
     from .solver import NewtonFailure
     comm = MPI.COMM_WORLD
     parallel.prepare(comm)
+    out = args.out
     try:
         preset = [f"preset='{args.preset}'"] if args.preset else []
         scene = scene_module.load(args.scene, preset + args.set)
@@ -101,16 +102,16 @@ def _run(args, scene_module):
             import traceback
             traceback.print_exc()
         return parallel.fail_together(
-            comm, 1, f"contactvisco: error: {_describe(err)} (run again with --traceback "
-            "for the details)")
+            comm, 1, f"contactvisco: error: {_describe(err, out)} (run again with "
+            "--traceback for the details)")
     return 0
 
 
-def _describe(err: Exception) -> str:
-    """What went wrong, with the file for an OSError (a full disk names the file)."""
+def _describe(err: Exception, out) -> str:
+    """What went wrong; for an OSError the file, or else the output folder being written."""
     if isinstance(err, OSError) and err.strerror:
-        where = f" ({err.filename})" if err.filename else ""
-        return f"{type(err).__name__}: {err.strerror}{where}"
+        where = err.filename or (f"writing into {out}" if out else None)
+        return f"{type(err).__name__}: {err.strerror}" + (f" ({where})" if where else "")
     return f"{type(err).__name__}: {err}"
 
 
