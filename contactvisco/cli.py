@@ -92,18 +92,18 @@ def _run(args, scene_module):
         simulate(scene, out, comm=comm, progress=not args.quiet, restart=args.restart,
                  overwrite=args.overwrite)
     except scene_module.SceneError as err:
-        return parallel.fail_together(comm, 2, f"contactvisco: scene error: {err}")
+        return parallel.fail_together(comm, 2, f"contactvisco: scene error: {err}", err)
     except NewtonFailure as err:
-        return parallel.fail_together(comm, 3, f"contactvisco: {err}")
+        return parallel.fail_together(comm, 3, f"contactvisco: {err}", err)
     except parallel.Stopped as err:
-        return parallel.fail_together(comm, err.exit_code, f"contactvisco: {err}")
+        return parallel.fail_together(comm, err.exit_code, f"contactvisco: {err}", err)
     except Exception as err:              # no bare traceback for users; --traceback shows it
         if args.traceback:
             import traceback
             traceback.print_exc()
         return parallel.fail_together(
             comm, 1, f"contactvisco: error: {_describe(err, out)} (run again with "
-            "--traceback for the details)")
+            "--traceback for the details)", err)
     return 0
 
 

@@ -7,7 +7,9 @@ Two ways a run stops early, both ending every rank with one message and a non-ze
   only rank 0 writes, a full disk on one node). `fail_together` lets the failing ranks meet in
   a non-blocking barrier on a communicator of their own for a few seconds: if every rank
   arrives, the error was collective and rank 0 prints it once; if not, the failing rank prints
-  its message and calls MPI_Abort, the only way to end a rank blocked in a collective.
+  its message and calls MPI_Abort, the only way to end a rank blocked in a collective. Clean-up
+  that is itself collective (destroying the SNES) runs only when every rank failed
+  (`together`): called by one rank alone, it would block like any collective.
 - SIGINT (Ctrl-C) or SIGTERM (a batch system's wall-time limit, forwarded to the ranks by
   mpirun). The handler only sets a flag; after each step the ranks take the maximum of their
   flags (`stop_requested`, one small allreduce per step), so all stop after the same step, with
@@ -68,26 +70,42 @@ def stop_requested(comm) -> int:
     return comm.allreduce(_requested["signum"], op=MPI.MAX)
 
 
-def fail_together(comm, code: int, message: str, wait_s: float = AGREE_S) -> int:
-    """Called by a rank that caught an error: print `message` once for the whole run and
-    return `code`, or abort every rank with it when the others do not arrive within wait_s
-    (they are then blocked elsewhere, e.g. in a collective)."""
+def together(comm, err: BaseException, wait_s: float = AGREE_S) -> bool:
+    """Whether every rank raised an error (then all may clean up collectively and report it
+    once) or only some (the others are blocked elsewhere, e.g. in a collective: nothing
+    collective may be called any more). Decided once per error: the answer is kept on it."""
+    known = getattr(err, "_contactvisco_together", None)
+    if known is not None:
+        return known
+    answer = True
+    if comm.size > 1:
+        # A communicator of its own: this barrier can never match a collective of the run.
+        request = _agreement_comm(comm).Ibarrier()
+        deadline = time.monotonic() + wait_s
+        while not request.Test():
+            if time.monotonic() > deadline:
+                answer = False
+                break
+            time.sleep(0.01)
+    try:
+        err._contactvisco_together = answer
+    except AttributeError:
+        pass
+    return answer
+
+
+def fail_together(comm, code: int, message: str, err: BaseException) -> int:
+    """Called by a rank that caught error `err`: print `message` once for the whole run and
+    return `code`, or abort every rank with it when the other ranks did not fail too."""
     if comm.size == 1:
         _print(message)
         return code
     from mpi4py import MPI
-    # A communicator of its own: this barrier can never match a collective of the run.
+    if not together(comm, err):
+        _print(f"{message} [rank {comm.rank}; ending all {comm.size} ranks]")
+        comm.Abort(code)
     agree = _agreement_comm(comm)
-    request = agree.Ibarrier()
-    deadline = time.monotonic() + wait_s
-    while not request.Test():
-        if time.monotonic() > deadline:
-            _print(f"{message} [rank {comm.rank}; ending all {comm.size} ranks]")
-            comm.Abort(code)
-        time.sleep(0.01)
-    # Every rank failed: the lowest rank's message, printed once.
-    first = agree.allreduce(comm.rank, op=MPI.MIN)
-    if comm.rank == first:
+    if comm.rank == 0:                 # every rank failed: rank 0's message, once
         _print(message)
     return agree.allreduce(code, op=MPI.MAX)
 
@@ -106,7 +124,8 @@ def _agreement_comm(comm):
 
 def prepare(comm):
     """Create the agreement communicator while every rank is still in step (collective)."""
-    _agreement_comm(comm)
+    if comm.size > 1:
+        _agreement_comm(comm)
 
 
 def _print(message: str):

@@ -38,6 +38,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     true, else refused. SIGINT/SIGTERM stop every rank after the same step (parallel.Stopped).
     """
     started = clock.perf_counter()
+    parallel.prepare(comm)          # collective: while every rank is still in step
     folder_lock = FolderLock(out, comm, restart, overwrite) if out else None
     snes, held = None, {}          # held: what must be closed however the run ends
     signals = parallel.catch_signals()
@@ -45,8 +46,13 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         geometry = geometry_module.build(scene, comm)
         problem = build(scene, geometry)
         snes = solver_module.create(problem, comm)
-        return _simulate(scene, out, comm, progress, keep_tables, restart, started, problem,
-                         snes, held)
+        result = _simulate(scene, out, comm, progress, keep_tables, restart, started,
+                           problem, snes, held)
+    except BaseException as err:
+        # Destroying the SNES is collective: only when every rank failed.
+        if not parallel.together(comm, err):
+            snes = None
+        raise
     finally:
         parallel.restore_signals(signals)
         if snes is not None:
@@ -55,6 +61,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
             held["writer"].close()
         if folder_lock is not None:
             folder_lock.release()
+    return result
 
 
 def _simulate(scene, out, comm, progress, keep_tables, restart, started, problem, snes,
