@@ -78,7 +78,7 @@ def test_unstable_time_step_is_warned(tmp_path):
     assert "unstable" in json.loads((tmp_path / "summary.json").read_text())["warnings"][0]
     proc = cli("run", "paper", "--out", str(tmp_path), "--set", "geometry.cells=[4, 4]",
                "--set", "time.T=10", "--set", "time.steps=5", "--set", "time.rule=trapezoid",
-               "--quiet")
+               "--quiet", "--overwrite")
     assert proc.returncode == 0 and "unstable" not in proc.stderr
 
 
