@@ -109,6 +109,10 @@ def check_folder(out, complete_steps=None, k=None) -> dict:
     checkpoint is at most one step behind the records. With complete_steps, all of them must
     be there, at t = n k."""
     out = pathlib.Path(out)
+    if not (out / "summary.json").exists():       # stopped during set-up: nothing written
+        assert complete_steps is None and steps_done(out) == 0
+        assert not (out / "checkpoint" / "meta.json").exists()
+        return {"records": 0, "fields": 0, "csv_steps": 0, "checkpoint": None}
     records = read_summary(out)["steps"]
     m = len(records)
     assert [r["step"] for r in records] == list(range(m)), "step records out of order"
