@@ -92,7 +92,10 @@ def _run(args, scene_module):
         simulate(scene, out, comm=comm, progress=not args.quiet, restart=args.restart,
                  overwrite=args.overwrite)
     except scene_module.SceneError as err:
-        return parallel.fail_together(comm, 2, f"contactvisco: scene error: {err}", err)
+        from .checkpoint import Damaged
+        from .lock import FolderError
+        kind = "error" if isinstance(err, (Damaged, FolderError)) else "scene error"
+        return parallel.fail_together(comm, 2, f"contactvisco: {kind}: {err}", err)
     except NewtonFailure as err:
         return parallel.fail_together(comm, 3, f"contactvisco: {err}", err)
     except parallel.Stopped as err:

@@ -20,6 +20,11 @@ import time
 
 from .scene import SceneError
 
+
+class FolderError(SceneError):
+    """The output folder cannot be taken (in use, or holding an earlier run's files)."""
+
+
 LOCK = "contactvisco.lock"
 #: Everything a run writes into its folder (files, and folders removed as a whole).
 OWN_FILES = ("summary.json", "summary.json.tmp", "steps.jsonl", "steps.jsonl.tmp",
@@ -54,7 +59,7 @@ class FolderLock:
     the end of the process)."""
 
     def __init__(self, folder, comm, restart=False, overwrite=False):
-        """Take the folder (collective); raise SceneError on every rank when another run
+        """Take the folder (collective); raise FolderError on every rank when another run
         holds it, or when it holds an earlier run's files and neither restart nor overwrite
         is given."""
         self.folder = pathlib.Path(folder)
@@ -69,7 +74,7 @@ class FolderLock:
         error = comm.bcast(error, root=0)
         if error:
             self.release()
-            raise SceneError(error)
+            raise FolderError(error)
 
     def _take(self, pids, restart, overwrite) -> str | None:
         self.folder.mkdir(parents=True, exist_ok=True)
