@@ -45,11 +45,12 @@ def test_sigterm_stops_after_a_whole_step_and_a_second_run_is_refused(tmp_path, 
     holder); SIGTERM to one rank stops every rank after the same step (exit 143 from the
     ranks, one message), and --restart completes the series."""
     out = tmp_path / "run"
-    proc = start(ranks, out, 400)
+    steps = 400 if ranks == 1 else 150     # still running when the second run has started
+    proc = start(ranks, out, steps)
     pids = rank_pids(out, proc, ranks)
     assert wait_for(out, proc, 5)
     tick = time.time()
-    second = run(1, out, 400)
+    second = run(1, out, steps)
     assert second.returncode == 2 and time.time() - tick < EXIT_S
     assert "in use by another run" in second.stderr and str(pids[0]) in second.stderr
     os.kill(pids[-1], signal.SIGTERM)
@@ -61,9 +62,9 @@ def test_sigterm_stops_after_a_whole_step_and_a_second_run_is_refused(tmp_path, 
     assert err.count("stopped by SIGTERM after step") == 1, err
     left = check_folder(out)
     assert left["checkpoint"] == left["records"] == left["fields"]   # the step was finished
-    restarted = run(ranks, out, 400, 16, "--restart")
+    restarted = run(ranks, out, steps, 16, "--restart")
     assert restarted.returncode == 0, restarted.stderr
-    check_folder(out, complete_steps=401, k=1.0 / 400)
+    check_folder(out, complete_steps=steps + 1, k=1.0 / steps)
 
 
 def test_error_on_one_rank_ends_both(tmp_path):
