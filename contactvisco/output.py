@@ -251,6 +251,8 @@ class Writer:
         """Close the files (idempotent); what was written stays valid."""
         if self.rank != 0:
             return
+        if self.index is not None:
+            self.index.close()
         for f in (self.csv is not None and self.csv_file, self.steps_file):
             if f and not f.closed:
                 f.flush()
@@ -348,10 +350,16 @@ class XdmfIndex:
             raise OSError(28, f"short write to {self.path}")
         self.end += len(data) - len(self.TAIL)
 
+    def close(self):
+        if getattr(self, "fd", None) is not None:
+            os.fsync(self.fd)
+            os.close(self.fd)
+            self.fd = None
+
     def __del__(self):
         try:
-            os.close(self.fd)
-        except (AttributeError, OSError):
+            self.close()
+        except OSError:
             pass
 
 
