@@ -101,6 +101,31 @@ def end(proc, timeout=EXIT_S) -> tuple[int, float]:
     return code, time.time() - tick
 
 
+VTK_READ = """
+import sys, vtk
+reader = vtk.vtkXdmfReader()
+reader.SetFileName(sys.argv[1])
+reader.UpdateInformation()
+times = reader.GetOutputInformation(0).Get(vtk.vtkStreamingDemandDrivenPipeline.TIME_STEPS())
+reader.UpdateTimeStep(times[-1])
+grid = reader.GetOutputDataObject(0)
+print(len(times), times[-1], grid.GetNumberOfPoints(),
+      grid.GetPointData().GetArray("u").GetNumberOfTuples())
+"""
+
+
+def vtk_read(path) -> tuple[int, float, int, int] | None:
+    """What VTK's XDMF reader (the one ParaView offers) finds in `path`: number of times, the
+    last time, points and u values at it; None without VTK. In a child process: VTK aborts in
+    a process that has loaded DOLFINx."""
+    proc = subprocess.run([sys.executable, "-c", VTK_READ, str(path)], capture_output=True,
+                          text=True, timeout=120)
+    if "No module named 'vtk'" in proc.stderr:
+        return None
+    n, t, points, values = proc.stdout.split()
+    return int(n), float(t), int(points), int(values)
+
+
 def check_folder(out, complete_steps=None, k=None) -> dict:
     """What a run (stopped at any moment) left in `out` is consistent and readable:
     every step record is whole and numbered 0..m-1; solution.xdmf lists each of them once,

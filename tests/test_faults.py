@@ -11,7 +11,7 @@ import pytest
 from mpi4py import MPI
 
 from fault_cases import (EXIT_S, alive, check_folder, end, rank_pids, run, start, steps_done,
-                         wait_for)
+                         vtk_read, wait_for)
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own (MPI) processes; run on one rank")
@@ -37,6 +37,9 @@ def test_kill9_of_a_rank_keeps_every_completed_step(tmp_path, ranks, victim, at)
     restarted = run(ranks, out, STEPS, 16, "--restart")
     assert restarted.returncode == 0, restarted.stderr
     check_folder(out, complete_steps=STEPS + 1, k=K)
+    if ranks == 1:             # the whole series as ParaView's XDMF reader sees it
+        seen = vtk_read(out / "solution.xdmf")
+        assert seen is None or seen == (STEPS + 1, 1.0, 17 * 17, 17 * 17)
 
 
 @pytest.mark.parametrize("ranks", [1, 2])
