@@ -27,8 +27,8 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: install demo test test-serial test-parallel benchmark benchmark-scaling clean \
-        apt-packages
+.PHONY: install demo test test-serial test-parallel benchmark benchmark-scaling \
+        benchmark-reliability clean apt-packages
 
 install: $(VENV)/.installed
 
@@ -89,6 +89,13 @@ benchmark: install
 # Size, solver and rank scaling (about an hour on 2 cores; each configuration its own mpirun).
 benchmark-scaling: install
 	cd benchmarks && ../$(PY) scaling.py
+
+# Faults (kill -9 campaigns on 1 and 2 ranks, signals, full disk, damaged checkpoints; about
+# 10 minutes) and the cost of the per-step output: docs/reliability.md.
+benchmark-reliability: install
+	cd benchmarks && ../$(PY) output_cost.py && $(MPIRUN) ../$(PY) output_cost.py --skip-runs && \
+	  ../$(PY) reliability.py --part kill1 && ../$(PY) reliability.py --part kill2 && \
+	  ../$(PY) reliability.py --part other
 
 clean:
 	rm -rf results build *.egg-info

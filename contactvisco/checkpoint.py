@@ -8,10 +8,17 @@ the whole mesh: every rank writes O(dofs / ranks).
 `contactvisco run ... --restart` continues from it on any partition and any rank count (the
 partition of a mesh is not reproducible between runs): each rank reads only the parts whose
 bounding box meets its own positions, and reaches the same answer as an uninterrupted run.
-A checkpoint of the earlier single-file layout (checkpoint/state.npz) is read as one part."""
+A checkpoint of the earlier single-file layout (checkpoint/state.npz) is read as one part.
+
+A restart trusts nothing it reads: meta.json carries a SHA-256 of its own content and of every
+part; each part repeats t and the step count; the arrays' shapes are checked against the
+fields and each other. Anything that does not match stops the restart (SceneError, exit 2)
+naming the file and what is wrong. The scene must equal the checkpoint's except in its
+[output] table; a refused restart lists the keys that differ."""
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import pathlib
@@ -29,6 +36,42 @@ LEGACY = "state.npz"
 def scene_hash(scene: dict) -> str:
     from .output import jsonable
     return hashlib.sha1(json.dumps(jsonable(scene), sort_keys=True).encode()).hexdigest()[:16]
+
+
+#: Scene tables a restart may change: they decide what is written, not what is solved.
+FREE = ("output",)
+
+
+def scene_values(scene: dict) -> dict:
+    """The scene as flat {"table.key": value} (JSON values), without the FREE tables."""
+    from .output import jsonable
+    flat = {}
+
+    def walk(prefix, value):
+        if isinstance(value, dict) and value:
+            for key, item in value.items():
+                walk(f"{prefix}.{key}" if prefix else str(key), item)
+        else:
+            flat[prefix] = value
+    walk("", jsonable({k: v for k, v in scene.items() if k not in FREE}))
+    return json.loads(json.dumps(flat))         # tuples as lists, as read back from JSON
+
+
+def scene_difference(saved: dict, scene: dict) -> list[str]:
+    """The keys whose values differ, 'key: saved -> now'."""
+    now = scene_values(scene)
+    return [f"{key}: {saved.get(key, '(absent)')!r} -> {now.get(key, '(absent)')!r}"
+            for key in sorted(set(saved) | set(now)) if saved.get(key) != now.get(key)]
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _meta_digest(meta: dict) -> str:
+    """SHA-256 of meta.json's content without its own checksum."""
+    body = {k: v for k, v in meta.items() if k != "sha256"}
+    return _digest(json.dumps(body, sort_keys=True).encode())
 
 
 def _keys(space):
@@ -101,18 +144,24 @@ def save(folder, problem, comm, t: float, count: int, step: float | None):
         part[field + ".keys"] = keys[:n]
         part[field] = array.reshape(-1, bs)[:n]
         points.append(keys[:n, :3])
+    part["t"], part["count"] = np.float64(t), np.int64(count)
+    buffer = io.BytesIO()
+    np.savez(buffer, **part)
+    data = buffer.getvalue()
     tmp = here / f"part-{comm.rank}.tmp.npz"
-    np.savez(tmp, **part)
+    tmp.write_bytes(data)
     os.replace(tmp, here / f"part-{comm.rank}.npz")
     cache = problem.__dict__.setdefault("_checkpoint_keys", {})
     if "box" not in cache:             # the positions never change during a run
         cache["box"] = _box(np.concatenate(points)) if points else None
-    boxes = comm.gather(cache["box"], root=0)
+        cache["scene"] = scene_values(problem.scene)
+    parts = comm.gather((cache["box"], _digest(data), len(data)), root=0)
     if comm.rank == 0:                 # every part is complete once rank 0 has every box
         meta = {"t": t, "count": count, "step": step, "ranks": comm.size,
-                "scene": scene_hash(problem.scene), "fields": names,
-                "parts": [{"file": f"{name}/part-{r}.npz", "box": box}
-                          for r, box in enumerate(boxes)]}
+                "scene_values": cache["scene"], "fields": names,
+                "parts": [{"file": f"{name}/part-{r}.npz", "box": box, "sha256": digest,
+                           "bytes": size} for r, (box, digest, size) in enumerate(parts)]}
+        meta["sha256"] = _meta_digest(meta)
         tmp = root / "meta.tmp.json"
         tmp.write_text(json.dumps(meta))
         os.replace(tmp, root / META)   # the checkpoint of step `count` is now the one
@@ -123,9 +172,13 @@ def save(folder, problem, comm, t: float, count: int, step: float | None):
     comm.barrier()
 
 
+class Damaged(SceneError):
+    """A checkpoint file that fails a check."""
+
+
 def _read_meta(root: pathlib.Path) -> dict:
     if (root / META).exists():
-        return json.loads((root / META).read_text())
+        return _checked_meta(root / META)
     if (root / LEGACY).exists():       # one file holding every dof, gathered by rank 0
         data = np.load(root / LEGACY)
         meta = json.loads(str(data["meta"]))
@@ -133,6 +186,68 @@ def _read_meta(root: pathlib.Path) -> dict:
         meta["parts"] = [{"file": LEGACY, "box": None}]
         return meta
     raise SceneError(f"--restart: no checkpoint in {root.parent}")
+
+
+def _checked_meta(path: pathlib.Path) -> dict:
+    """meta.json, its checksum and structure verified."""
+    def bad(what):
+        return Damaged(f"--restart: checkpoint {path}: {what}")
+    try:
+        meta = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as err:
+        raise bad(f"not valid JSON ({err})") from None
+    if not isinstance(meta, dict):
+        raise bad("not a JSON object")
+    if "sha256" in meta and meta["sha256"] != _meta_digest(meta):
+        raise bad("checksum mismatch: the file was edited or damaged")
+    types = {"t": (int, float), "count": int, "ranks": int, "fields": list, "parts": list}
+    for key, kind in types.items():
+        if not isinstance(meta.get(key), kind) or isinstance(meta.get(key), bool):
+            raise bad(f"'{key}' is missing or not a {getattr(kind, '__name__', 'number')}")
+    if meta["count"] < 1 or not np.isfinite(meta["t"]) or meta["t"] < 0:
+        raise bad(f"impossible t = {meta['t']} or count = {meta['count']}")
+    if len(meta["parts"]) != meta["ranks"]:
+        raise bad(f"{len(meta['parts'])} parts for {meta['ranks']} ranks")
+    return meta
+
+
+def _checked_part(root: pathlib.Path, entry: dict, meta: dict):
+    """One part (npz), verified against its checksum, meta's t and count, and the fields."""
+    path = root / entry["file"]
+    if pathlib.Path(entry["file"]).is_absolute() or ".." in pathlib.Path(entry["file"]).parts:
+        raise Damaged(f"--restart: checkpoint {root / META}: part path '{entry['file']}' "
+                      "leaves the checkpoint folder")
+
+    def bad(what):
+        return Damaged(f"--restart: checkpoint {path}: {what}")
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise bad(f"cannot be read ({err.strerror})") from None
+    if "sha256" in entry and _digest(data) != entry["sha256"]:
+        raise bad(f"checksum mismatch ({len(data)} bytes, {entry.get('bytes')} written): "
+                  "the file was edited or damaged")
+    try:
+        npz = np.load(io.BytesIO(data))
+        arrays = {name: npz[name] for name in npz.files}
+    except Exception as err:          # any failure to parse is a damaged file
+        raise bad(f"not a readable .npz ({type(err).__name__})") from None
+    if "t" in arrays and (float(arrays["t"]) != meta["t"] or
+                          int(arrays["count"]) != meta["count"]):
+        raise bad(f"written at t = {float(arrays['t']):g}, step count {int(arrays['count'])}; "
+                  f"meta.json says t = {meta['t']:g}, count {meta['count']}")
+    for name in meta["fields"]:
+        if name not in arrays:
+            raise bad(f"no array '{name}' (meta.json lists it)")
+        if _global(name):
+            continue
+        keys, values = arrays.get(name + ".keys"), arrays[name]
+        if keys is None or keys.ndim != 2 or len(keys) != len(values) or \
+                not np.all(np.isfinite(values)):
+            raise bad(f"array '{name}' has shape {values.shape} for "
+                      f"{None if keys is None else keys.shape} positions, or non-finite "
+                      "values")
+    return arrays
 
 
 def _match(want: np.ndarray, have: np.ndarray) -> np.ndarray:
@@ -153,7 +268,12 @@ def load(folder, problem, comm) -> dict:
     """Restore the unknowns and the history; return the meta (t, count, step)."""
     root = pathlib.Path(folder) / "checkpoint"
     meta = _read_meta(root)
-    if meta["scene"] != scene_hash(problem.scene):
+    if "scene_values" in meta:
+        differ = scene_difference(meta["scene_values"], problem.scene)
+        if differ:
+            raise SceneError("--restart: the scene differs from the one of the checkpoint "
+                             "(only [output] may change): " + "; ".join(differ))
+    elif meta.get("scene") != scene_hash(problem.scene):
         raise SceneError("--restart: the scene differs from the one of the checkpoint")
     scale = 1e-9 * problem.length_scale
 
@@ -172,11 +292,23 @@ def load(folder, problem, comm) -> dict:
     parts = [p for p in meta["parts"] if p["box"] is None or (
         box is not None and np.all(np.array(p["box"][0]) <= np.array(box[1]) + tol)
         and np.all(np.array(box[0]) <= np.array(p["box"][1]) + tol))]
-    data = [np.load(root / p["file"]) for p in parts]
+    # Each rank checks the parts it reads; a damaged one stops every rank.
+    error = None
+    try:
+        data = [_checked_part(root, p, meta) if p["file"] != LEGACY else np.load(root / LEGACY)
+                for p in parts]
+        first = data[0] if parts and parts[0] is meta["parts"][0] else (
+            _checked_part(root, meta["parts"][0], meta)
+            if meta["parts"][0]["file"] != LEGACY else np.load(root / LEGACY))
+    except Damaged as err:
+        error = str(err)
+    error = next((e for e in comm.allgather(error) if e is not None), None)
+    if error is not None:
+        raise Damaged(error)
     state, missing = {}, None
     for name, space, array in fields:
         if _global(name):
-            state[name[len("history_"):]] = np.load(root / meta["parts"][0]["file"])[name]
+            state[name[len("history_"):]] = first[name]
             continue
         want = mine[name]
         have_keys = [d[name + ".keys"] for d in data] or [np.zeros((0, want.shape[1]))]

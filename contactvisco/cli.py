@@ -29,6 +29,8 @@ def _parser():
     run.add_argument("--preset", choices=["fast", "balanced", "accurate"],
                      help="speed-accuracy preset (scales the scene's mesh and steps)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.add_argument("--overwrite", action="store_true",
+                     help="replace the files of an earlier run in --out")
     run.add_argument("--restart", action="store_true",
                      help="continue the run in --out from its last checkpoint")
     run.add_argument("--traceback", action="store_true",
@@ -65,6 +67,8 @@ def main(argv=None):
     from . import scene as scene_module
     if args.command == "plot":
         return _plot(args.folder)
+    if args.command == "run":
+        return _run(args, petsc_args, scene_module)
     preset = [f"preset='{args.preset}'"] if getattr(args, "preset", None) else []
     try:
         if args.command == "scenes":
@@ -72,38 +76,12 @@ def main(argv=None):
                 print(f"{name:12s} {scene_module.load(name)['description']}")
             return 0
         scene = scene_module.load(args.scene, preset + args.set)
-        if args.command == "show":
-            from .output import jsonable
-            print(json.dumps(jsonable(scene), indent=2))
-            return 0
-        from .run import simulate
-        from .solver import NewtonFailure
-        out = args.out or f"results/{scene['name']}"
-        _check_writable(out)
-        try:
-            simulate(scene, out, progress=not args.quiet, restart=args.restart)
-        except NewtonFailure as err:
-            print(f"contactvisco: {err}", file=sys.stderr)
-            return 3
-        except scene_module.SceneError:
-            raise
-        except Exception as err:          # no bare traceback for users; --traceback shows it
-            if args.traceback:
-                raise
-            print(f"contactvisco: error: {type(err).__name__}: {err} (run again with "
-                  "--traceback for the details)", file=sys.stderr)
-            return 1
+        from .output import jsonable
+        print(json.dumps(jsonable(scene), indent=2))
+        return 0
     except scene_module.SceneError as err:
-        if getattr(args, "scene", None):     # errors found while building name their origin too
-            err = scene_module.locate(err, args.scene, preset + args.set)
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
-    from .solver import unused_options
-    unused = unused_options(petsc_args)
-    if unused:
-        print(f"contactvisco: warning: PETSc options no solver used: {', '.join(unused)} "
-              "(misspelled, or for a solver this scene does not use)", file=sys.stderr)
-    return 0
 
 
 def versions() -> str:
@@ -131,6 +109,58 @@ def versions() -> str:
         f"MPI: {library} (mpi4py {mpi4py.__version__})",
         f"gmsh {gmsh}",
     ])
+
+
+def _run(args, petsc_args, scene_module):
+    """`contactvisco run`: every error, on any rank, ends every rank with one message
+    (contactvisco.parallel): exit 2 for a scene or folder error, 3 for a Newton failure,
+    128 + signal for SIGINT/SIGTERM, 1 for anything else."""
+    from mpi4py import MPI
+    from . import parallel
+    from .solver import NewtonFailure
+    comm = MPI.COMM_WORLD
+    parallel.prepare(comm)
+    out = args.out
+    preset = [f"preset='{args.preset}'"] if args.preset else []
+    try:
+        scene = scene_module.load(args.scene, preset + args.set)
+        from .run import simulate
+        out = args.out or f"results/{scene['name']}"
+        _check_writable(out)
+        simulate(scene, out, comm=comm, progress=not args.quiet, restart=args.restart,
+                 overwrite=args.overwrite)
+    except scene_module.SceneError as err:
+        from .checkpoint import Damaged
+        from .lock import FolderError
+        kind = "error" if isinstance(err, (Damaged, FolderError)) else "scene error"
+        if kind == "scene error":          # errors found while building name their origin too
+            err = scene_module.locate(err, args.scene, preset + args.set)
+        return parallel.fail_together(comm, 2, f"contactvisco: {kind}: {err}", err)
+    except NewtonFailure as err:
+        return parallel.fail_together(comm, 3, f"contactvisco: {err}", err)
+    except parallel.Stopped as err:
+        return parallel.fail_together(comm, err.exit_code, f"contactvisco: {err}", err)
+    except Exception as err:              # no bare traceback for users; --traceback shows it
+        if args.traceback:
+            import traceback
+            traceback.print_exc()
+        return parallel.fail_together(
+            comm, 1, f"contactvisco: error: {_describe(err, out)} (run again with "
+            "--traceback for the details)", err)
+    from .solver import unused_options
+    unused = unused_options(petsc_args)
+    if unused and comm.rank == 0:
+        print(f"contactvisco: warning: PETSc options no solver used: {', '.join(unused)} "
+              "(misspelled, or for a solver this scene does not use)", file=sys.stderr)
+    return 0
+
+
+def _describe(err: Exception, out) -> str:
+    """What went wrong; for an OSError the file, or else the output folder being written."""
+    if isinstance(err, OSError) and err.strerror:
+        where = err.filename or (f"writing into {out}" if out else None)
+        return f"{type(err).__name__}: {err.strerror}" + (f" ({where})" if where else "")
+    return f"{type(err).__name__}: {err}"
 
 
 def _check_writable(folder):

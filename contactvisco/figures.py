@@ -1,7 +1,7 @@
 """Figures of a finished run, drawn from its output folder alone (`contactvisco plot DIR`
 redraws them): the paper's Figures 2-4, the stress on the deformed body, probe histories.
 
-Reads summary.json, contact_nodes.csv and snapshots.npz. Line plots use matplotlib without
+Reads summary.json and steps.jsonl, contact_nodes.csv and snapshots.npz. Line plots use matplotlib without
 pyplot (no global backend switch, so notebooks keep theirs); the stress rendering uses pyvista
 off screen, in a child process (contactvisco.render).
 """
@@ -14,7 +14,7 @@ import pathlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .output import STATUSES
+from .output import STATUSES, read_summary
 
 ZONE_COLOURS = {"separated": "#dddddd", "compliance": "#9ecae1", "bound": "#fdae6b"}
 
@@ -22,7 +22,7 @@ ZONE_COLOURS = {"separated": "#dddddd", "compliance": "#9ecae1", "bound": "#fdae
 def draw_all(folder) -> list[pathlib.Path]:
     """Every figure the files in `folder` allow; returns the paths written."""
     folder = pathlib.Path(folder)
-    summary = json.loads((folder / "summary.json").read_text())
+    summary = read_summary(folder)
     written = []
     snapshots = folder / "snapshots.npz"
     if snapshots.exists():

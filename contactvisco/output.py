@@ -1,18 +1,21 @@
-"""What a run leaves behind: contact-node tables, probes, summary.json, CSV and XDMF.
+"""What a run leaves behind: contact-node tables, probes, summary.json + steps.jsonl, CSV and
+XDMF.
 
 Everything is gathered by owned dofs and coordinates, so the output does not depend on the rank
 count (dof numbering does). Files are written step by step: a run that stops early leaves
 readable output for the steps it finished.
 
-Who writes what, per step: every rank writes its own part of solution.h5 (DOLFINx XDMFFile,
-MPI-IO HDF5); rank 0 writes summary.json and contact_nodes.csv, whose size is O(contact nodes
-+ probes), from tables that were allgathered (O(contact nodes) per rank). Only the figure
+Who writes what, per step: every rank writes its own part of solution/step-<n>.h5 (DOLFINx
+XDMFFile, MPI-IO HDF5); rank 0 appends to solution.xdmf, steps.jsonl and contact_nodes.csv,
+O(contact nodes + probes) per step, from tables that were allgathered (O(contact nodes) per
+rank). Only the figure
 snapshots (gather_mesh, at output.figure_times and T) copy the whole mesh to rank 0, and they
 are skipped above output.snapshot_max_nodes.
 """
 from __future__ import annotations
 
 import csv
+import io as io_module
 import json
 import math
 import os
@@ -186,25 +189,47 @@ class Probes:
 
 
 class Writer:
-    """summary.json, contact_nodes.csv and solution.xdmf in one output folder."""
+    """summary.json, steps.jsonl, contact_nodes.csv and solution.xdmf in one output folder.
+
+    Every file is consistent after a hard stop (kill -9) at any moment: the per-step records
+    are appended and flushed (a cut last line is ignored by read_summary), the fields of step
+    n go to solution/step-n.h5 (closed before the step is listed), and solution.xdmf lists a
+    step only once its file is complete (xdmf_index). Per step the work is O(1) in the number of
+    steps: nothing already written is rewritten."""
 
     def __init__(self, folder, problem, comm, xdmf=True, restart_count=None):
         """restart_count: continue the files of an earlier run after its first
-        restart_count steps (what a later crash may have written beyond them is dropped)."""
+        restart_count steps (what a later stop may have written beyond them is dropped)."""
         self.folder = pathlib.Path(folder)
         self.comm = comm
         self.rank = comm.rank
+        self.mesh = problem.geometry.mesh
         if self.rank == 0:
             self.folder.mkdir(parents=True, exist_ok=True)
         comm.barrier()
         self.summary = {"scene": problem.scene, "unknowns": problem.count_unknowns(),
-                        "ranks": comm.size, "steps": [], "final": None}
+                        "ranks": comm.size, "steps_file": STEPS_FILE, "final": None}
+        self.steps_written = 0
+        self.last_record = None
+        kept_steps = []
         if restart_count is not None:
-            earlier = json.loads((self.folder / "summary.json").read_text())
-            self.summary["steps"] = earlier["steps"][:restart_count]
+            earlier = read_summary(self.folder)
+            kept_steps = earlier["steps"][:restart_count]
             self.summary["restarts"] = earlier.get("restarts", []) + [
                 {"from_step": restart_count}]
-        self.csv = None
+            for key in ("notes", "warnings"):
+                if key in earlier:
+                    self.summary[key] = earlier[key]
+            self.last_record = kept_steps[-1] if kept_steps else None
+        self.steps_written = len(kept_steps)
+        self.csv = self.steps_file = self.index = None
+        if self.rank == 0:
+            # Restart: the records are cut to the checkpoint once (O(N) once per restart).
+            path = self.folder / STEPS_FILE
+            _rewrite(path, "".join(json.dumps(jsonable(r), allow_nan=False) + "\n"
+                                   for r in kept_steps))
+            self.steps_file = open(path, "a")
+            self._write_summary()
         if self.rank == 0 and problem.nodes is not None:
             d = problem.geometry.mesh.geometry.dim
             header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
@@ -216,29 +241,41 @@ class Writer:
                 with open(path, newline="") as f:
                     kept = [row for row in list(csv.reader(f))[1:]
                             if len(row) == len(header) and int(row[0]) < restart_count]
-            self.csv_file = open(path, "w", newline="")
+            text = io_module.StringIO()
+            writer = csv.writer(text)
+            writer.writerow(header)
+            writer.writerows(kept)
+            _rewrite(path, text.getvalue())
+            self.csv_file = open(path, "a", newline="")
             self.csv = csv.writer(self.csv_file)
-            self.csv.writerow(header)
-            self.csv.writerows(kept)
         self.xdmf = None
         if xdmf:
-            # A restarted run continues in a file of its own: the earlier one may be cut.
-            name = "solution.xdmf" if restart_count is None else \
-                f"solution-restart{len(self.summary['restarts'])}.xdmf"
-            self.xdmf = io.XDMFFile(comm, str(self.folder / name), "w")
-            self.xdmf.write_mesh(problem.geometry.mesh)
-        self._writable = {}
+            self.xdmf = self.folder / SOLUTION_DIR
+            if self.rank == 0:
+                self.xdmf.mkdir(exist_ok=True)
+                self.index = XdmfIndex(self.folder / "solution.xdmf", self.xdmf,
+                                       restart_count or 0)
+            comm.barrier()
+        self._writable = {}                # P1/DG0 copies of higher-degree fields (xdmf_field)
 
     def step(self, record: dict, table, fields=()):
-        self.summary["steps"].append(record)
-        if self.xdmf is not None:
-            for f in fields:
-                self.xdmf.write_function(xdmf_field(f, self._writable), record["t"])
+        """Write step record["step"]: its fields, contact-node rows, then its record."""
+        n = record["step"]
+        if self.xdmf is not None and fields:
+            # A file per step, closed before the index lists it: a stop while it is being
+            # written never touches the steps before it.
+            name = self.xdmf / f"step-{n:06d}.xdmf"
+            with io.XDMFFile(self.comm, str(name), "w") as f:
+                f.write_mesh(self.mesh)
+                for field in fields:
+                    f.write_function(xdmf_field(field, self._writable), record["t"])
+        self.steps_written = n + 1
+        self.last_record = record
         if self.rank != 0:
             return
         if self.csv is not None and table is not None:
             for i in range(len(table["u_nu"])):
-                self.csv.writerow([record["step"], repr(record["t"])]
+                self.csv.writerow([n, repr(record["t"])]
                                   + [repr(float(c)) for c in table["x"][i]]
                                   + [repr(float(table[key][i])) for key in
                                      ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
@@ -246,22 +283,141 @@ class Writer:
                                   + [STATUSES[table["status"][i]],
                                      FRICTION_STATES[table["friction"][i]]])
             self.csv_file.flush()
-        self._write_summary()
+        if self.index is not None and fields:
+            self.index.append(n, record["t"])
+        # One line, written whole and flushed: a stop leaves whole lines (and at most a cut
+        # last one, which read_summary drops).
+        self.steps_file.write(json.dumps(jsonable(record), allow_nan=False) + "\n")
+        self.steps_file.flush()
+
+    def note(self, key: str, text: str):
+        """Add a note or warning to summary.json (rewritten: it is small)."""
+        items = self.summary.setdefault(key, [])
+        if text not in items:
+            items.append(text)
+        if self.rank == 0:
+            self._write_summary()
 
     def finish(self, final: dict):
         self.summary["final"] = final
-        if self.xdmf is not None:
-            self.xdmf.close()
+        self.close()
         if self.rank == 0:
-            if self.csv is not None:
-                self.csv_file.close()
             self._write_summary()
 
+    def close(self):
+        """Close the files (idempotent); what was written stays valid."""
+        if self.rank != 0:
+            return
+        if self.index is not None:
+            self.index.close()
+        for f in (self.csv is not None and self.csv_file, self.steps_file):
+            if f and not f.closed:
+                f.flush()
+                os.fsync(f.fileno())
+                f.close()
+
     def _write_summary(self):
-        path = self.folder / "summary.json"
-        tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(jsonable(self.summary), indent=1, allow_nan=False))
-        os.replace(tmp, path)      # a crash never leaves a half-written summary
+        _rewrite(self.folder / "summary.json",
+                 json.dumps(jsonable(self.summary), indent=1, allow_nan=False))
+
+
+STEPS_FILE = "steps.jsonl"
+SOLUTION_DIR = "solution"
+
+
+def _rewrite(path: pathlib.Path, text: str):
+    """Replace a file's content atomically (a stop leaves the old or the new file)."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def read_summary(folder) -> dict:
+    """summary.json with "steps": the step records of steps.jsonl (a cut last line, left by
+    a hard stop, is dropped). An earlier layout with the steps inside summary.json reads
+    as it is."""
+    folder = pathlib.Path(folder)
+    summary = json.loads((folder / "summary.json").read_text())
+    path = folder / summary.get("steps_file", STEPS_FILE)
+    if "steps" not in summary:
+        steps = []
+        if path.exists():
+            for line in path.read_text().split("\n"):
+                try:
+                    steps.append(json.loads(line))
+                except ValueError:
+                    break            # the last, cut line of a stopped run (or the end)
+        summary["steps"] = steps
+    return summary
+
+
+class XdmfIndex:
+    """solution.xdmf: one temporal collection whose step n is the mesh and fields of
+    solution/step-n.xdmf. Appending a step overwrites only the closing tags at the end of the
+    file with the new grid and the closing tags, in one write: O(1) per step, and the file is
+    a complete XDMF document before and after that write."""
+
+    HEAD = ('<?xml version="1.0"?>\n<Xdmf Version="3.0" '
+            'xmlns:xi="http://www.w3.org/2001/XInclude">\n  <Domain>\n'
+            '    <Grid Name="solution" GridType="Collection" CollectionType="Temporal">\n')
+    TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
+
+    def __init__(self, path: pathlib.Path, steps: pathlib.Path, keep: int):
+        """Start the index with the first `keep` steps of the files in `steps`."""
+        self.path, self.steps = path, steps
+        body = "".join(self.entry(n) for n in range(keep)
+                       if (steps / f"step-{n:06d}.xdmf").exists())
+        _rewrite(path, self.HEAD + body + self.TAIL)
+        self.fd = os.open(path, os.O_WRONLY)
+        self.end = os.path.getsize(path) - len(self.TAIL)
+
+    def entry(self, n: int, t=None) -> str:
+        """The grid of step n, taken from solution/step-n.xdmf, its data paths made relative
+        to solution.xdmf."""
+        import xml.etree.ElementTree as ET
+        name = f"step-{n:06d}"
+        root = ET.parse(self.steps / f"{name}.xdmf").getroot()
+        domain = root.find("Domain")
+        mesh = domain.find("Grid[@GridType='Uniform']")
+        grid = ET.Element("Grid", Name=f"step {n}", GridType="Uniform")
+        for part in mesh:
+            if part.tag in ("Topology", "Geometry"):
+                grid.append(part)
+        time_value = None
+        for collection in domain.findall("Grid[@GridType='Collection']"):
+            for uniform in collection.findall("Grid"):
+                time_value = uniform.find("Time").get("Value")
+                for attribute in uniform.findall("Attribute"):
+                    grid.append(attribute)
+        grid.insert(0, ET.Element("Time", Value=time_value if t is None else repr(t)))
+        for item in grid.iter("DataItem"):
+            item.text = f"{self.steps.name}/{item.text.strip()}"
+        ET.indent(grid, space="  ", level=3)
+        return "      " + ET.tostring(grid, encoding="unicode").rstrip() + "\n"
+
+    def append(self, n: int, t: float):
+        data = (self.entry(n, t) + self.TAIL).encode()
+        written = os.pwrite(self.fd, data, self.end)
+        if written != len(data):       # a full disk: put the old end back and fail
+            os.pwrite(self.fd, self.TAIL.encode(), self.end)
+            os.ftruncate(self.fd, self.end + len(self.TAIL))
+            raise OSError(28, f"short write to {self.path}")
+        self.end += len(data) - len(self.TAIL)
+
+    def close(self):
+        if getattr(self, "fd", None) is not None:
+            os.fsync(self.fd)
+            os.close(self.fd)
+            self.fd = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except OSError:
+            pass
 
 
 def jsonable(value):

@@ -13,7 +13,9 @@ from mpi4py import MPI
 from . import checkpoint
 from . import geometry as geometry_module
 from . import output
+from . import parallel
 from . import scene as scene_module
+from .lock import FolderLock
 from .problem import Problem, build
 from . import solver as solver_module
 from .solver import NewtonFailure
@@ -29,13 +31,42 @@ class Result:
 
 
 def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
-             keep_tables=False, restart=False) -> Result:
+             keep_tables=False, restart=False, overwrite=True) -> Result:
     """Solve a resolved scene; write results into folder `out` when given, with a checkpoint
-    after every step; restart=True continues from the checkpoint in `out`."""
+    after every step; restart=True continues from the checkpoint in `out`. The run holds the
+    folder (contactvisco.lock); an earlier run's files in it are replaced when overwrite is
+    true, else refused. SIGINT/SIGTERM stop every rank after the same step (parallel.Stopped).
+    """
     started = clock.perf_counter()
-    geometry = geometry_module.build(scene, comm)
-    problem = build(scene, geometry)
-    snes = solver_module.create(problem, comm)
+    parallel.prepare(comm)          # collective: while every rank is still in step
+    folder_lock = FolderLock(out, comm, restart, overwrite) if out else None
+    snes, held = None, {}          # held: what must be closed however the run ends
+    signals = parallel.catch_signals()
+    try:
+        geometry = geometry_module.build(scene, comm)
+        problem = build(scene, geometry)
+        snes = solver_module.create(problem, comm)
+        result = _simulate(scene, out, comm, progress, keep_tables, restart, started,
+                           problem, snes, held)
+    except BaseException as err:
+        # Destroying the SNES is collective: only when every rank failed.
+        if not parallel.together(comm, err):
+            snes = None
+        raise
+    finally:
+        parallel.restore_signals(signals)
+        if snes is not None:
+            snes.destroy()
+        if held.get("writer") is not None:
+            held["writer"].close()
+        if folder_lock is not None:
+            folder_lock.release()
+    return result
+
+
+def _simulate(scene, out, comm, progress, keep_tables, restart, started, problem, snes,
+              held) -> Result:
+    geometry = problem.geometry
     setup_s = clock.perf_counter() - started
     opts = scene["output"]
     probes = output.Probes(geometry.mesh, opts["probes"]) if opts["probes"] else None
@@ -43,6 +74,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     resumed = checkpoint.load(out, problem, comm) if restart else None
     writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
                            restart_count=resumed and resumed["count"]) if out else None
+    held["writer"] = writer
     T, N = scene["time"]["T"], scene["time"]["steps"]
     k = T / N
     figure_steps = {min(N, max(0, round(t / k))) for t in opts["figure_times"]} | {N}
@@ -65,7 +97,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
             "directly, O(n) work and memory per step")
         say(note)
         if writer is not None:
-            writer.summary["notes"] = [note]
+            writer.note("notes", note)
 
     b = scene_module.stability_number(scene)
     if scene["time"]["rule"] == "paper" and b >= 1.0:
@@ -75,16 +107,14 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         if comm.rank == 0:
             print(f"contactvisco: {warning}", file=sys.stderr, flush=True)
         if writer is not None:
-            writer.summary["warnings"] = [warning]
+            writer.note("warnings", warning)
 
     figure_times = {round(i * k, 12) for i in figure_steps}
     # The figure snapshots gather the whole mesh on rank 0: skipped on large meshes.
     skip_snapshots = writer is not None and opts["figures"] and output.snapshot_skip_note(
         problem, opts["snapshot_max_nodes"], writer.xdmf is not None)
     if skip_snapshots:
-        notes = writer.summary.setdefault("notes", [])
-        if skip_snapshots not in notes:     # a restarted run keeps its earlier summary
-            notes.append(skip_snapshots)
+        writer.note("notes", skip_snapshots)    # a restarted run keeps its earlier notes
         say(skip_snapshots)
     state = {"t": 0.0, "count": 0, "table": None}
     if resumed:
@@ -165,6 +195,9 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         accept(t_new, iterations, clock.perf_counter() - tick, cuts)
         if out and opts["checkpoint"]:
             checkpoint.save(out, problem, comm, t_new, state["count"], step)
+        signum = parallel.stop_requested(comm)
+        if signum:                        # every rank stops after this same step
+            raise parallel.Stopped(signum, state["count"] - 1, t_new)
 
     for n in range(N + 1):
         if resumed and n * k <= state["t"] + 1e-12 * T:
@@ -172,8 +205,8 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         solve_to(n * k, 0)
     table = state["table"]
 
-    if table is None and writer is not None and writer.summary["steps"]:
-        counts = writer.summary["steps"][-1]["status_counts"]     # nothing left after a restart
+    if table is None and writer is not None and writer.last_record:
+        counts = writer.last_record["status_counts"]     # nothing left after a restart
     else:
         counts = output.status_counts(table)
     final = {"t": T, "status_counts": counts,

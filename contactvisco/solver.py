@@ -15,6 +15,8 @@ linear solver.
 """
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -156,32 +158,42 @@ class _Newton:
         merged.update(defaults or {})
         merged.update(scene_options or {})
         self._scene_options = set(scene_options or {})
+        self._scene_read: list[str] = []
         self._inserted = [key for key in merged if not opts.hasName(key)]
         for key in self._inserted:
             opts[key] = merged[key]
         self.snes = PETSc.SNES().create(comm)
 
     def _finish_setup(self):
-        self.snes.setMonitor(self._monitor)
-        opts = PETSc.Options()
+        self.snes.setMonitor(_weak(self._monitor))
         try:
             self.snes.setFromOptions()
         except PETSc.Error as err:
-            given = {key: value for key, value in opts.getAll().items()
-                     if key in self._scene_options or key not in self._inserted}
-            read = [key for key in given if option_used(key)]
-            for key in self._inserted:
-                opts.delValue(key)
-            reason = f"PETSc error {err.ierr}" + (": unknown type" if err.ierr == 86 else "")
-            named = ", ".join(f"-{k} {given[k] or ''}".strip() for k in read) or "none"
-            scene_keys = [k for k in read if k in self._scene_options]
-            if scene_keys:        # named by its scene key, so the message gets its origin
-                raise SceneError(f"solver.petsc_options.{scene_keys[0]}: PETSc rejected an "
-                                 f"option value ({reason}); the given options it had read: "
-                                 f"{named}") from None
-            raise SceneError(f"PETSc rejected a command-line option value ({reason}); the "
-                             f"given options it had read: {named}") from None
-        self._scene_read = []
+            raise self._rejected(err) from None
+        finally:                       # also when PETSc rejects an option
+            self.remove_options()
+
+    def _rejected(self, err) -> SceneError:
+        """The error for an option value PETSc rejected, naming the given options it had read
+        (by scene key where the scene gave it, so that the message gets its origin)."""
+        opts = PETSc.Options()
+        given = {key: value for key, value in opts.getAll().items()
+                 if key in self._scene_options or key not in self._inserted}
+        read = [key for key in given if option_used(key)]
+        reason = f"PETSc error {err.ierr}" + (": unknown type" if err.ierr == 86 else "")
+        named = ", ".join(f"-{k} {given[k] or ''}".strip() for k in read) or "none"
+        scene_keys = [k for k in read if k in self._scene_options]
+        if scene_keys:
+            return SceneError(f"solver.petsc_options.{scene_keys[0]}: PETSc rejected an "
+                              f"option value ({reason}); the given options it had read: "
+                              f"{named}")
+        return SceneError(f"PETSc rejected a command-line option value ({reason}); the "
+                          f"given options it had read: {named}")
+
+    def remove_options(self):
+        """Take the options this solver set out of PETSc's global database (idempotent),
+        noting which of the scene's options PETSc read."""
+        opts = PETSc.Options()
         for key in self._inserted:
             if key in self._scene_options:
                 used = option_used(key)
@@ -190,6 +202,16 @@ class _Newton:
                 elif used:
                     self._scene_read.append(f"-{key} {opts.getString(key, '')}".strip())
             opts.delValue(key)
+        self._inserted = []
+
+    def destroy(self):
+        """Free the SNES and its vectors and matrices (idempotent); the object is unusable
+        afterwards."""
+        self.remove_options()
+        for name in ("snes", "b", "x", "A", "_x_jacobian", "_du"):
+            obj = self.__dict__.get(name)
+            if obj is not None:
+                obj.destroy()
 
     def _given_read(self) -> list[str]:
         """Options of the scene and of the command line that PETSc has read."""
@@ -280,8 +302,8 @@ class BlockSNES(_Newton):
         self.b = compat.block_vector(self.F)
         self.x = compat.block_vector(self.F)
         self.A = compat.block_matrix(self.J)
-        self.snes.setFunction(self._residual, self.b)
-        self.snes.setJacobian(self._jacobian, self.A)
+        self.snes.setFunction(_weak(self._residual), self.b)
+        self.snes.setJacobian(_weak(self._jacobian), self.A)
         self._finish_setup()
 
     def _residual(self, snes, x, b):
@@ -316,11 +338,11 @@ class CondensedSNES(_Newton):
         self._x_jacobian = u_vector.copy()   # the iterate of the last Jacobian
         self._du = u_vector.copy()
         self._pending = False            # a step from _x_jacobian awaits its multiplier update
-        self.snes.setFunction(self._residual, self.b)
-        self.snes.setJacobian(self._jacobian, self.system.J_red)
+        self.snes.setFunction(_weak(self._residual), self.b)
+        self.snes.setJacobian(_weak(self._jacobian), self.system.J_red)
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
         # as with BlockSNES; the condensed residual alone leaves out the multiplier rows.
-        self.snes.setConvergenceTest(self._converged)
+        self.snes.setConvergenceTest(_weak(self._converged))
         self.system.J_red.setNearNullSpace(rigid_body_modes(problem.V))
         self._finish_setup()
 
@@ -366,6 +388,18 @@ class CondensedSNES(_Newton):
 def iterative_options() -> dict:
     """GMRES with BoomerAMG where PETSc has hypre, else with GAMG."""
     return ITERATIVE_OPTIONS if compat.has_hypre() else GAMG_OPTIONS
+
+
+def _weak(method):
+    """A callback for the SNES that calls `method` through a weak reference to its object:
+    the SNES keeps the callback, and a bound method would keep the solver (and through it the
+    problem, mesh and communicators) in a reference cycle through PETSc that Python's
+    collector cannot see."""
+    ref = weakref.WeakMethod(method)
+
+    def call(*args):
+        return ref()(*args)
+    return call
 
 
 def rigid_body_modes(V) -> PETSc.NullSpace:

@@ -42,6 +42,7 @@ from mpi4py import MPI
 
 from contactvisco import scene as scene_module
 from contactvisco.notebook import quick, show_images
+from contactvisco.output import read_summary
 from contactvisco.run import simulate
 
 # %% [markdown]
@@ -73,7 +74,7 @@ result = simulate(scene, out, comm=MPI.COMM_WORLD)
 # %%
 counts = result.steps[-1]["status_counts"]
 print(counts)
-summary = json.loads((out / "summary.json").read_text())
+summary = read_summary(out)      # summary.json with the step records of steps.jsonl
 for step in (summary["steps"][1], summary["steps"][-1]):
     print(f"t = {step['t']:.1f}:", {tuple(p["x"]): round(p["u"][1], 5) for p in step["probes"]})
 

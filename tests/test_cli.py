@@ -8,6 +8,8 @@ import sys
 import pytest
 from mpi4py import MPI
 
+from contactvisco.output import read_summary
+
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own processes; run on one rank")
 
@@ -23,7 +25,7 @@ def test_run_writes_results(tmp_path):
                "--set", "time.steps=2", "-snes_max_it", "30")
     assert proc.returncode == 0, proc.stderr
     assert "step    2  t = 1/1" in proc.stdout
-    summary = json.loads((out / "summary.json").read_text())
+    summary = read_summary(out)
     assert [s["t"] for s in summary["steps"]] == [0.0, 0.5, 1.0]
     for step in summary["steps"]:
         assert set(step) >= {"t", "newton_iterations", "residual", "wall_s", "status_counts",
@@ -35,7 +37,7 @@ def test_run_writes_results(tmp_path):
     rows = list(csv.DictReader(open(out / "contact_nodes.csv")))
     assert len(rows) == 3 * 9
     assert {r["status"] for r in rows} <= {"separated", "compliance", "bound"}
-    for name in ("solution.xdmf", "solution.h5", "deformed_mesh.png",
+    for name in ("solution.xdmf", "solution/step-000002.h5", "steps.jsonl", "deformed_mesh.png",
                  "contact_reactions.png", "contact_displacements.png"):
         assert (out / name).stat().st_size > 0, name
 
@@ -81,7 +83,7 @@ def test_unstable_time_step_is_refused_unless_allowed(tmp_path):
     assert "unstable here" in proc.stderr and "2.6" in proc.stderr
     assert "unstable" in json.loads((tmp_path / "summary.json").read_text())["warnings"][0]
     proc = cli("run", "paper", "--out", str(tmp_path), *unstable, "--set",
-               "time.rule=trapezoid", "--quiet")
+               "time.rule=trapezoid", "--quiet", "--overwrite")
     assert proc.returncode == 0 and "unstable" not in proc.stderr
 
 

@@ -13,6 +13,8 @@ import pytest
 from mpi4py import MPI
 
 from contactvisco import compat
+from contactvisco.output import read_summary
+from fault_cases import alive
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own (MPI) processes; run on one rank")
@@ -57,10 +59,14 @@ def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
             break
         time.sleep(0.05)
     assert proc.poll() is None, "the run finished before it could be killed"
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    # kill -9 of a real rank process (the last one), not of mpirun: the job must end.
+    pids = json.loads((out / "contactvisco.lock").read_text())["pids"]
+    assert len(pids) == ranks
+    os.kill(pids[-1], signal.SIGKILL)
+    proc.wait(timeout=30)
+    assert not any(alive(pid) for pid in pids)
     # What the killed run left is complete and readable for the steps it finished.
-    summary = json.loads((out / "summary.json").read_text())
+    summary = read_summary(out)
     done = len(summary["steps"])
     assert 20 <= done < STEPS + 1 and summary["final"] is None
     _, rows = last_step_rows(out / "contact_nodes.csv")
@@ -69,8 +75,8 @@ def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
     restart = subprocess.run(command(ranks, out, "--restart"), env=ENV, timeout=600,
                              capture_output=True, text=True)
     assert restart.returncode == 0, restart.stderr
-    final = json.loads((out / "summary.json").read_text())
-    expected = json.loads((reference / "summary.json").read_text())
+    final = read_summary(out)
+    expected = read_summary(reference)
     assert len(final["steps"]) == STEPS + 1 and final["restarts"][0]["from_step"] >= 20
     assert final["final"]["status_counts"] == expected["final"]["status_counts"]
     got, _ = last_step_rows(out / "contact_nodes.csv")
@@ -90,10 +96,12 @@ def test_restart_checks_the_scene_and_works_on_another_rank_count(tmp_path):
              "--set", "memory.values=[100.0, 50.0]"]
     subprocess.run(command(1, out, *table), check=True, env=ENV, timeout=600,
                    capture_output=True)
-    other = subprocess.run(command(1, out, "--restart", "--set", "contact.mu=0.3"), env=ENV,
-                           timeout=600, capture_output=True, text=True)
+    other = subprocess.run(command(1, out, "--restart", "--set", "contact.mu=0.3", *table),
+                           env=ENV, timeout=600, capture_output=True, text=True)
     assert other.returncode == 2 and "scene differs" in other.stderr
+    assert "contact.mu: 0.2 -> 0.3" in other.stderr      # the key that differs, and only it
+    assert other.stderr.count("->") == 1
     two = subprocess.run(command(2, out, "--restart", *table), env=ENV, timeout=600,
                          capture_output=True, text=True)
     assert two.returncode == 0, two.stderr
-    assert json.loads((out / "summary.json").read_text())["final"]["t"] == 1.0
+    assert read_summary(out)["final"]["t"] == 1.0

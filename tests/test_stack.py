@@ -13,6 +13,7 @@ from mpi4py import MPI
 
 from contactvisco import compat
 from contactvisco import scene as scene_module
+from contactvisco.h5read import check_xdmf
 from contactvisco.output import xdmf_field
 from contactvisco.run import simulate
 
@@ -59,6 +60,11 @@ def test_degree_two_run_writes_every_step():
         xdmf = pathlib.Path(folder) / "solution.xdmf"
         series = _series(xdmf)
         assert series["u"] == series["sigma"] == [0.0, 0.5, 1.0], series
+        # every dataset reads back with the shape the XDMF gives: u at the mesh's nodes
+        steps = check_xdmf(xdmf)
+        nodes = result.problem.geometry.mesh.geometry.index_map().size_global
+        assert all(arrays["u"].shape[0] in (nodes, result.problem.count_unknowns()["u"] // 2)
+                   for _, arrays in steps)
 
 
 def _series(xdmf: pathlib.Path) -> dict:

@@ -1,0 +1,132 @@
+"""Stopping an MPI run together: an error on one rank, or a signal, ends every rank.
+
+Two ways a run stops early, both ending every rank with one message and a non-zero exit:
+
+- An error. The rank that raised it cannot know whether the others raised it too (a scene
+  error, a Newton failure: collective) or are blocked in a collective waiting for it (a file
+  only rank 0 writes, a full disk on one node). `fail_together` lets the failing ranks meet in
+  a non-blocking barrier on a communicator of their own for a few seconds: if every rank
+  arrives, the error was collective and rank 0 prints it once; if not, the failing rank prints
+  its message and calls MPI_Abort, the only way to end a rank blocked in a collective. Clean-up
+  that is itself collective (destroying the SNES) runs only when every rank failed
+  (`together`): called by one rank alone, it would block like any collective.
+- SIGINT (Ctrl-C) or SIGTERM (a batch system's wall-time limit, forwarded to the ranks by
+  mpirun). The handler only sets a flag; after each step the ranks take the maximum of their
+  flags (`stop_requested`, one small allreduce per step), so all stop after the same step, with
+  its files and checkpoint written, and exit with 128 + the signal number.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+import time
+
+#: How long the ranks that raised an error wait for the others before aborting [s].
+AGREE_S = 3.0
+
+
+class Stopped(Exception):
+    """A signal asked the run to stop; raised on every rank after the same step."""
+
+    def __init__(self, signum: int, step: int, t: float):
+        self.signum, self.step, self.t = signum, step, t
+        name = signal.Signals(signum).name
+        super().__init__(f"stopped by {name} after step {step} (t = {t:g}); the files hold "
+                         "every step up to it; continue with --restart")
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+_requested = {"signum": 0}
+
+
+def _handler(signum, frame):
+    if _requested["signum"]:          # a second signal: stop now
+        signal.signal(signum, signal.SIG_DFL)
+        signal.raise_signal(signum)
+    _requested["signum"] = signum
+
+
+def catch_signals():
+    """Turn SIGINT and SIGTERM into a stop request (returns the previous handlers). Only the
+    main thread may set handlers: elsewhere the signals keep theirs."""
+    import threading
+    _requested["signum"] = 0
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {s: signal.signal(s, _handler) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+def restore_signals(previous: dict):
+    for s, handler in previous.items():
+        signal.signal(s, handler)
+
+
+def stop_requested(comm) -> int:
+    """The signal number any rank received (0 for none); collective."""
+    from mpi4py import MPI
+    return comm.allreduce(_requested["signum"], op=MPI.MAX)
+
+
+def together(comm, err: BaseException, wait_s: float = AGREE_S) -> bool:
+    """Whether every rank raised an error (then all may clean up collectively and report it
+    once) or only some (the others are blocked elsewhere, e.g. in a collective: nothing
+    collective may be called any more). Decided once per error: the answer is kept on it."""
+    known = getattr(err, "_contactvisco_together", None)
+    if known is not None:
+        return known
+    answer = True
+    if comm.size > 1:
+        # A communicator of its own: this barrier can never match a collective of the run.
+        request = _agreement_comm(comm).Ibarrier()
+        deadline = time.monotonic() + wait_s
+        while not request.Test():
+            if time.monotonic() > deadline:
+                answer = False
+                break
+            time.sleep(0.01)
+    try:
+        err._contactvisco_together = answer
+    except AttributeError:
+        pass
+    return answer
+
+
+def fail_together(comm, code: int, message: str, err: BaseException) -> int:
+    """Called by a rank that caught error `err`: print `message` once for the whole run and
+    return `code`, or abort every rank with it when the other ranks did not fail too."""
+    if comm.size == 1:
+        _print(message)
+        return code
+    from mpi4py import MPI
+    if not together(comm, err):
+        _print(f"{message} [rank {comm.rank}; ending all {comm.size} ranks]")
+        comm.Abort(code)
+    agree = _agreement_comm(comm)
+    if comm.rank == 0:                 # every rank failed: rank 0's message, once
+        _print(message)
+    return agree.allreduce(code, op=MPI.MAX)
+
+
+_comms = {}
+
+
+def _agreement_comm(comm):
+    """comm.Dup(), made once per communicator: call `prepare(comm)` before anything can fail,
+    because Dup is itself collective."""
+    key = comm.py2f()
+    if key not in _comms:
+        _comms[key] = comm.Dup()
+    return _comms[key]
+
+
+def prepare(comm):
+    """Create the agreement communicator while every rank is still in step (collective)."""
+    if comm.size > 1:
+        _agreement_comm(comm)
+
+
+def _print(message: str):
+    print(message, file=sys.stderr, flush=True)
