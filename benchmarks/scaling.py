@@ -131,11 +131,14 @@ def main():
                         help="skip direct solves above this many unknowns (time)")
     parser.add_argument("--quick", action="store_true", help="the two smallest sizes")
     parser.add_argument("--out", default="scaling")
+    parser.add_argument("--sizes", type=float, nargs="+",
+                        help="only these sizes (paper: cells per side; block3d: h)")
     args = parser.parse_args()
     if args.one:
         scene, size, solver = args.one
         one(scene, float(size) if scene == "block3d" else int(size), solver, args.steps)
         return
+    from contactvisco import compat
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     rows = []
     path = RESULTS / f"{args.out}.json"
@@ -144,6 +147,8 @@ def main():
     for scene, sizes in CONFIGS.items():
         if args.only and scene != args.only:
             continue
+        if args.sizes:
+            sizes = [s for s in sizes if s in args.sizes]
         for size in sizes[:2] if args.quick else sizes:
             for solver in args.solvers:
                 for ranks in args.ranks:
@@ -153,9 +158,9 @@ def main():
                         size < DIRECT_LIMIT[scene]
                     if done or (solver == "direct" and too_big):
                         continue
-                    command = ["mpirun", "-n", str(ranks), PYTHON, __file__, "--one", scene,
-                               str(size), solver, "--steps", str(args.steps)]
-                    print("running", " ".join(command[3:]), flush=True)
+                    command = [*compat.mpi_launcher(), "-n", str(ranks), PYTHON, __file__,
+                               "--one", scene, str(size), solver, "--steps", str(args.steps)]
+                    print("running", scene, size, solver, ranks, flush=True)
                     proc = subprocess.run(command, env=env, capture_output=True, text=True)
                     lines = [l for l in proc.stdout.splitlines() if l.startswith("ROW ")]
                     if proc.returncode or not lines:
