@@ -4,7 +4,7 @@ python benchmarks/hostile_input.py).
 Each case runs `contactvisco` in a fresh working folder and records the exit code, whether a
 traceback was printed, whether any file appeared outside the output folder (or a marker file
 an attack tries to create), the first line of the message and the wall time. The table goes to
-benchmarks/results/hostile_input.md (and docs/reliability-input.md).
+benchmarks/results/hostile_input.md (and docs/reliability.md).
 """
 import json
 import pathlib
