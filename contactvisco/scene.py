@@ -94,6 +94,11 @@ DEFAULTS: dict = {
                                        # skipped (with a note) above this many mesh nodes
         "checkpoint": True,        # save the state after every step (for --restart)
     },
+    "units": {                     # labels on figure axes only (no conversion): e.g. "mm",
+        "length": None,            # "N", "s"; none given: axes say "(model units)"
+        "force": None,
+        "time": None,
+    },
 }
 
 #: Speed-accuracy presets, relative to the scene's own discretization: mesh refines the mesh
@@ -451,6 +456,11 @@ def check(scene: dict) -> None:
     need(scene["discretization"]["contact_quadrature"] in ("nodal", "gauss"),
          "discretization.contact_quadrature must be nodal or gauss")
     need(scene["discretization"]["degree"] in (1, 2), "discretization.degree must be 1 or 2")
+    units = scene["units"]
+    need(isinstance(units, dict), f"units must be a table (length, force, time), got {units!r}")
+    for key, label in units.items():
+        need(label is None or isinstance(label, str),
+             f"units.{key} must be a text label such as \"mm\", got {label!r}")
 
 
 def _check_power(mem: dict, need, finite):
