@@ -251,7 +251,10 @@ def tradeoff(source: str, target: float, overrides=(), measure: str = "contact_p
         say(f"tradeoff: mesh x{rung['mesh']:g}, {rung['steps']:4d} steps, P{rung['degree']}: "
             + (f"Newton failed ({rung['failed']})" if "failed" in rung else
                f"{rung['unknowns']} unknowns, {rung['wall_s']:.2f} s"))
-    result = _estimate(done, target, measure, scene, source, overrides)
+    try:
+        result = _estimate(done, target, measure, scene, source, overrides)
+    except TradeoffError as err:
+        raise TradeoffError(f"{err}" + (f"; {stopped}" if stopped else "")) from None
     result.update(budget_s=budget if math.isfinite(budget) else None, stopped=stopped,
                   total_s=comm.allreduce(clock.perf_counter() - started, op=MPI.MAX))
     if out is not None and comm.rank == 0:
@@ -416,39 +419,54 @@ def dumps_toml(document: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def figure(result: dict, path: pathlib.Path, units: dict | None = None):
-    """Estimated error against wall time, log-log: P1/P2 markers, time steps by colour, the
-    Pareto front, the target and the recommendation."""
+def figure(result: dict, path: pathlib.Path, dpi: int = 300):
+    """The trade-off figure of a result, saved to `path` (one journal column wide)."""
+    import matplotlib
     from matplotlib.figure import Figure
-    rows = [r for r in result["ladder"] if "failed" not in r]
-    fig = Figure(figsize=(3.35, 2.9), layout="constrained")   # one journal column, 8.5 cm
-    ax = fig.subplots()
-    step_counts = sorted({r["steps"] for r in rows})
-    for r in rows:
-        colour = f"C{step_counts.index(r['steps'])}"
-        ax.loglog(r["wall_s"], r["estimated_error"], "o" if r["degree"] == 1 else "s",
-                  color=colour, mfc=colour if r["pareto"] else "none", ms=4.5, mew=0.9)
-    for i, n in enumerate(step_counts):
-        ax.plot([], [], "o", color=f"C{i}", ms=4, label=f"{n} steps")
-    if any(r["degree"] > 1 for r in rows):
-        ax.plot([], [], "s", color="0.3", mfc="none", ms=4, label="P2 (circles P1)")
-    front = sorted((r for r in rows if r["pareto"]), key=lambda r: r["wall_s"])
-    ax.plot([r["wall_s"] for r in front], [r["estimated_error"] for r in front], "k-", lw=0.7,
-            label="Pareto front (filled)")
-    ax.axhline(result["target"], color="C3", ls="--", lw=0.8, label="target")
-    rec = result["recommended"]
-    if rec is not None:
-        ax.plot(rec["wall_s"], rec["estimated_error"], "*", color="C3", ms=10,
-                label="recommended")
-    ax.set_xlabel("wall time [s]")
-    ax.set_ylabel(f"estimated relative error\n({result['measure'].replace('_', ' ')})")
-    ax.set_title(f"{result['scene']}: vs finest run + Richardson", fontsize=8)
-    ax.tick_params(labelsize=7)
-    ax.xaxis.label.set_size(8)
-    ax.yaxis.label.set_size(8)
-    ax.legend(fontsize=6, loc="best")
-    fig.savefig(path, dpi=200)
+
+    from .figures import STYLE
+    with matplotlib.rc_context(STYLE):
+        fig = Figure()
+        draw(result, fig)
+        fig.savefig(path, dpi=dpi)
     return path
+
+
+def draw(result: dict, fig):
+    """Estimated error against wall time, log-log: circles P1, squares P2, time steps by
+    colour, the Pareto front (filled markers, line), the target and the recommendation."""
+    import matplotlib
+    from .figures import COLUMN, STYLE
+    with matplotlib.rc_context(STYLE):
+        fig.set_size_inches(COLUMN, 2.9)
+        if hasattr(fig, "set_layout_engine"):          # matplotlib >= 3.6
+            fig.set_layout_engine("constrained")
+        else:
+            fig.set_constrained_layout(True)
+        ax = fig.subplots()
+        rows = [r for r in result["ladder"] if "failed" not in r]
+        step_counts = sorted({r["steps"] for r in rows})
+        for r in rows:
+            colour = f"C{step_counts.index(r['steps'])}"
+            ax.loglog(r["wall_s"], r["estimated_error"], "o" if r["degree"] == 1 else "s",
+                      color=colour, mfc=colour if r["pareto"] else "none", ms=4, mew=0.8)
+        for i, n in enumerate(step_counts):
+            ax.plot([], [], "o", color=f"C{i}", label=f"{n} steps")
+        if any(r["degree"] > 1 for r in rows):
+            ax.plot([], [], "s", color="0.3", mfc="none", label="P2 (circles: P1)")
+        front = sorted((r for r in rows if r["pareto"]), key=lambda r: r["wall_s"])
+        ax.plot([r["wall_s"] for r in front], [r["estimated_error"] for r in front], "k-",
+                lw=0.7, label="Pareto front (filled)")
+        ax.axhline(result["target"], color="C3", ls="--", lw=0.8, label="target")
+        rec = result["recommended"]
+        if rec is not None:
+            ax.plot(rec["wall_s"], rec["estimated_error"], "*", color="C3", ms=9,
+                    label="recommended")
+        ax.set_xlabel("wall time [s]")
+        ax.set_ylabel(f"estimated relative error\n({result['measure'].replace('_', ' ')})")
+        ax.set_title(f"{result['scene']}: error vs the finest run + Richardson")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=2, frameon=False)
+    return fig
 
 
 def verify(source: str, overrides: list, recommended_set: list, measure: str,
