@@ -32,7 +32,10 @@
 # The scheme: eq. (19) for the memory integral (trapezoid rule with a left-point rule on the
 # last sub-interval, so the history is known at each step), a penalty for the compliance, an
 # augmented Lagrangian for the bound and for friction, and one generalized Newton method
-# (PETSc SNES) on $(u, \lambda_\nu, \lambda_\tau)$ at each time step.
+# (PETSc SNES) at each time step. With the nodal contact quadrature the multipliers
+# $\lambda_\nu, \lambda_\tau$ are eliminated node by node, so Newton's unknowns are the
+# displacements alone (the condensed system; `solver.linear_system = "coupled"` keeps
+# $(u, \lambda_\nu, \lambda_\tau)$ as unknowns). The first line of the run says which.
 
 # %%
 import json
