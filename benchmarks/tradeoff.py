@@ -25,9 +25,9 @@ USER = str(pathlib.Path(__file__).parent / "scenes" / "strip_punch.toml")
 CASES = {
     "paper": (0.05, "contact_pressure", 4, 0.25, 60, []),
     "hertz": (0.05, "contact_pressure", 3, 0.5, 60, []),
-    "ironing": (0.05, "contact_displacement", 3, 0.5, 60, []),
-    "creep": (0.02, "probe", 3, 0.5, 60, []),
-    "block3d": (0.1, "contact_pressure", 3, 0.5, 60, []),
+    "ironing": (0.05, "contact_displacement", 3, 0.25, 60, []),
+    "creep": (0.02, "probe", 3, 0.25, 90, []),
+    "block3d": (0.15, "contact_pressure", 3, 0.25, 90, []),
     "strip_punch": (0.03, "contact_pressure", 4, 0.25, 60, []),
 }
 

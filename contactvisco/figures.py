@@ -20,6 +20,7 @@ import pathlib
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.collections import LineCollection
 from matplotlib.patches import Rectangle
 
 from .output import STATUSES
@@ -273,8 +274,7 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False):
                             vmin=lo, vmax=hi, edgecolors="0.25" if edges else "face",
                             linewidth=0.1 if edges else 0.0, antialiased=edges,
                             rasterized=len(cells) > 20000)
-        segments = points[outline]
-        ax.plot(segments[:, :, 0].T, segments[:, :, 1].T, color="k", lw=0.6)
+        ax.add_collection(LineCollection(points[outline], colors="k", linewidths=0.6))
         ax.set_aspect("equal")
         ax.set_xlabel(label("x", "length", units))
         ax.set_ylabel(label("y", "length", units))

@@ -102,7 +102,7 @@ DEFAULTS: dict = {
 }
 
 #: Speed-accuracy presets, relative to the scene's own discretization: mesh refines the mesh
-#: (box cells times mesh; gmsh sizes h* divided by mesh), steps multiplies time.steps.
+#: (box cells times mesh; gmsh sizes h, h_* divided by mesh), steps multiplies time.steps.
 #: Chosen from the measured trade-off (benchmarks/tradeoff.py, README): on the built-in scenes
 #: the space error dominates (the time error at the scenes' own k is 20-50 times smaller), so
 #: no preset refines time; P2 is faster per error on the paper scene but its Newton diverges
@@ -273,13 +273,18 @@ def apply_preset(scene: dict, name: str) -> None:
     if geo["type"] == "box":
         geo["cells"] = [max(1, round(n * preset["mesh"])) for n in geo["cells"]]
     else:
-        geo["parameters"] = {k: (v / preset["mesh"] if k.startswith("h") else v)
+        geo["parameters"] = {k: (v / preset["mesh"] if is_mesh_size(k) else v)
                              for k, v in geo["parameters"].items()}
     scene["time"]["steps"] = max(1, round(scene["time"]["steps"] * preset["steps"]))
     scene["time"]["rule"] = preset["rule"]
     scene["discretization"]["degree"] = preset["degree"]
     if preset["degree"] > 1:
         scene["discretization"]["contact_quadrature"] = "gauss"
+
+
+def is_mesh_size(key: str) -> bool:
+    """A gmsh script parameter that is a mesh size: h or h_<where> (not height)."""
+    return key == "h" or key.startswith("h_")
 
 
 def _lame_to_young(material: dict) -> None:

@@ -3,7 +3,7 @@ estimated against the finest, its wall time, the Pareto front and the cheapest s
 reach a target (`contactvisco tradeoff SCENE --target TOL`).
 
 The ladder. Mesh levels j = 0..L-1 scale the scene's own mesh by m_j = c 2^j (box: cells
-times m_j; gmsh: every size parameter h* divided by m_j, as the presets do). At every level the
+times m_j; gmsh: every mesh size parameter, h or h_*, divided by m_j, as the presets do). At every level the
 time steps are N/2, N and 2N (N the scene's time.steps; only N when N = 1), and below the top
 level degree 2 is tried at N steps (kept where its Newton converges). The reference is the
 finest run: top level, 2N steps, degree 1.
@@ -69,7 +69,7 @@ def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[st
         lines.append("geometry.cells=[" + ",".join(str(n) for n in cells) + "]")
     else:
         for key, value in geo["parameters"].items():
-            if key.startswith("h"):
+            if scene_module.is_mesh_size(key):
                 lines.append(f"geometry.parameters.{key}={value / mesh:.6g}")
     lines += [f"time.steps={steps}", f"discretization.degree={degree}"]
     if degree > 1:                       # nodal contact conditions are P1's
@@ -80,10 +80,10 @@ def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[st
 def rungs(scene: dict, levels: int, coarsest: float, degrees=(1, 2)) -> list[dict]:
     """The ladder in the order it is climbed: level by level, cheapest first."""
     if scene["geometry"]["type"] != "box" and not any(
-            k.startswith("h") for k in scene["geometry"]["parameters"]):
+            scene_module.is_mesh_size(k) for k in scene["geometry"]["parameters"]):
         raise TradeoffError("geometry: the mesh cannot be refined (a .msh file, or a gmsh "
-                            "script without size parameters h*); give a box or a gmsh script "
-                            "with h* parameters")
+                            "script without mesh size parameters h or h_*); give a box or a gmsh "
+                            "script with them")
     N = scene["time"]["steps"]
     step_counts = sorted({max(1, round(N / 2)), N, 2 * N}) if N > 1 else [N]
     base_degree = scene["discretization"]["degree"]

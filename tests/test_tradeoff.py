@@ -92,3 +92,15 @@ def test_command(tmp_path, capsys):
         assert math.isfinite(saved["recommended"]["wall_s"])
     assert main(["tradeoff", "hertz", "--target", "0.01", "--measure", "contact_pressure",
                  "--degrees", "3"]) == 2
+
+
+def test_mesh_scaling_touches_mesh_sizes_only():
+    """gmsh scripts: h and h_* are mesh sizes, the strip's height is not (ladder and
+    presets alike)."""
+    creep = scene_module.load("creep")
+    lines = tradeoff.settings_lines(creep, 2.0, 100, 1)
+    assert "geometry.parameters.h=0.05" in lines and \
+        "geometry.parameters.h_bottom=0.025" in lines
+    assert not any("height" in line or "length" in line for line in lines)
+    fine = scene_module.load("creep", ["preset=accurate"])["geometry"]["parameters"]
+    assert fine == dict(creep["geometry"]["parameters"], h=0.05, h_bottom=0.025)
