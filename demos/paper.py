@@ -38,12 +38,12 @@
 # $(u, \lambda_\nu, \lambda_\tau)$ as unknowns). The first line of the run says which.
 
 # %%
-import json
 import pathlib
 
 from mpi4py import MPI
 
 from contactvisco import scene as scene_module
+from contactvisco.figures import step_records
 from contactvisco.notebook import quick, show_images
 from contactvisco.run import simulate
 
@@ -76,8 +76,8 @@ result = simulate(scene, out, comm=MPI.COMM_WORLD)
 # %%
 counts = result.steps[-1]["status_counts"]
 print(counts)
-summary = json.loads((out / "summary.json").read_text())
-for step in (summary["steps"][1], summary["steps"][-1]):
+steps = step_records(out)            # the step records the run wrote
+for step in (steps[1], steps[-1]):
     print(f"t = {step['t']:.1f}:", {tuple(p["x"]): round(p["u"][1], 5) for p in step["probes"]})
 
 # %% [markdown]
