@@ -238,7 +238,8 @@ def tradeoff(source: str, target: float, overrides=(), measure: str = "contact_p
         spent = comm.allreduce(clock.perf_counter() - started, op=MPI.MAX)
         predicted = _predict(rung, done, d)
         if predicted is not None and spent + predicted > budget:
-            stopped = (f"stopped before level {rung['level']} (mesh x{rung['mesh']:g}, "
+            stopped = (f"stopped before mesh level {rung['level'] + 1} of {levels} (mesh "
+                       f"x{rung['mesh']:g}, "
                        f"{rung['steps']} steps, P{rung['degree']}): predicted "
                        f"{predicted:.1f} s, {max(0.0, budget - spent):.1f} s of the "
                        f"{budget:g} s budget left")
@@ -374,8 +375,8 @@ def recommended_toml(source: str, lines: list[str], result: dict) -> str:
     rec = result["recommended"]
     head = (f"# {result['scene']}: the cheapest run of the ladder with estimated "
             f"{result['measure'].replace('_', ' ')} error {rec['estimated_error']:.3g} <= "
-            f"{result['target']:g}\n# (contactvisco tradeoff; wall time {rec['wall_s']:.2f} s; "
-            f"estimate: {ESTIMATE})\n")
+            f"{result['target']:g}\n# (contactvisco tradeoff; wall time {rec['wall_s']:.2f} s)\n"
+            f"# estimate: {ESTIMATE}\n")
     return head + dumps_toml(raw)
 
 
