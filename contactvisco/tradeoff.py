@@ -463,6 +463,11 @@ def draw(result: dict, fig):
         if rec is not None:
             ax.plot(rec["wall_s"], rec["estimated_error"], "*", color="C3", ms=9,
                     label="recommended")
+        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+        for axis in (ax.xaxis, ax.yaxis):    # 0.2, 0.5, 1, 2 ...: readable within a decade
+            axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            axis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("wall time [s]")
         ax.set_ylabel(f"estimated relative error\n({result['measure'].replace('_', ' ')})")
         ax.set_title(f"{result['scene']}: error vs the finest run + Richardson")
