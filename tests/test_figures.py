@@ -127,3 +127,26 @@ def test_step_records_from_either_layout(paper_folder, tmp_path):
     a = dict(figures.build_all(paper_folder))["probes"]
     b = dict(figures.build_all(folder))["probes"]
     assert not figures.compare_signatures(figures.signature(b), figures.signature(a))
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="may start a rendering process; run on one rank")
+def test_pyvista_rendering_shows_the_colour_range():
+    """Two tetrahedra with values 0 and 1 on the colour range (-1, 1): the picture holds
+    viridis' middle and last colours and not its first (in this process or in the child
+    process, whichever render.in_process_safe() picks on this stack)."""
+    pytest.importorskip("pyvista")
+    from matplotlib import colormaps
+
+    from contactvisco import render
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], float)
+    cells = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+    images = render.images(points, cells, np.zeros_like(points), np.array([0.0, 1.0]),
+                           (-1.0, 1.0), [("iso", None), ("face", [0.0, 0.0, -1.0])])
+    assert images is not None and len(images) == 2
+    rgb = np.concatenate([image[..., :3].reshape(-1, 3) for image in images]).astype(float)
+    assert np.mean(np.all(rgb > 250, axis=1)) > 0.3               # a white background
+    for end, present in ((0.0, False), (0.5, True), (1.0, True)):
+        # lighting scales brightness: compare the colour's direction
+        target = np.array(colormaps["viridis"](end)[:3]) * 255
+        cosine = rgb @ target / (np.linalg.norm(rgb, axis=1) * np.linalg.norm(target) + 1e-12)
+        assert (np.mean(cosine > 0.98) > 0.001) == present, f"viridis({end})"
