@@ -96,7 +96,7 @@ figures: install
 
 # The demos as notebooks in JupyterLab, on a kernel of this environment.
 notebook: install
-	$(PY) -m pip install -q jupyterlab jupytext
+	$(PY) -m pip install -q $(if $(filter debian,$(STACK)),-c constraints.txt) jupyterlab jupytext
 	$(PY) -m ipykernel install --user --name contactvisco-$(STACK) \
 	  --display-name "contactvisco ($(STACK))"
 	$(VENV)/bin/jupyter lab demos/
