@@ -28,7 +28,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
 .PHONY: install demo test test-serial test-parallel benchmark benchmark-scaling \
-        benchmark-reliability clean apt-packages compare-stacks
+        benchmark-reliability clean apt-packages compare-stacks figures notebook
 
 install: $(VENV)/.installed
 
@@ -102,6 +102,17 @@ compare-stacks:
 	$(MAKE) STACK=debian install
 	$(MAKE) STACK=pip install
 	python3 benchmarks/stacks.py
+
+# The figures of README.md and docs/ with their signatures (tests/test_figures.py checks them).
+figures: install
+	$(PY) docs/make_figures.py
+
+# The demos as notebooks in JupyterLab, on a kernel of this environment.
+notebook: install
+	$(PY) -m pip install -q $(if $(filter debian,$(STACK)),-c constraints.txt) jupyterlab jupytext
+	$(PY) -m ipykernel install --user --name contactvisco-$(STACK) \
+	  --display-name "contactvisco ($(STACK))"
+	$(VENV)/bin/jupyter lab demos/
 
 clean:
 	rm -rf results build *.egg-info

@@ -3,7 +3,8 @@
     contactvisco run SCENE [--out DIR] [--set key=value ...] [PETSc options]
     contactvisco scenes
     contactvisco show SCENE [--set key=value ...]
-    contactvisco plot DIR
+    contactvisco plot DIR [--format png|pdf|svg] [--dpi N] [--times T ...] [--edges]
+    contactvisco tradeoff SCENE --target TOL [--out DIR] [--budget SECONDS] [--measure NAME]
     contactvisco --version
 
 SCENE is a built-in scene name or a TOML file. Arguments that start with a single dash and are
@@ -38,6 +39,31 @@ def _parser():
     sub.add_parser("scenes", help="list the built-in scenes")
     plot = sub.add_parser("plot", help="redraw the figures of a finished run")
     plot.add_argument("folder", help="a run's output folder")
+    plot.add_argument("--format", choices=["png", "pdf", "svg"], default="png",
+                      help="file format of the figures (default png)")
+    plot.add_argument("--dpi", type=int, default=300, help="resolution of raster output")
+    plot.add_argument("--times", type=float, nargs="+", default=None, metavar="T",
+                      help="draw the snapshots nearest these times (default: all)")
+    plot.add_argument("--edges", action="store_true", help="draw the mesh edges on the "
+                      "stress map")
+    trade = sub.add_parser("tradeoff", help="error against wall time over a ladder of "
+                           "discretizations; the cheapest settings that reach a target")
+    trade.add_argument("scene", help="built-in scene name or TOML file")
+    trade.add_argument("--target", type=float, required=True, metavar="TOL",
+                       help="relative error to reach, e.g. 0.01")
+    trade.add_argument("--out", default=None, help="output folder (default "
+                       "results/tradeoff-<scene name>)")
+    trade.add_argument("--budget", type=float, default=float("inf"), metavar="SECONDS",
+                       help="bound on the total time: no run starts whose predicted time "
+                       "exceeds what is left")
+    trade.add_argument("--measure", default="contact_pressure",
+                       choices=["contact_pressure", "contact_displacement", "probe"],
+                       help="the error measure (default contact_pressure)")
+    trade.add_argument("--levels", type=int, default=4, help="mesh levels (default 4)")
+    trade.add_argument("--coarsest", type=float, default=0.25, help="mesh scale of the "
+                       "coarsest level relative to the scene's (default 0.25)")
+    trade.add_argument("--degrees", default="1,2", help="Lagrange degrees tried (default 1,2)")
+    trade.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     show = sub.add_parser("show", help="print a scene with its defaults filled in")
     show.add_argument("scene")
     show.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
@@ -66,7 +92,9 @@ def main(argv=None):
 
     from . import scene as scene_module
     if args.command == "plot":
-        return _plot(args.folder)
+        return _plot(args)
+    if args.command == "tradeoff":
+        return _tradeoff(args)
     if args.command == "run":
         return _run(args, petsc_args, scene_module)
     preset = [f"preset='{args.preset}'"] if getattr(args, "preset", None) else []
@@ -177,16 +205,21 @@ def _check_writable(folder):
         raise SceneError(f"output folder '{folder}' is not writable: {err.strerror}") from None
 
 
-def _plot(folder):
+def _plot(args):
     import pathlib
+    folder = args.folder
     if not (pathlib.Path(folder) / "summary.json").exists():
         print(f"contactvisco: {folder} has no summary.json: not a contactvisco output folder",
               file=sys.stderr)
         return 2
+    if args.dpi <= 0:
+        print(f"contactvisco: --dpi must be a positive integer, got {args.dpi}", file=sys.stderr)
+        return 2
     import zipfile
     from .figures import draw_all
     try:
-        paths = draw_all(folder)
+        paths = draw_all(folder, fmt=args.format, dpi=args.dpi, times=args.times,
+                         edges=args.edges)
     except (ValueError, KeyError, IndexError, OSError, EOFError,
             zipfile.BadZipFile) as err:          # damaged or cut files
         print(f"contactvisco: cannot draw the figures of {folder}: its files are damaged or "
@@ -195,6 +228,35 @@ def _plot(folder):
     for path in paths:
         print(path)
     return 0
+
+
+def _tradeoff(args):
+    from . import scene as scene_module
+    from . import tradeoff
+    try:
+        degrees = tuple(int(p) for p in args.degrees.split(","))
+        if not degrees or min(degrees) < 1 or max(degrees) > 2:
+            raise ValueError
+    except ValueError:
+        print(f"contactvisco: --degrees must be a comma list of 1 and 2, got '{args.degrees}'",
+              file=sys.stderr)
+        return 2
+    try:
+        name = scene_module.load(args.scene, args.set)["name"]
+        out = args.out or f"results/tradeoff-{name}"
+        _check_writable(out)
+        result = tradeoff.tradeoff(args.scene, args.target, args.set, measure=args.measure,
+                                   levels=args.levels, coarsest=args.coarsest, degrees=degrees,
+                                   budget=args.budget, out=out)
+    except (scene_module.SceneError, tradeoff.TradeoffError) as err:
+        print(f"contactvisco: tradeoff: {err}", file=sys.stderr)
+        return 2
+    from mpi4py import MPI
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n".join(tradeoff.summary_lines(result)))
+        print(f"written: {out}/tradeoff.json, {out}/tradeoff.png"
+              + (f", {out}/recommended.toml" if result["recommended"] else ""))
+    return 0 if result["recommended"] else 4
 
 
 if __name__ == "__main__":

@@ -1,100 +1,330 @@
 """Figures of a finished run, drawn from its output folder alone (`contactvisco plot DIR`
 redraws them): the paper's Figures 2-4, the stress on the deformed body, probe histories.
 
-Reads summary.json and steps.jsonl, contact_nodes.csv and snapshots.npz. Line plots use matplotlib without
-pyplot (no global backend switch, so notebooks keep theirs); the stress rendering uses pyvista
-off screen, in a child process (contactvisco.render).
+Reads summary.json (step records in it, or in steps.jsonl beside it: see step_records),
+contact_nodes.csv and snapshots.npz. Every figure is a matplotlib Figure without pyplot (no
+global backend switch, so notebooks keep theirs), sized for a journal column (8.5 cm wide, or
+17.8 cm for side-by-side panels) with 7-8 pt text; axes carry the scene's [units]
+("(model units)" when it gives none). Stress maps colour by the 1st-99th percentile of the
+von Mises stress (the clipping is said on the colour bar): a corner singularity would
+otherwise set the range. 2D maps are drawn by matplotlib (vector output stays vector); 3D
+bodies are rendered by pyvista (contactvisco.render) and framed here.
 """
 from __future__ import annotations
 
 import csv
 import json
+import math
 import pathlib
 
+import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.collections import LineCollection
+from matplotlib.patches import Rectangle
 
 from .output import STATUSES, read_summary
 
 ZONE_COLOURS = {"separated": "#dddddd", "compliance": "#9ecae1", "bound": "#fdae6b"}
+COLUMN = 3.35        # inches: one journal column (8.5 cm)
+PAGE = 7.0           # inches: two columns (17.8 cm)
+STYLE = {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labelsize": 7,
+         "ytick.labelsize": 7, "legend.fontsize": 7, "legend.title_fontsize": 7,
+         "lines.linewidth": 1.0, "lines.markersize": 3, "savefig.bbox": "tight",
+         "savefig.pad_inches": 0.03, "svg.fonttype": "none", "pdf.fonttype": 42}
+# (SVG text stays text and PDF fonts TrueType: labels remain editable and searchable)
+PERCENTILES = (1.0, 99.0)   # the colour range of stress maps
 
 
-def draw_all(folder) -> list[pathlib.Path]:
-    """Every figure the files in `folder` allow; returns the paths written."""
-    folder = pathlib.Path(folder)
-    summary = read_summary(folder)
-    written = []
-    snapshots = folder / "snapshots.npz"
-    if snapshots.exists():
-        data = np.load(snapshots)
-        if data["points"].shape[1] == 2:
-            written.append(deformed_meshes(data, folder / "deformed_mesh.png"))
-        written.append(stress_rendering(snapshots, folder / "stress.png"))
-    table, t = final_contact_table(folder / "contact_nodes.csv")
-    if table is not None:
-        g = float(summary["scene"]["contact"]["g"])
-        if table["x"].shape[1] == 2:
-            written += contact_profiles(table, t, g, folder)
-        else:
-            written.append(contact_map(table, t, folder / "contact_status.png"))
-    if any(step["probes"] for step in summary["steps"]):
-        written.append(probe_histories(summary, folder / "probes.png"))
-    return [p for p in written if p is not None]
+# --- reading a run ------------------------------------------------------------------------
 
 
-def final_contact_table(path: pathlib.Path):
-    """The last step of contact_nodes.csv as arrays, and its time."""
-    if not path.exists():
+def step_records(folder) -> list[dict]:
+    """The step records of a run (steps.jsonl, or the "steps" of an earlier layout's
+    summary.json): output.read_summary."""
+    return read_summary(folder)["steps"]
+
+
+def units_of(scene: dict) -> dict:
+    """The scene's unit labels (None where not given)."""
+    given = scene.get("units") or {}
+    return {key: given.get(key) for key in ("length", "force", "time")}
+
+
+def unit(kind: str, units: dict) -> str | None:
+    """The unit of a length, force, time or stress (force per length squared)."""
+    if kind == "stress":
+        if units["force"] and units["length"]:
+            return f"{units['force']}/{units['length']}²"
+        return None
+    return units[kind]
+
+
+def label(name: str, kind: str, units: dict) -> str:
+    """An axis label with its unit: 'u_x [mm]', or 'u_x (model units)'."""
+    text = unit(kind, units)
+    return f"{name} [{text}]" if text else f"{name} (model units)"
+
+
+def final_contact_table(path: pathlib.Path, t=None):
+    """One step of contact_nodes.csv as arrays (the last, or the one nearest time t), and its
+    time."""
+    tables = contact_tables(path)
+    if not tables:
         return None, None
+    times = np.array(sorted(tables))
+    chosen = times[-1] if t is None else times[np.argmin(np.abs(times - t))]
+    return tables[chosen], float(chosen)
+
+
+def contact_tables(path: pathlib.Path) -> dict:
+    """Every step of contact_nodes.csv: {t: table}."""
+    if not path.exists():
+        return {}
     with open(path) as f:
         rows = list(csv.DictReader(f))
-    if not rows:
-        return None, None
-    last = rows[-1]["step"]
-    rows = [r for r in rows if r["step"] == last]
-    coords = [c for c in "xyz" if c in rows[0]]
-    table = {"x": np.array([[float(r[c]) for c in coords] for r in rows])}
-    for key in ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound"):
-        table[key] = np.array([float(r[key]) for r in rows])
-    table["status"] = np.array([STATUSES.index(r["status"]) for r in rows])
-    return table, float(rows[0]["t"])
+    by_step = {}
+    for r in rows:
+        by_step.setdefault(r["step"], []).append(r)
+    out = {}
+    for group in by_step.values():
+        coords = [c for c in "xyz" if c in group[0]]
+        table = {"x": np.array([[float(r[c]) for c in coords] for r in group])}
+        for key in ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound"):
+            table[key] = np.array([float(r[key]) for r in group])
+        table["status"] = np.array([STATUSES.index(r["status"]) for r in group])
+        out[float(group[0]["t"])] = table
+    return out
 
 
-def deformed_meshes(data, path: pathlib.Path, scale: float = 1.0):
-    """Figure 2: the deformed mesh at each snapshot, over the undeformed mesh (2D)."""
-    times, points, cells = data["times"], data["points"], data["cells"]
-    fig = Figure(figsize=(4.2 * len(times), 4.2))
-    axes = fig.subplots(1, len(times), squeeze=False)
-    for ax, t, disp in zip(axes[0], times, data["displacements"]):
-        ax.triplot(points[:, 0], points[:, 1], cells, color="0.85", lw=0.4)
-        moved = points + scale * disp
-        ax.triplot(moved[:, 0], moved[:, 1], cells, color="C0", lw=0.5)
+# --- all figures ----------------------------------------------------------------------------
+
+
+def draw_all(folder, fmt: str = "png", dpi: int = 300, times=None,
+             edges: bool = False) -> list[pathlib.Path]:
+    """Every figure the files in `folder` allow, saved as `fmt`; returns the paths written.
+    times: the snapshot and contact times to draw (nearest available; default: the
+    snapshots for the deformed mesh, T for the rest)."""
+    folder = pathlib.Path(folder)
+    written = []
+    with matplotlib.rc_context(STYLE):
+        for name, fig in build_all(folder, times, edges):
+            path = folder / f"{name}.{fmt}"
+            fig.savefig(path, dpi=dpi)
+            written.append(path)
+    return written
+
+
+def build_all(folder, times=None, edges: bool = False) -> list[tuple[str, Figure]]:
+    """(file stem, Figure) of every figure of a run folder (not saved)."""
+    folder = pathlib.Path(folder)
+    summary = json.loads((folder / "summary.json").read_text())
+    scene = summary["scene"]
+    units = units_of(scene)
+    out = []
+    with matplotlib.rc_context(STYLE):
+        tables = contact_tables(folder / "contact_nodes.csv")
+        snapshots = folder / "snapshots.npz"
+        if snapshots.exists():
+            data = dict(np.load(snapshots))
+            chosen = _nearest(data["times"], times)
+            if data["points"].shape[1] == 2:
+                out.append(("deformed_mesh", deformed_meshes(data, chosen, units)))
+            for i in (chosen if times else chosen[-1:]):
+                t = float(data["times"][i])
+                stem = "stress" if not times or len(times) == 1 else f"stress_t{t:g}"
+                table = tables[min(tables, key=lambda s: abs(s - t))] if tables else None
+                fig = stress_map(data, i, units, table, edges)
+                if fig is not None:
+                    out.append((stem, fig))
+        if tables:
+            g = float(scene["contact"]["g"])
+            keys = sorted(tables)
+            picks = [keys[-1]] if not times else sorted(
+                {keys[int(np.argmin(np.abs(np.array(keys) - t)))] for t in times})
+            for t in picks:
+                suffix = "" if len(picks) == 1 else f"_t{t:g}"
+                if tables[t]["x"].shape[1] == 2:
+                    for name, fig in contact_profiles(tables[t], t, g, units):
+                        out.append((name + suffix, fig))
+                else:
+                    out.append(("contact_status" + suffix, contact_map(tables[t], t, units)))
+        steps = step_records(folder)
+        if any(step["probes"] for step in steps):
+            out.append(("probes", probe_histories(steps, units)))
+    return out
+
+
+def _nearest(available, times) -> list[int]:
+    """Indices of the available times nearest to the requested ones (all when None)."""
+    if not times:
+        return list(range(len(available)))
+    return sorted({int(np.argmin(np.abs(np.asarray(available) - t))) for t in times})
+
+
+def _time_text(t: float, units: dict) -> str:
+    return f"t = {t:g}" + (f" {units['time']}" if units["time"] else "")
+
+
+# --- 2D meshes and stress -------------------------------------------------------------------
+
+
+def deformed_meshes(data, indices, units, scale: float = 1.0):
+    """Figure 2: the deformed mesh at the chosen snapshots over the undeformed mesh (2D)."""
+    points, cells = data["points"], data["cells"]
+    n = len(indices)
+    width = COLUMN if n == 1 else PAGE
+    fig = Figure(figsize=(width, width / n * 1.05 + 0.25), layout="constrained")
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    for ax, i in zip(axes, indices):
+        ax.triplot(points[:, 0], points[:, 1], cells, color="0.8", lw=0.3)
+        moved = points + scale * data["displacements"][i]
+        ax.triplot(moved[:, 0], moved[:, 1], cells, color="C0", lw=0.35)
         ax.set_aspect("equal")
-        ax.set_title(f"t = {t:g}" + ("" if scale == 1 else f" (displacement x{scale:g})"))
-        ax.set_xlabel("x")
-        ax.set_ylabel("y")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path
+        ax.set_title(_time_text(float(data["times"][i]), units)
+                     + ("" if scale == 1 else f" (displacement x{scale:g})"))
+        ax.set_xlabel(label("x", "length", units))
+        ax.set_ylabel(label("y", "length", units))
+    return fig
 
 
-def stress_rendering(snapshots: pathlib.Path, path: pathlib.Path):
-    """The deformed body coloured by the von Mises stress (contactvisco.render), drawn in a
-    child process: VTK's wheel aborts (std::regex, bad_alloc) when drawn in a process that has
-    loaded DOLFINx and PETSc, and an abort would take the run with it. Returns the path, or
-    None (with a warning) if pyvista is missing or the drawing failed."""
-    import subprocess
-    import sys
-    try:
-        proc = subprocess.run([sys.executable, "-m", "contactvisco.render", str(snapshots),
-                               str(path)], capture_output=True, text=True, timeout=300)
-    except subprocess.TimeoutExpired:
-        proc = None
-    if proc is not None and proc.returncode == 0 and path.exists():
-        return path
-    reason = "timed out" if proc is None else (proc.stderr.strip().splitlines() or ["?"])[-1]
-    print(f"contactvisco: warning: no {path.name}: {reason}", file=sys.stderr)
-    return None
+def robust_range(values: np.ndarray) -> tuple[float, float, str]:
+    """The 1st-99th percentile of `values` and the colour-bar note that says so (with the
+    full range) when it clips."""
+    lo, hi = (float(v) for v in np.percentile(values, PERCENTILES))
+    vmin, vmax = float(np.min(values)), float(np.max(values))
+    if hi <= lo:
+        return vmin, vmax, ""
+    clipped = lo > vmin or hi < vmax
+    note = (f"colours: {PERCENTILES[0]:g}-{PERCENTILES[1]:g}th percentile "
+            f"(all: {vmin:.3g} to {vmax:.3g})") if clipped else ""
+    return lo, hi, note
+
+
+def boundary_edges(cells: np.ndarray) -> np.ndarray:
+    """Edges (2D: of triangles) that belong to one cell only: the outline."""
+    edges = np.sort(np.concatenate([cells[:, [0, 1]], cells[:, [1, 2]], cells[:, [2, 0]]]),
+                    axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    return unique[counts == 1]
+
+
+def contact_zone(table) -> np.ndarray | None:
+    """Coordinates of the contact nodes that carry a force (not separated)."""
+    if table is None:
+        return None
+    active = table["status"] > 0
+    return table["x"][active] if active.any() else None
+
+
+def zoom_box(points: np.ndarray, zone: np.ndarray | None, fraction: float = 0.15):
+    """A square window around the contact zone, when the zone is smaller than `fraction` of
+    the body; None otherwise."""
+    if zone is None:
+        return None
+    size = float(np.max(np.ptp(points, axis=0)))
+    extent = float(np.max(np.ptp(zone, axis=0)))
+    if extent >= fraction * size:
+        return None
+    half = max(1.5 * extent, 0.02 * size)
+    centre = 0.5 * (zone.min(axis=0) + zone.max(axis=0))
+    # Shifted into the body's bounding box: the window shows the body, not the space beside.
+    lo = np.maximum(centre - half, points.min(axis=0) - 0.05 * half)
+    lo = np.minimum(lo, points.max(axis=0) + 0.05 * half - 2 * half)
+    return lo, lo + 2 * half
+
+
+def stress_map(data, index: int, units: dict, table=None, edges: bool = False):
+    """The deformed body coloured by the von Mises stress (2D: matplotlib, with a zoomed
+    second panel on a small contact zone; 3D: pyvista views of the body and of the contact
+    face)."""
+    values = data["von_mises"][index]
+    lo, hi, note = robust_range(values)
+    bar_label = label("von Mises stress" + (", in-plane" if data["points"].shape[1] == 2
+                                            else ""), "stress", units)
+    if note:
+        bar_label += "\n" + note
+    t_text = _time_text(float(data["times"][index]), units)
+    if data["points"].shape[1] == 3:
+        return _stress_3d(data, index, (lo, hi), bar_label, t_text, table, edges)
+    points, cells = data["points"], data["cells"]
+    moved = points + data["displacements"][index]
+    box = zoom_box(points, contact_zone(table))
+    panels = 2 if box is not None else 1
+    fig = Figure(figsize=(COLUMN if panels == 1 else PAGE,
+                          COLUMN * 0.95 if panels == 1 else 3.2), layout="constrained")
+    axes = fig.subplots(1, panels, squeeze=False)[0]
+    outline = boundary_edges(cells)
+    for k, ax in enumerate(axes):
+        mesh = ax.tripcolor(moved[:, 0], moved[:, 1], cells, facecolors=values, cmap="viridis",
+                            vmin=lo, vmax=hi, edgecolors="0.25" if edges else "face",
+                            linewidth=0.1 if edges else 0.0, antialiased=edges,
+                            rasterized=len(cells) > 20000)
+        ax.add_collection(LineCollection(points[outline], colors="k", linewidths=0.6))
+        ax.set_aspect("equal")
+        ax.set_xlabel(label("x", "length", units))
+        ax.set_ylabel(label("y", "length", units))
+        if k == 1:
+            ax.set_xlim(box[0][0], box[1][0])
+            ax.set_ylim(box[0][1], box[1][1])
+            ax.set_title("contact zone (red box)")
+            axes[0].add_patch(Rectangle(box[0], *(box[1] - box[0]), fill=False,
+                                        edgecolor="C3", lw=0.9))
+        else:
+            ax.set_title(f"{t_text}; black: undeformed outline")
+    bar = fig.colorbar(mesh, ax=list(axes), shrink=0.9, extend=_extend(values, lo, hi))
+    bar.set_label(bar_label)
+    return fig
+
+
+def _extend(values, lo, hi) -> str:
+    below, above = np.min(values) < lo, np.max(values) > hi
+    return {(False, False): "neither", (True, False): "min", (False, True): "max",
+            (True, True): "both"}[(bool(below), bool(above))]
+
+
+def contact_face_view(points: np.ndarray, table) -> np.ndarray:
+    """The direction from which the contact face is seen from outside the body (3D): along
+    the axis the contact nodes span least, towards the side they lie on."""
+    if table is None:
+        return np.array([0.0, 0.0, -1.0])
+    x = table["x"]
+    axis = int(np.argmin(np.ptp(x, axis=0)))
+    side = np.sign(np.mean(x[:, axis]) - np.mean(points[:, axis])) or -1.0
+    view = np.zeros(3)
+    view[axis] = side
+    return view
+
+
+def _stress_3d(data, index, clim, bar_label, t_text, table, edges):
+    """Two pyvista views (isometric, and the contact face from outside) in one figure with a
+    matplotlib colour bar and titles (no text inside the rendering to clip)."""
+    from matplotlib import cm, colors
+
+    from . import render
+    view = contact_face_view(data["points"], table)
+    images = render.images(data["points"], data["cells"], data["displacements"][index],
+                           data["von_mises"][index], clim,
+                           [("iso", None), ("face", view.tolist())], edges)
+    if images is None:
+        return None
+    fig = Figure(figsize=(PAGE, 3.0), layout="constrained")
+    axes = fig.subplots(1, 2)
+    face = "xyz"[int(np.argmax(np.abs(view)))]
+    titles = (f"{t_text}; black: undeformed edges",
+              f"contact face, seen from {'+' if view.max() > 0 else '-'}{face}")
+    for ax, image, title in zip(axes, images, titles):
+        ax.imshow(image)
+        ax.set_axis_off()
+        ax.set_title(title)
+    mappable = cm.ScalarMappable(colors.Normalize(*clim), "viridis")
+    bar = fig.colorbar(mappable, ax=list(axes), shrink=0.85,
+                       extend=_extend(data["von_mises"][index], *clim))
+    bar.set_label(bar_label)
+    return fig
+
+
+# --- contact boundary -----------------------------------------------------------------------
 
 
 def _shade_zones(ax, s, status):
@@ -110,81 +340,175 @@ def _shade_zones(ax, s, status):
         done.add(name)
 
 
-def contact_profiles(table, t: float, g: float, folder: pathlib.Path):
-    """Figures 3 and 4: reactions and displacements of the contact nodes at time t (2D)."""
+def contact_profiles(table, t: float, g: float, units: dict):
+    """Figures 3 and 4: reactions and displacements of the contact nodes at time t (2D); the
+    axis is cut to the contact zone where that is small (Hertz)."""
     order = np.argsort(table["x"][:, 0])
     s = table["x"][order, 0]
-    written = []
+    status = table["status"][order]
+    active = s[status > 0]
+    window = None
+    if active.size and np.ptp(active) < 0.25 * np.ptp(s):
+        reach = max(np.ptp(active), np.ptp(s) * 0.01)
+        window = (max(s[0], active.min() - 0.5 * reach), min(s[-1], active.max() + 1.0 * reach))
+    out = []
     for name, keys, ylabel in (
-            ("reactions", (("reaction_nu", "normal reaction $-\\sigma_\\nu$"),
-                           ("reaction_tau", "tangential reaction $\\sigma_\\tau$"),
-                           ("friction_bound", "friction bound $\\mu p_\\nu$")), "traction"),
-            ("displacements", (("u_nu", "$u_\\nu$"), ("u_tau", "$u_\\tau$")), "displacement")):
-        fig = Figure(figsize=(6.4, 3.8))
+            ("contact_reactions", (("reaction_nu", "normal $-\\sigma_\\nu$"),
+                                   ("reaction_tau", "tangential $\\sigma_\\tau$"),
+                                   ("friction_bound", "friction bound $\\mu p_\\nu$")),
+             label("traction", "stress", units)),
+            ("contact_displacements", (("u_nu", "$u_\\nu$"), ("u_tau", "$u_\\tau$")),
+             label("displacement", "length", units))):
+        fig = Figure(figsize=(COLUMN, 2.6), layout="constrained")
         ax = fig.subplots()
-        _shade_zones(ax, s, table["status"][order])
-        for i, (key, label) in enumerate(keys):
-            style = dict(ls="--", color="k", lw=0.9) if key == "friction_bound" else dict(
-                marker="o", ms=3, lw=1, color=f"C{i}")
-            ax.plot(s, table[key][order], label=label, **style)
-        if name == "displacements" and np.isfinite(g):
+        _shade_zones(ax, s, status)
+        for i, (key, text) in enumerate(keys):
+            if key == "friction_bound" and not np.any(table[key]):
+                continue                              # no friction: no bound to draw
+            style = dict(ls="--", color="k", lw=0.8) if key == "friction_bound" else dict(
+                marker="o", ms=2, lw=0.9, color=f"C{i}")
+            ax.plot(s, table[key][order], label=text, **style)
+        if name == "contact_displacements" and np.isfinite(g):
             ax.plot(s, table["gap"][order] + g, color="k", ls="--", lw=0.8,
-                    label="bound g (+ gap)")
+                    label="bound $g$ (+ gap)")
         ax.axhline(0.0, color="k", lw=0.5)
+        if window is not None:
+            ax.set_xlim(*window)
+            visible = (s >= window[0]) & (s <= window[1])
+            keys_drawn = [k for k, _ in keys if np.any(table[k])]
+            if keys_drawn:
+                y = np.concatenate([table[k][order][visible] for k in keys_drawn] + [[0.0]])
+                pad = 0.08 * (np.ptp(y) or 1.0)
+                ax.set_ylim(y.min() - pad, y.max() + pad)
         counts = {st: int(np.sum(table["status"] == i)) for i, st in enumerate(STATUSES)}
-        ax.set_title(f"contact boundary at t = {t:g}: "
-                     + ", ".join(f"{v} {k}" for k, v in counts.items()), fontsize=10)
-        ax.set_xlabel("x along the contact boundary")
+        ax.set_title(f"{_time_text(t, units)}: "
+                     + ", ".join(f"{v} {k}" for k, v in counts.items())
+                     + ("\n(axis cut to the contact zone)" if window is not None else ""))
+        ax.set_xlabel(label("x along the contact boundary", "length", units))
         ax.set_ylabel(ylabel)
-        ax.legend(fontsize=8, loc="best")
-        fig.tight_layout()
-        path = folder / f"contact_{name}.png"
-        fig.savefig(path, dpi=130)
-        written.append(path)
-    return written
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.3), ncol=3, frameon=False,
+                  handlelength=1.5, columnspacing=1.0)
+        out.append((name, fig))
+    return out
 
 
-def contact_map(table, t: float, path: pathlib.Path):
+def contact_map(table, t: float, units: dict):
     """The contact nodes of a 3D run in the plane of the contact face, coloured by status,
     with the normal reaction as marker size."""
-    fig = Figure(figsize=(5.6, 4.8))
+    fig = Figure(figsize=(COLUMN, 3.3), layout="constrained")
     ax = fig.subplots()
     x = table["x"]
     span = np.ptp(x, axis=0)
     a, b = sorted(np.argsort(span, kind="stable")[-2:])   # the two directions the face spans
-    size = 10 + 60 * table["reaction_nu"] / max(table["reaction_nu"].max(), 1e-300)
+    size = 4 + 30 * table["reaction_nu"] / max(table["reaction_nu"].max(), 1e-300)
     for i, name in enumerate(STATUSES):
         mask = table["status"] == i
         ax.scatter(x[mask, a], x[mask, b], s=size[mask], color=ZONE_COLOURS[name],
-                   edgecolors="0.3", linewidths=0.4, label=f"{name} ({int(mask.sum())})")
+                   edgecolors="0.3", linewidths=0.3, label=f"{name} ({int(mask.sum())})")
     ax.set_aspect("equal")
-    ax.set_xlabel("xyz"[a])
-    ax.set_ylabel("xyz"[b])
-    ax.set_title(f"contact nodes at t = {t:g} (size: normal reaction)", fontsize=10)
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    return path
+    ax.set_xlabel(label("xyz"[a], "length", units))
+    ax.set_ylabel(label("xyz"[b], "length", units))
+    ax.set_title(f"contact nodes at {_time_text(t, units)}\n(marker area: normal reaction)")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, frameon=False)
+    return fig
 
 
-def probe_histories(summary: dict, path: pathlib.Path):
+def probe_histories(steps: list, units: dict):
     """Displacement components at each probe against time."""
-    steps = summary["steps"]
     t = [s["t"] for s in steps]
     probes = steps[0]["probes"]
     d = len(probes[0]["x"])
-    fig = Figure(figsize=(4.0 * d, 3.6))
+    fig = Figure(figsize=(PAGE if d == 3 else PAGE * 0.75, 2.4), layout="constrained")
     axes = fig.subplots(1, d, squeeze=False)[0]
     for j, probe in enumerate(probes):
-        series = np.array([s["probes"][j]["u"] for s in steps], dtype=float)
-        label = "(" + ", ".join(f"{c:g}" for c in probe["x"]) + ")"
+        series = np.array([[math.nan] * d if s["probes"][j]["u"] is None else s["probes"][j]["u"]
+                           for s in steps], dtype=float)
+        text = "(" + ", ".join(f"{c:g}" for c in probe["x"]) + ")"
         for i in range(d):
-            axes[i].plot(t, series[:, i], "o-", ms=3, lw=1, label=label)
+            axes[i].plot(t, series[:, i], "o-", ms=2, lw=0.9, label=text)
     for i, ax in enumerate(axes):
-        ax.set_xlabel("t")
-        ax.set_ylabel(f"$u_{'xyz'[i]}$")
+        ax.set_xlabel(label("t", "time", units))
+        ax.set_ylabel(label(f"$u_{'xyz'[i]}$", "length", units))
         ax.axhline(0.0, color="k", lw=0.5)
-    axes[-1].legend(fontsize=8, title="probe", title_fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return path
+    axes[-1].legend(loc="center left", bbox_to_anchor=(1.02, 0.5), title="probe at",
+                    frameon=False)
+    return fig
+
+
+# --- what a figure shows, for checking committed figures ------------------------------------
+
+
+def signature(fig: Figure) -> dict:
+    """The texts and data of a figure, independent of the matplotlib version's rendering:
+    per axes the title, axis labels, limits, legend entries, line data and the colour
+    arrays (as summary statistics: their order depends on the mesh numbering)."""
+    out = []
+    for ax in fig.axes:
+        entry = {"title": ax.get_title(), "xlabel": ax.get_xlabel(),
+                 "ylabel": ax.get_ylabel(), "lines": [], "arrays": []}
+        legend = ax.get_legend()
+        if legend is not None:
+            entry["legend"] = [t.get_text() for t in legend.get_texts()]
+        for line in ax.get_lines():
+            xy = np.asarray(line.get_xydata(), dtype=float)
+            xy = xy[np.isfinite(xy).all(axis=1)]
+            if len(xy) > 200:    # a mesh drawn as lines: its order follows the numbering
+                xy = np.percentile(xy, (0, 1, 25, 50, 75, 99, 100), axis=0)
+            entry["lines"].append(xy.round(10).tolist())
+        for artist in ax.collections:
+            values = artist.get_array()
+            if values is not None and np.size(values):
+                values = np.asarray(values, dtype=float).ravel()
+                entry["arrays"].append({"n": int(values.size),
+                                        "stats": [float(v) for v in np.percentile(
+                                            values, (0, 1, 50, 99, 100))] + [
+                                            float(values.mean())],
+                                        "clim": [float(c) for c in artist.get_clim()]})
+        out.append(entry)
+    for legend in fig.legends:
+        out.append({"legend": [t.get_text() for t in legend.get_texts()]})
+    return {"axes": out}
+
+
+def compare_signatures(new: dict, old: dict, rtol: float = 1e-4, path: str = "") -> list[str]:
+    """Differences between two signatures: texts exactly, numbers to rtol of the largest
+    magnitude in the same list."""
+    problems = []
+    if isinstance(old, dict):
+        if not isinstance(new, dict) or set(new) != set(old):
+            return [f"{path}: keys {sorted(new) if isinstance(new, dict) else new} != "
+                    f"{sorted(old)}"]
+        for key in old:
+            problems += compare_signatures(new[key], old[key], rtol, f"{path}.{key}")
+        return problems
+    if isinstance(old, list):
+        if not isinstance(new, list) or len(new) != len(old):
+            return [f"{path}: length {len(new) if isinstance(new, list) else new} != "
+                    f"{len(old)}"]
+        b = _numeric(old)
+        if b is not None:
+            a = _numeric(new)
+            scale = max(float(np.max(np.abs(b))) if b.size else 0.0, 1e-12)
+            if a is None or a.shape != b.shape or \
+                    np.max(np.abs(a - b), initial=0.0) > rtol * scale:
+                return [f"{path}: numbers differ by more than {rtol:g} of {scale:.3g}"]
+            return []
+        for i, (a, b) in enumerate(zip(new, old)):
+            problems += compare_signatures(a, b, rtol, f"{path}[{i}]")
+        return problems
+    if new != old:
+        return [f"{path}: {new!r} != {old!r}"]
+    return []
+
+
+def _numeric(value) -> np.ndarray | None:
+    """value as a float array if it is a (nested, rectangular) list of numbers."""
+    def numbers_only(v):
+        return all(numbers_only(x) for x in v) if isinstance(v, list) else \
+            isinstance(v, (int, float)) and not isinstance(v, bool)
+    if not value or not numbers_only(value):
+        return None
+    try:
+        return np.asarray(value, dtype=float)
+    except ValueError:            # ragged
+        return None

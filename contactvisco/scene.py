@@ -95,10 +95,15 @@ DEFAULTS: dict = {
                                        # skipped (with a note) above this many mesh nodes
         "checkpoint": True,        # save the state after every step (for --restart)
     },
+    "units": {                     # labels on figure axes only (no conversion): e.g. "mm",
+        "length": None,            # "N", "s"; none given: axes say "(model units)"
+        "force": None,
+        "time": None,
+    },
 }
 
 #: Speed-accuracy presets, relative to the scene's own discretization: mesh refines the mesh
-#: (box cells times mesh; gmsh sizes h* divided by mesh), steps multiplies time.steps.
+#: (box cells times mesh; gmsh sizes h, h_* divided by mesh), steps multiplies time.steps.
 #: Chosen from the measured trade-off (benchmarks/tradeoff.py, README): on the built-in scenes
 #: the space error dominates (the time error at the scenes' own k is 20-50 times smaller), so
 #: no preset refines time; P2 is faster per error on the paper scene but its Newton diverges
@@ -424,6 +429,11 @@ def apply_preset(scene: dict, name: str) -> None:
         scene["discretization"]["contact_quadrature"] = "gauss"
 
 
+def is_mesh_size(key: str) -> bool:
+    """A gmsh script parameter that is a mesh size: h or h_<where> (not height)."""
+    return key == "h" or key.startswith("h_")
+
+
 def _lame_to_young(material: dict) -> None:
     lam, mu = material["lambda"], material["mu"]
     if lam is None and mu is None:
@@ -662,6 +672,11 @@ def check(scene: dict) -> None:
     need(integer(scene["discretization"]["degree"]) and scene["discretization"]["degree"]
          in (1, 2), f"discretization.degree must be 1 or 2, got "
                     f"{scene['discretization']['degree']!r}")
+    units = scene["units"]
+    need(isinstance(units, dict), f"units must be a table (length, force, time), got {units!r}")
+    for key, label in units.items():
+        need(label is None or isinstance(label, str),
+             f"units.{key} must be a text label such as \"mm\", got {label!r}")
     options = scene["solver"]["petsc_options"]
     need(isinstance(options, dict), f"solver.petsc_options must be a table, got {options!r}")
     for key, value in options.items():

@@ -51,8 +51,9 @@ print("states at T:", result.steps[-1]["status_counts"])
 
 # %% [markdown]
 # ## The deformed block and the contact face
-# Von Mises stress on the deformed block (pyvista, with the undeformed edges in black), and the
-# contact nodes coloured by state, sized by their normal reaction.
+# Von Mises stress on the deformed block and on its contact face seen from below (pyvista,
+# undeformed edges in black; the colours span the 1st to 99th percentile, as the colour bar
+# says), then the contact nodes coloured by state, sized by their normal reaction.
 
 # %%
 if MPI.COMM_WORLD.rank == 0:

@@ -34,8 +34,8 @@ cells = 16 if quick() else 32
 
 # %% [markdown]
 # ## The runs
-# With $\alpha = 0$ the history Function is not even built. The table prints the unknowns and,
-# at $T = 1$, the contact states.
+# With $\alpha = 0$ the history Function is not even built. Each line says whether it was
+# built and gives the contact states at $T = 1$.
 
 # %%
 runs = {}
@@ -62,7 +62,7 @@ for alpha, result in runs.items():
     t = [s["t"] for s in result.steps]
     uy = [s["probes"][0]["u"][1] for s in result.steps]
     ax.plot(t, uy, "o-", ms=3, label=f"alpha = {alpha:g}")
-ax.set_xlabel("t")
-ax.set_ylabel("$u_y$ at (0.5, 1)")
+ax.set_xlabel("t [s]")
+ax.set_ylabel("$u_y$ at (0.5, 1) [m]")
 ax.legend()
 plt.show()

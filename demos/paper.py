@@ -32,15 +32,18 @@
 # The scheme: eq. (19) for the memory integral (trapezoid rule with a left-point rule on the
 # last sub-interval, so the history is known at each step), a penalty for the compliance, an
 # augmented Lagrangian for the bound and for friction, and one generalized Newton method
-# (PETSc SNES) on $(u, \lambda_\nu, \lambda_\tau)$ at each time step.
+# (PETSc SNES) at each time step. With the nodal contact quadrature the multipliers
+# $\lambda_\nu, \lambda_\tau$ are eliminated node by node, so Newton's unknowns are the
+# displacements alone (the condensed system; `solver.linear_system = "coupled"` keeps
+# $(u, \lambda_\nu, \lambda_\tau)$ as unknowns). The first line of the run says which.
 
 # %%
-import json
 import pathlib
 
 from mpi4py import MPI
 
 from contactvisco import scene as scene_module
+from contactvisco.figures import step_records
 from contactvisco.notebook import quick, show_images
 from contactvisco.output import read_summary
 from contactvisco.run import simulate
@@ -74,8 +77,8 @@ result = simulate(scene, out, comm=MPI.COMM_WORLD)
 # %%
 counts = result.steps[-1]["status_counts"]
 print(counts)
-summary = read_summary(out)      # summary.json with the step records of steps.jsonl
-for step in (summary["steps"][1], summary["steps"][-1]):
+steps = step_records(out)            # the step records the run wrote
+for step in (steps[1], steps[-1]):
     print(f"t = {step['t']:.1f}:", {tuple(p["x"]): round(p["u"][1], 5) for p in step["probes"]})
 
 # %% [markdown]

@@ -11,65 +11,49 @@
 # ---
 
 # %% [markdown]
-# # Speed against accuracy on the paper scene
+# # The cheapest run that reaches a target
 #
-# How much does a finer mesh or a smaller time step buy? Each run below measures the error of
-# the contact-boundary displacement at $T = 1$ against the finest run, and the wall time of its
-# time steps. `benchmarks/tradeoff.py` runs the full grid (up to 128 x 128, P2, both time rules)
-# that the presets `fast`, `balanced` and `accurate` were chosen from.
+# `contactvisco tradeoff SCENE --target TOL` climbs a ladder of discretizations of a scene:
+# mesh levels (1/4, 1/2, 1 and 2 times the scene's own mesh), at each level N/2, N and 2N time
+# steps, and P2 below the top level. Each run's error is estimated against the finest run of
+# the ladder, plus that run's own error by Richardson extrapolation, and the cheapest run
+# whose estimate is below the target is recommended, as `--set` lines and as a scene file.
+# Here the same is done from Python on the paper scene, for the contact pressure.
 
 # %%
 import matplotlib.pyplot as plt
-import numpy as np
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
+from contactvisco import tradeoff
 from contactvisco.notebook import quick
-from contactvisco.run import simulate
 
-meshes = [8, 16, 32] if quick() else [16, 32, 64]
-step_counts = [10, 40]
-
-
-def run(cells, steps, rule="trapezoid"):
-    scene = scene_module.load("paper", [f"geometry.cells=[{cells}, {cells}]",
-                                        f"time.steps={steps}", f"time.rule='{rule}'",
-                                        "output.probes=[]"])
-    result = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
-    table = result.tables[-1]
-    return {"x": table["x"][:, 0], "u_nu": table["u_nu"], "u_tau": table["u_tau"],
-            "s": sum(s["wall_s"] for s in result.steps),
-            "newton": np.mean([s["newton_iterations"] for s in result.steps])}
-
-
-# %%
-reference = run(2 * meshes[-1], 40)
-rows = []
-for cells in meshes:
-    for steps in step_counts:
-        r = run(cells, steps)
-        scale = np.max(np.abs(reference["u_nu"]))
-        error = max(np.max(np.abs(r[k] - np.interp(r["x"], reference["x"], reference[k])))
-                    for k in ("u_nu", "u_tau")) / scale
-        rows.append((cells, steps, error, r["s"], r["newton"]))
-        print(f"{cells:4d} cells, {steps:3d} steps: error {error:.2e}, "
-              f"{r['s']:.2f} s, {r['newton']:.2f} Newton iterations per step")
+base = ["geometry.cells=[16,16]", "time.steps=4"] if quick() else []
+levels = 3 if quick() else 4
+target = 0.05
+result = tradeoff.tradeoff("paper", target, base, measure="contact_pressure", levels=levels,
+                           degrees=(1,) if quick() else (1, 2), comm=MPI.COMM_WORLD)
+print("\n".join(tradeoff.summary_lines(result)))
 
 # %% [markdown]
-# ## Error against time
-# Refining the mesh buys accuracy; more steps do not, at these sizes. At the scene's own
-# $k = 0.1$ the time error is 20 to 50 times below the space error, which is why no preset
-# refines time.
+# ## Error against wall time
+# Filled markers are on the Pareto front: no other run is both faster and more accurate.
+# On this scene the mesh sets the error: at a given mesh the step counts lie on top of each
+# other, so the front runs along the mesh levels at the fewest steps.
 
 # %%
-fig, ax = plt.subplots(figsize=(6.4, 4))
-for steps, marker in zip(step_counts, "os"):
-    pts = [(s, e) for c, n, e, s, _ in rows if n == steps]
-    ax.loglog([p[0] for p in pts], [p[1] for p in pts], marker + "-", label=f"{steps} steps")
-for c, n, e, s, _ in rows:
-    if n == step_counts[0]:
-        ax.annotate(f"{c}x{c}", (s, e), fontsize=8, xytext=(4, 4), textcoords="offset points")
-ax.set_xlabel("wall time of the time steps [s]")
-ax.set_ylabel("relative error on the contact boundary")
-ax.legend()
+fig = plt.figure()
+tradeoff.draw(result, fig)
 plt.show()
+
+# %% [markdown]
+# ## Is the recommendation right?
+# The recommended run against a reference finer than the whole ladder: one more mesh level
+# and twice the largest step count.
+
+# %%
+if result["recommended"] is not None:
+    reference = tradeoff.finer_reference("paper", base, levels, 0.25)
+    check = tradeoff.verify("paper", base, result["recommended"]["set"], "contact_pressure",
+                            reference)
+    print(f"estimated {result['recommended']['estimated_error']:.3g}, measured against "
+          f"{' '.join(reference)}: {check['error']:.3g} (target {target})")

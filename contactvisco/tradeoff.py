@@ -1,0 +1,516 @@
+"""The speed-accuracy trade of one scene: a ladder of discretizations, each run's error
+estimated against the finest, its wall time, the Pareto front and the cheapest settings that
+reach a target (`contactvisco tradeoff SCENE --target TOL`).
+
+The ladder. Mesh levels j = 0..L-1 scale the scene's own mesh by m_j = c 2^j (box: cells
+times m_j; gmsh: every mesh size parameter, h or h_*, divided by m_j, as the presets do). At every level the
+time steps are N/2, N and 2N (N the scene's time.steps; only N when N = 1), and below the top
+level degree 2 is tried at N steps (kept where its Newton converges). The reference is the
+finest run: top level, 2N steps, degree 1.
+
+The error estimate of a run q (`estimated_error`) is an upper estimate of |q - q*|, q* the
+exact value: by the triangle inequality |q - q*| <= |q - q_ref| + |q_ref - q*|, and the
+reference's own error |q_ref - q*| comes from Richardson extrapolation,
+    |q_ref - q*| ~ d_h / (2^p_h - 1) + d_k / (2^p_k - 1),
+d_h the difference between the two top mesh levels (2N steps), d_k between N and 2N steps on
+the top level, and the observed orders p = log2(d_coarser / d_finer) from three levels (clamped
+to [0.5, 3]; taken as 1 when only two levels ran).
+
+Error measures (relative; differences of fields at all times the two runs share, at the
+reference's contact nodes, linear interpolation of the other run along the boundary):
+    contact_displacement  (u_nu, u_tau) at the contact nodes, discrete L2 along the boundary,
+                          divided by the largest L2 norm of the reference over time
+    contact_pressure      the normal traction -sigma_nu at the contact nodes, the same norm
+    probe                 u at the scene's output.probes: the largest difference of a
+                          component, divided by the largest |u_i| of the reference
+Wall time: the whole run (mesh, set-up with form compilation, time steps), the largest over
+ranks.
+"""
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+import time as clock
+import tomllib
+
+import numpy as np
+from mpi4py import MPI
+
+from . import scene as scene_module
+
+MEASURES = {
+    "contact_displacement": "(u_nu, u_tau) at the contact nodes, relative discrete L2 norm "
+                            "along the contact boundary",
+    "contact_pressure": "normal traction -sigma_nu at the contact nodes, relative discrete L2 "
+                        "norm along the contact boundary",
+    "probe": "displacement at output.probes, largest component difference relative to the "
+             "largest |u_i|",
+}
+
+ESTIMATE = ("difference to the finest run of the ladder (the reference) plus the reference's "
+            "own error by Richardson extrapolation in mesh size and time step")
+
+
+class TradeoffError(ValueError):
+    """A scene or option the ladder cannot use."""
+
+
+# --- the ladder -------------------------------------------------------------------------
+
+
+def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[str]:
+    """The absolute `--set` lines of one rung: the scene's mesh scaled by `mesh`, `steps` time
+    steps, Lagrange degree `degree` (P2: Gauss contact quadrature)."""
+    geo = scene["geometry"]
+    lines = []
+    if geo["type"] == "box":
+        cells = [max(1, round(n * mesh)) for n in geo["cells"]]
+        lines.append("geometry.cells=[" + ",".join(str(n) for n in cells) + "]")
+    else:
+        for key, value in geo["parameters"].items():
+            if scene_module.is_mesh_size(key):
+                lines.append(f"geometry.parameters.{key}={value / mesh:.6g}")
+    lines += [f"time.steps={steps}", f"discretization.degree={degree}"]
+    if degree > 1:                       # nodal contact conditions are P1's
+        lines.append("discretization.contact_quadrature=gauss")
+    return lines
+
+
+def rungs(scene: dict, levels: int, coarsest: float, degrees=(1, 2)) -> list[dict]:
+    """The ladder in the order it is climbed: level by level, cheapest first."""
+    if scene["geometry"]["type"] != "box" and not any(
+            scene_module.is_mesh_size(k) for k in scene["geometry"]["parameters"]):
+        raise TradeoffError("geometry: the mesh cannot be refined (a .msh file, or a gmsh "
+                            "script without mesh size parameters h or h_*); give a box or a gmsh "
+                            "script with them")
+    N = scene["time"]["steps"]
+    step_counts = sorted({max(1, round(N / 2)), N, 2 * N}) if N > 1 else [N]
+    base_degree = scene["discretization"]["degree"]
+    out = []
+    for j in range(levels):
+        mesh = coarsest * 2 ** j
+        for steps in step_counts:
+            out.append({"level": j, "mesh": mesh, "steps": steps, "degree": base_degree})
+        for degree in degrees:
+            if degree > base_degree and j < levels - 1:
+                out.append({"level": j, "mesh": mesh, "steps": N, "degree": degree})
+    for rung in out:
+        rung["set"] = settings_lines(scene, rung["mesh"], rung["steps"], rung["degree"])
+    return out
+
+
+def work(rung: dict, d: int) -> float:
+    """Relative cost model: unknowns times steps, (mesh degree)^d N."""
+    return (rung["mesh"] * rung["degree"]) ** d * rung["steps"]
+
+
+# --- one run and its samples ------------------------------------------------------------
+
+
+def run(source: str, overrides: list[str], comm=MPI.COMM_WORLD) -> dict:
+    """Solve `source` with `overrides`; the contact fields and probes at every step, and the
+    wall time (largest over ranks). A failed Newton solve gives {"failed": message}."""
+    from .run import simulate
+    from .solver import NewtonFailure
+    scene = scene_module.load(source, list(overrides))
+    tick = clock.perf_counter()
+    try:
+        result = simulate(scene, comm=comm, progress=False, keep_tables=True)
+    except NewtonFailure as err:
+        return {"failed": str(err).split(";")[0],
+                "wall_s": comm.allreduce(clock.perf_counter() - tick, op=MPI.MAX)}
+    wall = comm.allreduce(clock.perf_counter() - tick, op=MPI.MAX)
+    samples = {}
+    for record, table in zip(result.steps, result.tables):
+        entry = {"probes": [p["u"] for p in record["probes"]]}
+        if table is not None:
+            entry.update(x=table["x"], u_nu=table["u_nu"], u_tau=table["u_tau"],
+                         pressure=table["reaction_nu"])
+        samples[_time_key(record["t"], scene["time"]["T"])] = entry
+    return {"samples": samples, "wall_s": wall,
+            "steps_s": comm.allreduce(sum(s["wall_s"] for s in result.steps), op=MPI.MAX),
+            "unknowns": int(sum(result.problem.count_unknowns().values())),
+            "newton_mean": float(np.mean([s["newton_iterations"] for s in result.steps]))}
+
+
+def _time_key(t: float, T: float) -> int:
+    """Times matched between runs to 1e-9 T."""
+    return int(round(t / (1e-9 * T)))
+
+
+def _boundary_weights(s: np.ndarray) -> np.ndarray:
+    """Trapezoid weights of sorted points s along a curve."""
+    if len(s) < 2:
+        return np.ones_like(s)
+    w = np.zeros_like(s)
+    w[1:] += 0.5 * np.diff(s)
+    w[:-1] += 0.5 * np.diff(s)
+    return w
+
+
+def _onto(x_from: np.ndarray, values: np.ndarray, x_to: np.ndarray) -> np.ndarray:
+    """Values at the contact nodes x_from, linearly interpolated to the points x_to: along the
+    coordinate of largest spread in 2D, on a Delaunay triangulation of the face's two spanning
+    coordinates in 3D (nearest node outside it)."""
+    span = np.ptp(x_to, axis=0)
+    if x_to.shape[1] == 2:
+        a = int(np.argmax(span))
+        order = np.argsort(x_from[:, a])
+        return np.interp(x_to[:, a], x_from[order, a], values[order])
+    from matplotlib.tri import LinearTriInterpolator, Triangulation
+    a, b = sorted(np.argsort(span, kind="stable")[-2:])
+    tri = Triangulation(x_from[:, a], x_from[:, b])
+    out = np.ma.filled(LinearTriInterpolator(tri, values)(x_to[:, a], x_to[:, b]), np.nan)
+    missing = np.isnan(out)
+    if missing.any():
+        distance = ((x_to[missing, None, :] - x_from[None, :, :]) ** 2).sum(-1)
+        out[missing] = values[np.argmin(distance, axis=1)]
+    return out
+
+
+def difference(run_a: dict, reference: dict, measure: str) -> float:
+    """The relative difference of `measure` between two runs (module docstring), over the
+    times both have."""
+    common = sorted(set(run_a["samples"]) & set(reference["samples"]))
+    if not common:
+        raise TradeoffError("the two runs share no time level")
+    top, scale = 0.0, 0.0
+    for key in common:
+        a, r = run_a["samples"][key], reference["samples"][key]
+        if measure == "probe":
+            ua, ur = np.array(a["probes"], float), np.array(r["probes"], float)
+            top = max(top, float(np.max(np.abs(ua - ur))))
+            scale = max(scale, float(np.max(np.abs(ur))))
+            continue
+        fields = ("u_nu", "u_tau") if measure == "contact_displacement" else ("pressure",)
+        x = r["x"]
+        if x.shape[1] == 2:
+            s = x[:, int(np.argmax(np.ptp(x, axis=0)))]
+            w = _boundary_weights(s) if np.all(np.diff(s) >= 0) else np.ones(len(s))
+        else:
+            w = np.ones(len(x))
+        diff2 = sum(np.sum(w * (_onto(a["x"], a[f], x) - r[f]) ** 2) for f in fields)
+        norm2 = sum(np.sum(w * r[f] ** 2) for f in fields)
+        top = max(top, math.sqrt(diff2))
+        scale = max(scale, math.sqrt(norm2))
+    if scale == 0.0:
+        raise TradeoffError(f"the reference's {measure.replace('_', ' ')} is zero at every "
+                            "time: choose another --measure")
+    return top / scale
+
+
+def _order(coarse: float, fine: float) -> float:
+    """Observed order from the differences of three levels, clamped to [0.5, 3]."""
+    if not (coarse > 0 and fine > 0):
+        return 3.0 if fine == 0 else 0.5
+    return float(min(3.0, max(0.5, math.log2(coarse / fine))))
+
+
+# --- the trade ----------------------------------------------------------------------------
+
+
+def tradeoff(source: str, target: float, overrides=(), measure: str = "contact_pressure",
+             levels: int = 4, coarsest: float = 0.25, degrees=(1, 2), budget: float = math.inf,
+             out=None, comm=MPI.COMM_WORLD, say=print) -> dict:
+    """Climb the ladder of `source` (a scene name or file, with `overrides`), estimate errors,
+    recommend the cheapest run whose estimated error is <= target; write tradeoff.json,
+    tradeoff.png and recommended.toml into `out` (rank 0) when given."""
+    if measure not in MEASURES:
+        raise TradeoffError(f"unknown measure '{measure}'; allowed: {', '.join(MEASURES)}")
+    if not target > 0:
+        raise TradeoffError(f"--target must be > 0 (a relative error), got {target}")
+    if levels < 2:
+        raise TradeoffError(f"--levels must be >= 2, got {levels}")
+    overrides = list(overrides)
+    scene = scene_module.load(source, overrides)
+    if measure != "probe" and scene["contact"] is None:
+        raise TradeoffError(f"scene '{scene['name']}' has no contact: use --measure probe")
+    if measure == "probe" and not scene["output"]["probes"]:
+        raise TradeoffError(f"scene '{scene['name']}' has no output.probes for --measure probe")
+    d = scene_module.dimension(scene)
+    ladder = rungs(scene, levels, coarsest, degrees)
+    say = say if comm.rank == 0 else (lambda *a, **k: None)
+    started = clock.perf_counter()
+    stopped = None
+    done = []
+    for rung in ladder:
+        spent = comm.allreduce(clock.perf_counter() - started, op=MPI.MAX)
+        predicted = _predict(rung, done, d)
+        if predicted is not None and spent + predicted > budget:
+            stopped = (f"stopped before mesh level {rung['level'] + 1} of {levels} (mesh "
+                       f"x{rung['mesh']:g}, "
+                       f"{rung['steps']} steps, P{rung['degree']}): predicted "
+                       f"{predicted:.1f} s, {max(0.0, budget - spent):.1f} s of the "
+                       f"{budget:g} s budget left")
+            say(f"tradeoff: {stopped}")
+            break
+        measured = run(source, overrides + rung["set"], comm)
+        rung.update(measured)
+        rung["predicted_s"] = predicted
+        done.append(rung)
+        say(f"tradeoff: mesh x{rung['mesh']:g}, {rung['steps']:4d} steps, P{rung['degree']}: "
+            + (f"Newton failed ({rung['failed']})" if "failed" in rung else
+               f"{rung['unknowns']} unknowns, {rung['wall_s']:.2f} s"))
+    try:
+        result = _estimate(done, target, measure, scene, source, overrides)
+    except TradeoffError as err:
+        raise TradeoffError(f"{err}" + (f"; {stopped}" if stopped else "")) from None
+    result.update(budget_s=budget if math.isfinite(budget) else None, stopped=stopped,
+                  total_s=comm.allreduce(clock.perf_counter() - started, op=MPI.MAX))
+    if out is not None and comm.rank == 0:
+        write(result, pathlib.Path(out), source, overrides)
+    comm.barrier()
+    return result
+
+
+def _predict(rung: dict, done: list, d: int) -> float | None:
+    """The next run's time: the time per unit of work() of the costliest run so far, times
+    1.5 for the superlinear cost of larger solves; None before the first run."""
+    ok = [r for r in done if "failed" not in r]
+    if not ok:
+        return None
+    big = max(ok, key=lambda r: work(r, d))
+    return 1.5 * big["wall_s"] * work(rung, d) / work(big, d)
+
+
+def _estimate(done: list, target: float, measure: str, scene: dict, source: str,
+              overrides: list) -> dict:
+    """Differences to the reference, Richardson for the reference's own error, the Pareto
+    front and the recommendation."""
+    ok = [r for r in done if "failed" not in r]
+    base_degree = scene["discretization"]["degree"]
+    p1 = [r for r in ok if r["degree"] == base_degree]
+    if len({r["level"] for r in p1}) < 2:
+        raise TradeoffError("fewer than two mesh levels ran (raise --budget or lower "
+                            "--coarsest): no error estimate")
+    top = max(r["level"] for r in p1)
+    n_max = max(r["steps"] for r in p1 if r["level"] == top)
+    reference = next(r for r in p1 if r["level"] == top and r["steps"] == n_max)
+    # Space: the mesh levels at the reference's steps.
+    column = sorted((r for r in p1 if r["steps"] == n_max), key=lambda r: r["level"])
+    d_h = [difference(a, b, measure) for a, b in zip(column[:-1], column[1:])]
+    p_h = _order(d_h[-2], d_h[-1]) if len(d_h) >= 2 else 1.0
+    # Time: the step counts on the top level.
+    row = sorted((r for r in p1 if r["level"] == top), key=lambda r: r["steps"])
+    d_k = [difference(a, b, measure) for a, b in zip(row[:-1], row[1:])]
+    p_k = _order(d_k[-2], d_k[-1]) if len(d_k) >= 2 else 1.0
+    self_error = d_h[-1] / (2 ** p_h - 1) + (d_k[-1] / (2 ** p_k - 1) if d_k else 0.0)
+    ladder = []
+    for r in done:
+        row_out = {k: r[k] for k in ("level", "mesh", "steps", "degree", "set", "wall_s")}
+        row_out["predicted_s"] = r.get("predicted_s")
+        if "failed" in r:
+            row_out.update(failed=r["failed"], pareto=False)
+        else:
+            diff = 0.0 if r is reference else difference(r, reference, measure)
+            row_out.update(unknowns=r["unknowns"], steps_s=r["steps_s"],
+                           newton_mean=r["newton_mean"], difference=diff,
+                           estimated_error=diff + self_error, reference=r is reference)
+        ladder.append(row_out)
+    good = [r for r in ladder if "failed" not in r]
+    for r in good:
+        r["pareto"] = not any(o is not r and o["estimated_error"] <= r["estimated_error"]
+                              and o["wall_s"] <= r["wall_s"] and
+                              (o["estimated_error"] < r["estimated_error"]
+                               or o["wall_s"] < r["wall_s"]) for o in good)
+    reaching = [r for r in good if r["estimated_error"] <= target]
+    result = {"scene": scene["name"], "source": str(source), "overrides": overrides,
+              "measure": measure, "measure_description": MEASURES[measure],
+              "target": target, "error_estimate": ESTIMATE,
+              "reference": {"set": reference["set"], "self_error": self_error,
+                            "order_space": p_h, "order_time": p_k if d_k else None,
+                            "difference_space": d_h[-1],
+                            "difference_time": d_k[-1] if d_k else None},
+              "ladder": ladder}
+    if reaching:
+        best = min(reaching, key=lambda r: r["wall_s"])
+        result["recommended"] = {"set": overrides + best["set"],
+                                 "estimated_error": best["estimated_error"],
+                                 "wall_s": best["wall_s"], "mesh": best["mesh"],
+                                 "steps": best["steps"], "degree": best["degree"]}
+    else:
+        smallest = min(good, key=lambda r: r["estimated_error"])
+        result["recommended"] = None
+        result["not_reached"] = (f"no run reached {target:g}: the smallest estimated error is "
+                                 f"{smallest['estimated_error']:.3g} (mesh "
+                                 f"x{smallest['mesh']:g}); add levels (--levels) or budget")
+    return result
+
+
+# --- files --------------------------------------------------------------------------------
+
+
+def write(result: dict, folder: pathlib.Path, source: str, overrides: list) -> None:
+    """tradeoff.json, tradeoff.png and (with a recommendation) recommended.toml."""
+    folder.mkdir(parents=True, exist_ok=True)
+    if result["recommended"] is not None:
+        path = folder / "recommended.toml"
+        path.write_text(recommended_toml(source, result["recommended"]["set"], result))
+        result["recommended"]["scene_file"] = path.name
+    (folder / "tradeoff.json").write_text(json.dumps(result, indent=1))
+    figure(result, folder / "tradeoff.png")
+
+
+def recommended_toml(source: str, lines: list[str], result: dict) -> str:
+    """The scene file of `source` with the `--set` lines applied to its own (unresolved)
+    tables, so that it loads to the same scene as `source` with those lines; the preset key
+    is dropped (the lines give absolute values)."""
+    path = pathlib.Path(source)
+    if not path.suffix and (scene_module.SCENE_DIR / f"{source}.toml").exists():
+        path = scene_module.SCENE_DIR / f"{source}.toml"
+    raw = tomllib.loads(path.read_text())
+    preset = raw.pop("preset", None)
+    if preset is not None:       # the preset's other settings (rule) written out
+        full = scene_module.load(str(path))
+        raw.setdefault("time", {})["rule"] = full["time"]["rule"]
+    for text in lines:
+        keys, value = scene_module.parse_assignment(text)
+        if keys == ["preset"]:
+            continue
+        node = raw
+        for key in keys[:-1]:
+            node = node.setdefault(key, {})
+        node[keys[-1]] = value
+    rec = result["recommended"]
+    head = (f"# {result['scene']}: the cheapest run of the ladder with estimated "
+            f"{result['measure'].replace('_', ' ')} error {rec['estimated_error']:.3g} <= "
+            f"{result['target']:g}\n# (contactvisco tradeoff; wall time {rec['wall_s']:.2f} s)\n"
+            f"# estimate: {ESTIMATE}\n")
+    return head + dumps_toml(raw)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        if isinstance(value, float) and not math.isfinite(value):
+            return ("-" if value < 0 else "") + ("inf" if math.isinf(value) else "nan")
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)         # a JSON string is a TOML basic string
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()
+                               if v is not None) + "}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"no TOML form for {value!r}")
+
+
+def _toml_key(key: str) -> str:
+    return key if key.replace("_", "").replace("-", "").isalnum() else json.dumps(key)
+
+
+def dumps_toml(document: dict) -> str:
+    """A scene dict as TOML: top-level values, then one [table] per dict and [[table]] per
+    list of dicts; deeper dicts inline."""
+    lines, tables = [], []
+    for key, value in document.items():
+        if isinstance(value, dict) or (isinstance(value, list) and value
+                                       and all(isinstance(v, dict) for v in value)):
+            tables.append((key, value))
+        elif value is not None:
+            lines.append(f"{_toml_key(key)} = {_toml_value(value)}")
+    for key, value in tables:
+        for entry in ([value] if isinstance(value, dict) else value):
+            lines += ["", f"[{_toml_key(key)}]" if isinstance(value, dict)
+                      else f"[[{_toml_key(key)}]]"]
+            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in entry.items()
+                      if v is not None]
+    return "\n".join(lines) + "\n"
+
+
+def figure(result: dict, path: pathlib.Path, dpi: int = 300):
+    """The trade-off figure of a result, saved to `path` (one journal column wide)."""
+    import matplotlib
+    from matplotlib.figure import Figure
+
+    from .figures import STYLE
+    with matplotlib.rc_context(STYLE):
+        fig = Figure()
+        draw(result, fig)
+        fig.savefig(path, dpi=dpi)
+    return path
+
+
+def draw(result: dict, fig):
+    """Estimated error against wall time, log-log: circles P1, squares P2, time steps by
+    colour, the Pareto front (filled markers, line), the target and the recommendation."""
+    import matplotlib
+    from .figures import COLUMN, STYLE
+    with matplotlib.rc_context(STYLE):
+        fig.set_size_inches(COLUMN, 2.9)
+        if hasattr(fig, "set_layout_engine"):          # matplotlib >= 3.6
+            fig.set_layout_engine("constrained")
+        else:
+            fig.set_constrained_layout(True)
+        ax = fig.subplots()
+        rows = [r for r in result["ladder"] if "failed" not in r]
+        step_counts = sorted({r["steps"] for r in rows})
+        for r in rows:
+            colour = f"C{step_counts.index(r['steps'])}"
+            ax.loglog(r["wall_s"], r["estimated_error"], "o" if r["degree"] == 1 else "s",
+                      color=colour, mfc=colour if r["pareto"] else "none", ms=4, mew=0.8)
+        for i, n in enumerate(step_counts):
+            ax.plot([], [], "o", color=f"C{i}", label=f"{n} steps")
+        if any(r["degree"] > 1 for r in rows):
+            ax.plot([], [], "s", color="0.3", mfc="none", label="P2 (circles: P1)")
+        front = sorted((r for r in rows if r["pareto"]), key=lambda r: r["wall_s"])
+        ax.plot([r["wall_s"] for r in front], [r["estimated_error"] for r in front], "k-",
+                lw=0.7, label="Pareto front (filled)")
+        ax.axhline(result["target"], color="C3", ls="--", lw=0.8, label="target")
+        rec = result["recommended"]
+        if rec is not None:
+            ax.plot(rec["wall_s"], rec["estimated_error"], "*", color="C3", ms=9,
+                    label="recommended")
+        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+        for axis in (ax.xaxis, ax.yaxis):    # 0.2, 0.5, 1, 2 ...: readable within a decade
+            axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+            axis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("wall time [s]")
+        ax.set_ylabel(f"estimated relative error\n({result['measure'].replace('_', ' ')})")
+        ax.set_title(f"{result['scene']}: error vs the finest run + Richardson")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=2, frameon=False)
+    return fig
+
+
+def verify(source: str, overrides: list, recommended_set: list, measure: str,
+           reference_set: list, comm=MPI.COMM_WORLD) -> dict:
+    """The recommended run's error measured against a reference finer than the ladder."""
+    rec = run(source, list(recommended_set), comm)
+    ref = run(source, list(overrides) + list(reference_set), comm)
+    if "failed" in rec or "failed" in ref:
+        raise TradeoffError(f"verification run failed: {rec.get('failed') or ref['failed']}")
+    return {"error": difference(rec, ref, measure), "wall_s": rec["wall_s"],
+            "reference_wall_s": ref["wall_s"], "reference_unknowns": ref["unknowns"]}
+
+
+def finer_reference(source: str, overrides: list, levels: int, coarsest: float) -> list[str]:
+    """`--set` lines of a run one mesh level above the ladder's top and with twice its
+    largest step count."""
+    scene = scene_module.load(source, list(overrides))
+    N = scene["time"]["steps"]
+    return settings_lines(scene, coarsest * 2 ** levels, 4 * N if N > 1 else N,
+                          scene["discretization"]["degree"])
+
+
+def summary_lines(result: dict) -> list[str]:
+    """What the command prints at the end."""
+    lines = [f"error measure: {result['measure']} ({result['measure_description']})",
+             f"error estimate: {ESTIMATE}; reference's own error "
+             f"{result['reference']['self_error']:.3g} (observed orders: space "
+             f"{result['reference']['order_space']:.2f}"
+             + (f", time {result['reference']['order_time']:.2f}"
+                if result['reference']['order_time'] is not None else "") + ")"]
+    if result.get("stopped"):
+        lines.append(f"budget: {result['stopped']}")
+    rec = result["recommended"]
+    if rec is None:
+        lines.append(result["not_reached"])
+    else:
+        lines.append(f"recommended (estimated error {rec['estimated_error']:.3g} <= "
+                     f"{result['target']:g}, {rec['wall_s']:.2f} s):")
+        lines += [f"  --set {line}" for line in rec["set"]]
+    return lines
+
