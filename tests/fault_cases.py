@@ -12,6 +12,7 @@ import subprocess
 import sys
 import time
 
+from contactvisco import compat
 from contactvisco.h5read import check_xdmf
 from contactvisco.output import read_summary
 
