@@ -1,12 +1,13 @@
 """contactvisco: quasistatic frictional contact of viscoelastic bodies with long memory against
 a foundation with normal compliance and a unilateral constraint (Ouafik 2024), in DOLFINx.
 
-The public interface (see docs/api.md): load_scene, solve, Result, read_results,
-builtin_scenes, pyvista_grid, SceneError, NewtonFailure, and for the demos hertz, cattaneo_mindlin,
+The public interface (docs/api.md): load_scene, solve, Result, read_results, builtin_scenes,
+pyvista_grid, SceneError, NewtonFailure; for the demos also hertz, cattaneo_mindlin,
 cattaneo_traction, quick, show_images.
 
-Modules: api (the interface), scene (parameters), material (A), memory (eq 19), contact (eqs 11-12, 20-21 in UFL),
-geometry (meshes), problem (forms), solver (SNES), run (time loop), output, figures, cli.
+Modules: api (the interface), scene (parameters), material (A), memory (eq 19), contact
+(eqs 11-12, 20-21 in UFL), geometry (meshes), problem (forms), solver (SNES), run (time
+loop), output, figures, cli.
 PETSc-dependent modules are imported on use, so that the command line can hand its options to
 PETSc first.
 """

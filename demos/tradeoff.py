@@ -21,22 +21,18 @@
 # %%
 import matplotlib.pyplot as plt
 import numpy as np
-from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.notebook import quick
-from contactvisco.run import simulate
+from contactvisco import load_scene, quick, solve
 
 meshes = [8, 16, 32] if quick() else [16, 32, 64]
 step_counts = [10, 40]
 
 
 def run(cells, steps, rule="trapezoid"):
-    scene = scene_module.load("paper", [f"geometry.cells=[{cells}, {cells}]",
-                                        f"time.steps={steps}", f"time.rule='{rule}'",
-                                        "output.probes=[]"])
-    result = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
-    table = result.tables[-1]
+    scene = load_scene("paper", geometry={"cells": [cells, cells]},
+                       time={"steps": steps, "rule": rule}, output={"probes": []})
+    result = solve(scene)
+    table = result.contact[-1]
     return {"x": table["x"][:, 0], "u_nu": table["u_nu"], "u_tau": table["u_tau"],
             "s": sum(s["wall_s"] for s in result.steps),
             "newton": np.mean([s["newton_iterations"] for s in result.steps])}
