@@ -18,7 +18,7 @@ from .scene import SceneError
 _FREE_FORM = {("geometry", "parameters"), ("solver", "petsc_options")}
 
 
-def load_scene(name_or_path, preset: str | None = None, **overrides) -> dict:
+def load_scene(name_or_path, preset: str | None = None, sets=(), **overrides) -> dict:
     """The scene `name_or_path` (a built-in name, see `builtin_scenes()`, or a TOML file) with
     its defaults filled in and `overrides` applied, checked as a whole.
 
@@ -27,8 +27,11 @@ def load_scene(name_or_path, preset: str | None = None, **overrides) -> dict:
     changes only the keys it names. `preset` ("fast", "balanced", "accurate") scales the mesh
     and the steps. Raises SceneError (what, where it came from, what is allowed) for an
     unknown key or a value out of range, exactly as ``contactvisco run --set`` does.
+    `sets` takes ``"key=value"`` texts (TOML values) as the command line's --set, applied
+    before the keyword overrides.
     """
-    given = list(_assignments(overrides, []))
+    python = list(_assignments(overrides, []))
+    given = list(sets) + python
     if preset is not None:
         given.insert(0, scene_module.Override(["preset"], preset))
     try:
@@ -36,7 +39,7 @@ def load_scene(name_or_path, preset: str | None = None, **overrides) -> dict:
     except SceneError as err:
         # The checks are those of --set; their messages name the override as it was given.
         message = str(err).replace("--set material", "load_scene material")
-        located = SceneError(message.replace("--set", "load_scene" if given else "--set"))
+        located = SceneError(message.replace("--set", "load_scene") if python else message)
         located.located = err.located
         raise located from None
 
@@ -73,7 +76,7 @@ def builtin_scenes() -> dict[str, str]:
 
 
 def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on_step=None,
-          comm=None, progress=False, restart=False, overwrite=True):
+          comm=None, progress=False, restart=False, overwrite=True, keep_contact=True):
     """Solve `scene` (from load_scene) and return a Result.
 
     mesh, facet_tags, boundaries: a DOLFINx mesh, its facet meshtags and a dict
@@ -86,6 +89,8 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
     on_step(record): called on every rank after every accepted step with its record.
     comm: the MPI communicator (default: the mesh's, else COMM_WORLD). Collective.
     progress: print a line per step (rank 0).
+    keep_contact: keep the contact table of every step in result.contact (False for long
+        runs that write them to `out` anyway).
 
     Raises SceneError (bad scene or mesh), NewtonFailure (a step that does not converge even
     when cut), contactvisco.parallel.Stopped (SIGINT/SIGTERM, after a completed step).
@@ -98,7 +103,7 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
     geometry = None
     if mesh is not None or facet_tags is not None or boundaries is not None:
         geometry = user_geometry(scene, mesh, facet_tags, boundaries)
-    return simulate(scene, out, comm=comm, progress=progress, keep_tables=True,
+    return simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
                     restart=restart, overwrite=overwrite, geometry=geometry, on_step=on_step)
 
 

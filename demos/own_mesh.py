@@ -22,11 +22,12 @@
 # coefficient $\mu = 0.4$ instead of the paper's 0.2.
 
 # %%
-import numpy as np
-from dolfinx import mesh as dmesh
-from mpi4py import MPI
-
+# contactvisco first: a DOLFINx wheel from PyPI needs its MPI libraries loaded before dolfinx.
 from contactvisco import load_scene, pyvista_grid, quick, solve
+
+import numpy as np  # noqa: E402
+from dolfinx import mesh as dmesh  # noqa: E402
+from mpi4py import MPI  # noqa: E402
 
 n = 8 if quick() else 32
 domain = dmesh.create_unit_square(MPI.COMM_WORLD, n, n, dmesh.CellType.triangle,
