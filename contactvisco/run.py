@@ -116,6 +116,8 @@ class Run:
         self.problem, self.snes, self.started = problem, snes, started
         self.setup_s = clock.perf_counter() - started
         self.say = _printer(comm, progress)
+        points = scene["output"]["probes"]
+        self.probes = output.Probes(problem.geometry.mesh, points) if points else None
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
         opts = scene["output"]
         self.writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
@@ -197,14 +199,8 @@ class Run:
                 "status_counts": output.status_counts(table),
                 "probes": probes.values(self.problem.u, self.comm) if probes else []}
 
-    @property
-    def probes(self):
-        if not hasattr(self, "_probes"):
-            points = self.scene["output"]["probes"]
-            self._probes = output.Probes(self.problem.geometry.mesh, points) if points else None
-        return self._probes
-
     def _recorder(self, result: Result, keep_tables):
+        """Observer: the record (and the table) into the Result."""
         def record_into_result(record, table):
             result.steps.append(record)
             if keep_tables:
@@ -223,6 +219,7 @@ class Run:
         return [writer, snapshots]
 
     def _progress(self, t_end):
+        """Observer: one line per accepted state on rank 0."""
         def progress(record, table):
             krylov = record["krylov_iterations"]
             cuts = record["cuts"]
