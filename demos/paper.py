@@ -35,7 +35,6 @@
 # (PETSc SNES) on $(u, \lambda_\nu, \lambda_\tau)$ at each time step.
 
 # %%
-import json
 import pathlib
 
 from mpi4py import MPI
