@@ -1,8 +1,13 @@
 """contactvisco: quasistatic frictional contact of viscoelastic bodies with long memory against
 a foundation with normal compliance and a unilateral constraint (Ouafik 2024), in DOLFINx.
 
-Modules: scene (parameters), material (A), memory (eq 19), contact (eqs 11-12, 20-21 in UFL),
-geometry (meshes), problem (forms), solver (SNES), run (time loop), output, figures, cli.
+The public interface (docs/api.md): load_scene, solve, Result, read_results, builtin_scenes,
+pyvista_grid, SceneError, NewtonFailure, the module tradeoff; for the demos also hertz,
+cattaneo_mindlin, cattaneo_traction, quick, show_images.
+
+Modules: api (the interface), scene (parameters), material (A), memory (eq 19), contact
+(eqs 11-12, 20-21 in UFL), geometry (meshes), problem (forms), solver (SNES), run (time
+loop), output, figures, cli.
 PETSc-dependent modules are imported on use, so that the command line can hand its options to
 PETSc first.
 """
@@ -20,3 +25,32 @@ if _util.find_spec("dolfinx_solver") is not None:
 # every compiler command line; keep those out of the user's console.
 _logging.getLogger().addFilter(
     lambda record: record.levelno >= _logging.WARNING or "distutils" not in record.pathname)
+
+#: Public name -> the module that defines it; imported on first use (PEP 562), so that
+#: `import contactvisco` loads neither DOLFINx nor PETSc.
+_PUBLIC = {
+    "load_scene": "api", "solve": "api", "read_results": "api", "builtin_scenes": "api",
+    "pyvista_grid": "api",
+    "Result": "run", "SceneError": "scene", "NewtonFailure": "solver",
+    "hertz": "verification", "cattaneo_mindlin": "coulomb", "cattaneo_traction": "coulomb",
+    "quick": "notebook", "show_images": "notebook",
+}
+#: Public modules: the speed-accuracy trade of a scene (contactvisco tradeoff).
+_MODULES = ("tradeoff",)
+__all__ = ["__version__", *_PUBLIC, *_MODULES]
+
+
+def __getattr__(name):
+    if name in _MODULES:
+        import importlib
+        return importlib.import_module(f".{name}", __name__)
+    if name in _PUBLIC:
+        import importlib
+        value = getattr(importlib.import_module(f".{_PUBLIC[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'contactvisco' has no attribute '{name}'")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -90,6 +90,7 @@ def main(argv=None):
     import petsc4py
     petsc4py.init([sys.argv[0]] + petsc_args)
 
+    from . import api
     from . import scene as scene_module
     if args.command == "plot":
         return _plot(args)
@@ -100,10 +101,10 @@ def main(argv=None):
     preset = [f"preset='{args.preset}'"] if getattr(args, "preset", None) else []
     try:
         if args.command == "scenes":
-            for name in scene_module.builtin_names():
-                print(f"{name:12s} {scene_module.load(name)['description']}")
+            for name, description in api.builtin_scenes().items():
+                print(f"{name:12s} {description}")
             return 0
-        scene = scene_module.load(args.scene, preset + args.set)
+        scene = api.load_scene(args.scene, sets=preset + args.set)
         from .output import jsonable
         print(json.dumps(jsonable(scene), indent=2))
         return 0
@@ -144,19 +145,18 @@ def _run(args, petsc_args, scene_module):
     (contactvisco.parallel): exit 2 for a scene or folder error, 3 for a Newton failure,
     128 + signal for SIGINT/SIGTERM, 1 for anything else."""
     from mpi4py import MPI
-    from . import parallel
+    from . import api, parallel
     from .solver import NewtonFailure
     comm = MPI.COMM_WORLD
     parallel.prepare(comm)
     out = args.out
     preset = [f"preset='{args.preset}'"] if args.preset else []
     try:
-        scene = scene_module.load(args.scene, preset + args.set)
-        from .run import simulate
+        scene = api.load_scene(args.scene, sets=preset + args.set)
         out = args.out or f"results/{scene['name']}"
         _check_writable(out)
-        simulate(scene, out, comm=comm, progress=not args.quiet, restart=args.restart,
-                 overwrite=args.overwrite)
+        api.solve(scene, out, comm=comm, progress=not args.quiet, restart=args.restart,
+                  overwrite=args.overwrite, keep_contact=False)
     except scene_module.SceneError as err:
         from .checkpoint import Damaged
         from .lock import FolderError

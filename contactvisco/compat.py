@@ -288,3 +288,11 @@ def hostfile_line(host: str, slots: int) -> str:
     """One line of a hostfile in the launcher's syntax (Open MPI: 'host slots=N', MPICH's
     hydra: 'host:N')."""
     return f"{host} slots={slots}" if mpi_vendor() == "Open MPI" else f"{host}:{slots}"
+
+
+def vtk_mesh(space):
+    """(topology, cell types, points) of a space's nodes for pyvista.UnstructuredGrid:
+    dolfinx.plot.vtk_mesh (0.7 on) or create_vtk_mesh (0.5)."""
+    from dolfinx import plot
+    make = getattr(plot, "vtk_mesh", None) or plot.create_vtk_mesh
+    return make(space)

@@ -1,4 +1,10 @@
-"""The time loop of eqs (20)-(21): t_0 = 0 (no history yet), then n = 1..N with k = T/N."""
+"""The time loop of eqs (20)-(21): t_0 = 0 (no history yet), then n = 1..N with k = t_end/N.
+
+The loop is plain: `advance` solves one step and yields the accepted states (more than one
+when the step had to be cut), and every accepted state goes to the observers in turn: the
+result, the output writer, the figure snapshots, the checkpoint, the progress line and the
+caller's `on_step`.
+"""
 from __future__ import annotations
 
 import math
@@ -23,19 +29,55 @@ from .solver import NewtonFailure
 
 @dataclass
 class Result:
+    """What a run gives back: `steps` (the step records of steps.jsonl, one per accepted
+    state), `final` (the summary's final record), `tables` (the contact table of each step
+    when kept), and the solved `problem` (its fields hold the state at the last step)."""
     problem: Problem
     steps: list = field(default_factory=list)        # the summary.json step records
     tables: list = field(default_factory=list)       # contact_table per step (every rank)
     linear_system: str = ""                           # condensed | coupled | displacement
     linear_solver: str = ""                           # KSP/PC, e.g. preonly/lu
+    final: dict = field(default_factory=dict)
+
+    @property
+    def u(self):
+        """The displacement (a DOLFINx Function) at the last accepted step."""
+        return self.problem.u
+
+    @property
+    def contact(self) -> list:
+        """The contact table of each accepted step (dicts of numpy arrays, see
+        output.contact_table); None entries when the scene has no contact."""
+        return self.tables
+
+
+@dataclass
+class Accepted:
+    """A converged state at time t, reached by a step of size k (None: the first state)."""
+    t: float
+    k: float | None
+    iterations: int
+    wall_s: float
+    cuts: int
+
+
+class StepFailed(Exception):
+    """Newton failed on a step that may not be cut further."""
+
+    def __init__(self, t_from, t_to, cuts, failure: NewtonFailure):
+        super().__init__(str(failure))
+        self.t_from, self.t_to, self.cuts, self.failure = t_from, t_to, cuts, failure
 
 
 def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
-             keep_tables=False, restart=False, overwrite=True) -> Result:
+             keep_tables=False, restart=False, overwrite=True, geometry=None,
+             on_step=None) -> Result:
     """Solve a resolved scene; write results into folder `out` when given, with a checkpoint
     after every step; restart=True continues from the checkpoint in `out`. The run holds the
     folder (contactvisco.lock); an earlier run's files in it are replaced when overwrite is
     true, else refused. SIGINT/SIGTERM stop every rank after the same step (parallel.Stopped).
+    `geometry` replaces the scene's own mesh; on_step(record) is called after every accepted
+    step.
     """
     started = clock.perf_counter()
     parallel.prepare(comm)          # collective: while every rank is still in step
@@ -43,11 +85,12 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     snes, held = None, {}          # held: what must be closed however the run ends
     signals = parallel.catch_signals()
     try:
-        geometry = geometry_module.build(scene, comm)
+        geometry = geometry or geometry_module.build(scene, comm)
         problem = build(scene, geometry)
         snes = solver_module.create(problem, comm)
-        result = _simulate(scene, out, comm, progress, keep_tables, restart, started,
-                           problem, snes, held)
+        run = Run(scene, out, comm, problem, snes, progress, restart, started)
+        held["writer"] = run.writer
+        result = run.loop(keep_tables, on_step)
     except BaseException as err:
         # Destroying the SNES is collective: only when every rank failed.
         if not parallel.together(comm, err):
@@ -64,166 +107,252 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     return result
 
 
-def _simulate(scene, out, comm, progress, keep_tables, restart, started, problem, snes,
-              held) -> Result:
-    geometry = problem.geometry
-    setup_s = clock.perf_counter() - started
-    opts = scene["output"]
-    probes = output.Probes(geometry.mesh, opts["probes"]) if opts["probes"] else None
-    sigma = fem.Function(problem.T, name="sigma")
-    resumed = checkpoint.load(out, problem, comm) if restart else None
-    writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
-                           restart_count=resumed and resumed["count"]) if out else None
-    held["writer"] = writer
-    T, N = scene["time"]["T"], scene["time"]["steps"]
-    k = T / N
-    figure_steps = {min(N, max(0, round(t / k))) for t in opts["figure_times"]} | {N}
-    snapshots = []
-    result = Result(problem, linear_system=snes.system_kind, linear_solver=snes.linear_solver())
-    say = _printer(comm, progress)
-    counts = problem.count_unknowns()
-    contact_nodes = problem.count_contact_nodes()
-    multipliers = ", ".join(name for name in counts if name != "u")
-    say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), {counts['u']} "
-        f"displacement unknowns"
-        + (f", {contact_nodes} contact nodes ({multipliers})" if contact_nodes else "")
-        + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
-        f"{setup_s:.2f} s")
+class Run:
+    """One run's fixed parts: the scene, the problem and solver, the output writer, the
+    printer; `loop` takes the steps."""
 
-    if problem.history is not None and (problem.history.direct
-                                        or hasattr(problem.history, "note")):
-        note = getattr(problem.history, "note", None) or (
-            "memory: a general (table) kernel has no recursion: eq (19) is summed "
-            "directly, O(n) work and memory per step")
-        say(note)
-        if writer is not None:
-            writer.note("notes", note)
+    def __init__(self, scene, out, comm, problem, snes, progress, restart, started):
+        self.scene, self.out, self.comm = scene, out, comm
+        self.problem, self.snes, self.started = problem, snes, started
+        self.setup_s = clock.perf_counter() - started
+        self.say = _printer(comm, progress)
+        points = scene["output"]["probes"]
+        self.probes = output.Probes(problem.geometry.mesh, points) if points else None
+        self.resumed = checkpoint.load(out, problem, comm) if restart else None
+        opts = scene["output"]
+        self.writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
+                                    restart_count=self.resumed and self.resumed["count"]
+                                    ) if out else None
 
-    b = scene_module.stability_number(scene)
-    if scene["time"]["rule"] == "paper" and b >= 1.0:
-        warning = (f"warning: the paper's time rule is unstable here: k R(0) (1 + nu) / E = "
-                   f"{b:.3g} >= 1; use more steps (time.steps > {math.ceil(N * b)}) or "
-                   "time.rule = 'trapezoid'")
-        if comm.rank == 0:
-            print(f"contactvisco: {warning}", file=sys.stderr, flush=True)
-        if writer is not None:
-            writer.note("warnings", warning)
-
-    figure_times = {round(i * k, 12) for i in figure_steps}
-    # The figure snapshots gather the whole mesh on rank 0: skipped on large meshes.
-    skip_snapshots = writer is not None and opts["figures"] and output.snapshot_skip_note(
-        problem, opts["snapshot_max_nodes"], writer.xdmf is not None)
-    if skip_snapshots:
-        writer.note("notes", skip_snapshots)    # a restarted run keeps its earlier notes
-        say(skip_snapshots)
-    state = {"t": 0.0, "count": 0, "table": None}
-    if resumed:
-        state.update(t=resumed["t"], count=resumed["count"])
-        if comm.rank == 0 and (pathlib.Path(out) / "snapshots.npz").exists():
-            snapshots = output.read_snapshots(pathlib.Path(out) / "snapshots.npz", resumed["t"])
-        say(f"restarting from the checkpoint at t = {resumed['t']:g} (step "
-            f"{resumed['count'] - 1})")
-
-    def accept(t, iterations, wall, cuts):
-        """Record a converged state: tables, probes, files, figures, progress."""
-        n = state["count"]
-        table = output.contact_table(problem, comm)
-        counts = output.status_counts(table)
-        record = {"step": n, "t": t, "newton_iterations": iterations,
-                  "residual": snes.residuals[-1] if snes.residuals else 0.0,
-                  "residual_history": snes.residuals, "wall_s": wall, "cuts": cuts,
-                  "krylov_iterations": snes.krylov_iterations,
-                  "status_counts": counts,
-                  "probes": probes.values(problem.u, comm) if probes else []}
-        result.steps.append(record)
-        if keep_tables:
-            result.tables.append(table)
-        if writer is not None:
-            fields = []
-            if writer.xdmf is not None:
-                if "sigma" in opts["fields"]:
-                    sigma.interpolate(problem.sigma_expression)
-                available = {"u": problem.u, "sigma": sigma, "history_stress": problem.H,
-                             "lambda_nu": problem.lambda_nu, "lambda_tau": problem.lambda_tau}
-                fields = [available[name] for name in opts["fields"]
-                          if available[name] is not None]
-            writer.step(record, table, fields)
-            if round(t, 12) in figure_times and opts["figures"] and not skip_snapshots:
-                if writer.xdmf is None or "sigma" not in opts["fields"]:
-                    sigma.interpolate(problem.sigma_expression)
-                gathered = output.gather_mesh(problem, sigma, comm)
-                if gathered is not None:
-                    snapshots.append((t,) + gathered)
-                    output.write_snapshots(pathlib.Path(out) / "snapshots.npz", snapshots)
-        krylov = snes.krylov_iterations
-        say(f"step {n:4d}  t = {t:.4g}/{T:g}  Newton {iterations:2d}  "
-            + (f"Krylov {max(krylov):3d} max  " if krylov and max(krylov) > 1 else "")
-            + f"|F| = {record['residual']:.2e}  "
-            + " ".join(f"{key} {value}" for key, value in counts.items())
-            + f"  {wall:.3f} s" + (f"  (cut x{2 ** cuts})" if cuts else ""))
-        state.update(t=t, count=n + 1, table=table)
-
-    def solve_to(t_new, cuts):
-        """One step to t_new; on failure restore the unknowns and take it in two halves,
-        at most solver.max_cuts times in a row."""
-        tick = clock.perf_counter()
-        step = t_new - state["t"]
-        saved = [f.x.array.copy() for f in problem.unknowns]
-        problem.set_time(t_new)
-        if state["count"] > 0:
-            problem.prepare(step)        # H from u_0 .. u_n (eq 19, any step sizes)
-        try:
-            iterations = snes.solve()
-        except NewtonFailure as err:
-            for f, values in zip(problem.unknowns, saved):
-                f.x.array[:] = values
-            if state["count"] == 0 or cuts >= scene["solver"]["max_cuts"]:
-                # A body held by friction alone under too large a tangential load: say so.
-                limit = output.friction_limit(problem, comm, state["table"])
-                cut_note = f" after {cuts} cuts" if cuts else ""
-                raise NewtonFailure(
-                    f"step to t = {t_new:g} (from t = {state['t']:g}{cut_note}): "
-                    + (f"{limit}; {err}" if limit else
-                       f"{err}; {likely_cause(err, scene, state['count'])}"),
-                    err.reason, err.residuals) from None
-            say(f"step to t = {t_new:.4g} failed (SNES reason {err.reason}); "
-                f"taking it in two halves")
-            solve_to(state["t"] + 0.5 * step, cuts + 1)
-            solve_to(t_new, cuts + 1)
-            return
-        problem.commit(None if state["count"] == 0 else step)
-        accept(t_new, iterations, clock.perf_counter() - tick, cuts)
-        if out and opts["checkpoint"]:
-            checkpoint.save(out, problem, comm, t_new, state["count"], step)
-        signum = parallel.stop_requested(comm)
-        if signum:                        # every rank stops after this same step
-            raise parallel.Stopped(signum, state["count"] - 1, t_new)
-
-    for n in range(N + 1):
-        if resumed and n * k <= state["t"] + 1e-12 * T:
-            continue                      # done before the restart
-        solve_to(n * k, 0)
-    table = state["table"]
-
-    if table is None and writer is not None and writer.last_record:
-        counts = writer.last_record["status_counts"]     # nothing left after a restart
-    else:
-        counts = output.status_counts(table)
-    final = {"t": T, "status_counts": counts,
-             "wall_s": clock.perf_counter() - started, "setup_s": setup_s}
-    if writer is not None:
-        writer.finish(final)
-        if comm.rank == 0 and opts["figures"]:
-            from . import figures
+    def loop(self, keep_tables, on_step) -> Result:
+        """Steps n = 0..N (those after a restart point only); every accepted state goes to
+        the observers."""
+        scene, problem, snes, comm = self.scene, self.problem, self.snes, self.comm
+        t_end, steps = scene["time"]["T"], scene["time"]["steps"]
+        k = t_end / steps
+        self._announce()
+        result = Result(problem, linear_system=snes.system_kind,
+                        linear_solver=snes.linear_solver())
+        observers = [self._recorder(result, keep_tables), *self._file_observers(k),
+                     self._progress(t_end)]
+        if on_step is not None:
+            observers.append(lambda record, table: on_step(record))
+        t, count, table = 0.0, 0, None
+        if self.resumed:
+            t, count = self.resumed["t"], self.resumed["count"]
+            self.say(f"restarting from the checkpoint at t = {t:g} (step {count - 1})")
+        for n in range(steps + 1):
+            if self.resumed and n * k <= t + 1e-12 * t_end:
+                continue                      # done before the restart
             try:
-                figures.draw_all(pathlib.Path(out))
-            except Exception as err:   # the results are written; a figure must not lose them
-                print(f"contactvisco: warning: figures failed ({type(err).__name__}: {err}); "
-                      f"the results in {out} are complete; retry with 'contactvisco plot "
-                      f"{out}'", file=sys.stderr, flush=True)
-    say(f"done in {final['wall_s']:.2f} s; at t = {T:g}: "
-        + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
-    return result
+                for state in advance(problem, snes, t, n * k, count == 0,
+                                     scene["solver"]["max_cuts"], self.say):
+                    table = output.contact_table(problem, comm)
+                    record = self._record(count, state, table)
+                    for observe in observers:
+                        observe(record, table)
+                    t, count = state.t, count + 1
+                    self._checkpoint(state, count)
+            except StepFailed as failed:
+                raise self._failure(failed, table, count) from None
+        result.final = self._finish(table, t_end)
+        return result
+
+    def _announce(self):
+        """The header line, the memory note and the time-rule warning."""
+        scene, problem, snes, comm = self.scene, self.problem, self.snes, self.comm
+        counts = problem.count_unknowns()
+        contact_nodes = problem.count_contact_nodes()
+        multipliers = ", ".join(name for name in counts if name != "u")
+        self.say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), {counts['u']} "
+                 f"displacement unknowns"
+                 + (f", {contact_nodes} contact nodes ({multipliers})" if contact_nodes else "")
+                 + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
+                 f"{self.setup_s:.2f} s")
+        history = problem.history
+        if history is not None and (history.direct or hasattr(history, "note")):
+            note = getattr(history, "note", None) or (
+                "memory: a general (table) kernel has no recursion: eq (19) is summed "
+                "directly, O(n) work and memory per step")
+            self.say(note)
+            if self.writer is not None:
+                self.writer.note("notes", note)
+        b = scene_module.stability_number(scene)
+        if scene["time"]["rule"] == "paper" and b >= 1.0:
+            steps = scene["time"]["steps"]
+            warning = (f"warning: the paper's time rule is unstable here: k R(0) (1 + nu) / E "
+                       f"= {b:.3g} >= 1; use more steps (time.steps > {math.ceil(steps * b)}) "
+                       "or time.rule = 'trapezoid'")
+            if comm.rank == 0:
+                print(f"contactvisco: {warning}", file=sys.stderr, flush=True)
+            if self.writer is not None:
+                self.writer.note("warnings", warning)
+
+    def _record(self, n, state: Accepted, table) -> dict:
+        """The step record of steps.jsonl."""
+        snes = self.snes
+        probes = self.probes
+        return {"step": n, "t": state.t, "newton_iterations": state.iterations,
+                "residual": snes.residuals[-1] if snes.residuals else 0.0,
+                "residual_history": snes.residuals, "wall_s": state.wall_s, "cuts": state.cuts,
+                "krylov_iterations": snes.krylov_iterations,
+                "status_counts": output.status_counts(table),
+                "probes": probes.values(self.problem.u, self.comm) if probes else []}
+
+    def _recorder(self, result: Result, keep_tables):
+        """Observer: the record (and the table) into the Result."""
+        def record_into_result(record, table):
+            result.steps.append(record)
+            if keep_tables:
+                result.tables.append(table)
+        return record_into_result
+
+    def _file_observers(self, k) -> list:
+        """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""
+        if self.writer is None:
+            return []
+        opts = self.scene["output"]
+        sigma = fem.Function(self.problem.T, name="sigma")
+        writer = FieldWriter(self.writer, self.problem, sigma, opts["fields"])
+        snapshots = Snapshots(self.out, self.problem, sigma, self.comm, opts, k,
+                              self.scene["time"]["steps"], self.writer, self.say, self.resumed)
+        return [writer, snapshots]
+
+    def _progress(self, t_end):
+        """Observer: one line per accepted state on rank 0."""
+        def progress(record, table):
+            krylov = record["krylov_iterations"]
+            cuts = record["cuts"]
+            self.say(f"step {record['step']:4d}  t = {record['t']:.4g}/{t_end:g}  Newton "
+                     f"{record['newton_iterations']:2d}  "
+                     + (f"Krylov {max(krylov):3d} max  " if krylov and max(krylov) > 1 else "")
+                     + f"|F| = {record['residual']:.2e}  "
+                     + " ".join(f"{key} {value}" for key, value in
+                                record["status_counts"].items())
+                     + f"  {record['wall_s']:.3f} s" + (f"  (cut x{2 ** cuts})" if cuts else ""))
+        return progress
+
+    def _checkpoint(self, state: Accepted, count):
+        """The checkpoint of the accepted state; then every rank stops here on a signal."""
+        if self.out and self.scene["output"]["checkpoint"]:
+            checkpoint.save(self.out, self.problem, self.comm, state.t, count, state.k)
+        signum = parallel.stop_requested(self.comm)
+        if signum:                        # every rank stops after this same step
+            raise parallel.Stopped(signum, count - 1, state.t)
+
+    def _failure(self, failed: StepFailed, table, count) -> NewtonFailure:
+        """The message of a step that failed for good; a body held by friction alone under
+        too large a tangential load is said so."""
+        err = failed.failure
+        limit = output.friction_limit(self.problem, self.comm, table)
+        cut_note = f" after {failed.cuts} cuts" if failed.cuts else ""
+        return NewtonFailure(
+            f"step to t = {failed.t_to:g} (from t = {failed.t_from:g}{cut_note}): "
+            + (f"{limit}; {err}" if limit else
+               f"{err}; {likely_cause(err, self.scene, count)}"),
+            err.reason, err.residuals)
+
+    def _finish(self, table, t_end) -> dict:
+        """The final record; the summary and figures when writing."""
+        writer, out = self.writer, self.out
+        if table is None and writer is not None and writer.last_record:
+            counts = writer.last_record["status_counts"]     # nothing left after a restart
+        else:
+            counts = output.status_counts(table)
+        final = {"t": t_end, "status_counts": counts,
+                 "wall_s": clock.perf_counter() - self.started, "setup_s": self.setup_s}
+        if writer is not None:
+            writer.finish(final)
+            if self.comm.rank == 0 and self.scene["output"]["figures"]:
+                from . import figures
+                try:
+                    figures.draw_all(pathlib.Path(out))
+                except Exception as err:   # the results are written; a figure must not lose them
+                    print(f"contactvisco: warning: figures failed ({type(err).__name__}: "
+                          f"{err}); the results in {out} are complete; retry with "
+                          f"'contactvisco plot {out}'", file=sys.stderr, flush=True)
+        self.say(f"done in {final['wall_s']:.2f} s; at t = {t_end:g}: "
+                 + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
+        return final
+
+
+def advance(problem, snes, t_from, t_to, first, max_cuts, say, cuts=0):
+    """Yield the accepted states that take the problem from t_from to t_to: one, or, when
+    Newton fails, those of the two halves (at most max_cuts halvings in a row; none on the
+    first state, which has no earlier state to fall back on). Each state is committed (the
+    history of eq 19 takes the exact step sizes) before it is yielded; a failure that may not
+    be cut raises StepFailed with the unknowns restored."""
+    tick = clock.perf_counter()
+    k = t_to - t_from
+    saved = [f.x.array.copy() for f in problem.unknowns]
+    problem.set_time(t_to)
+    if not first:
+        problem.prepare(k)        # H from u_0 .. u_n (eq 19, any step sizes)
+    try:
+        iterations = snes.solve()
+    except NewtonFailure as err:
+        for f, values in zip(problem.unknowns, saved):
+            f.x.array[:] = values
+        if first or cuts >= max_cuts:
+            raise StepFailed(t_from, t_to, cuts, err) from None
+        say(f"step to t = {t_to:.4g} failed (SNES reason {err.reason}); taking it in two "
+            "halves")
+        middle = t_from + 0.5 * k
+        yield from advance(problem, snes, t_from, middle, first, max_cuts, say, cuts + 1)
+        yield from advance(problem, snes, middle, t_to, False, max_cuts, say, cuts + 1)
+        return
+    problem.commit(None if first else k)
+    yield Accepted(t_to, None if first else k, iterations, clock.perf_counter() - tick, cuts)
+
+
+class FieldWriter:
+    """Observer: the step record, the contact table and the XDMF fields into the writer."""
+
+    def __init__(self, writer, problem, sigma, names):
+        self.writer, self.problem, self.sigma, self.names = writer, problem, sigma, names
+
+    def __call__(self, record, table):
+        fields = []
+        if self.writer.xdmf is not None:
+            problem = self.problem
+            if "sigma" in self.names:
+                self.sigma.interpolate(problem.sigma_expression)
+            available = {"u": problem.u, "sigma": self.sigma, "history_stress": problem.H,
+                         "lambda_nu": problem.lambda_nu, "lambda_tau": problem.lambda_tau}
+            fields = [available[name] for name in self.names if available[name] is not None]
+        self.writer.step(record, table, fields)
+
+
+class Snapshots:
+    """Observer: the whole mesh gathered on rank 0 at the figure times (snapshots.npz), unless
+    the mesh is too large for that (a note then says so)."""
+
+    def __init__(self, out, problem, sigma, comm, opts, k, steps, writer, say, resumed):
+        self.path = pathlib.Path(out) / "snapshots.npz"
+        self.problem, self.sigma, self.comm, self.writer = problem, sigma, comm, writer
+        self.sigma_written = writer.xdmf is not None and "sigma" in opts["fields"]
+        figure_steps = {min(steps, max(0, round(t / k))) for t in opts["figure_times"]} | {steps}
+        self.times = {round(i * k, 12) for i in figure_steps}
+        skip = opts["figures"] and output.snapshot_skip_note(
+            problem, opts["snapshot_max_nodes"], writer.xdmf is not None)
+        if skip:
+            writer.note("notes", skip)    # a restarted run keeps its earlier notes
+            say(skip)
+        self.enabled = opts["figures"] and not skip
+        self.taken = []
+        if resumed and comm.rank == 0 and self.path.exists():
+            self.taken = output.read_snapshots(self.path, resumed["t"])
+
+    def __call__(self, record, table):
+        t = record["t"]
+        if not self.enabled or round(t, 12) not in self.times:
+            return
+        if not self.sigma_written:
+            self.sigma.interpolate(self.problem.sigma_expression)
+        gathered = output.gather_mesh(self.problem, self.sigma, self.comm)
+        if gathered is not None:
+            self.taken.append((t,) + gathered)
+            output.write_snapshots(self.path, self.taken)
 
 
 def likely_cause(err: NewtonFailure, scene: dict, step: int) -> str:

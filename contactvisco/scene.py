@@ -188,6 +188,18 @@ def _merge(base: dict, update: dict, where: str = "") -> dict:
     return out
 
 
+class Override(str):
+    """A scene value given as a Python value: reads as `key=value` in messages, and carries
+    (path, value) so that the value is used as given (not parsed as TOML)."""
+
+    source = "load_scene"
+
+    def __new__(cls, path: list[str], value):
+        text = super().__new__(cls, f"{'.'.join(path)}={value!r}")
+        text.assignment = (list(path), value)
+        return text
+
+
 def parse_assignment(text: str) -> tuple[list[str], object]:
     """Split ``a.b.c=value`` into (["a", "b", "c"], value); value in TOML syntax, bare words
     are strings."""
@@ -252,7 +264,9 @@ def resolve(raw: dict, overrides: list[str] = ()) -> dict:
         if not isinstance(raw["contact"], dict):
             raise SceneError(f"contact must be a table, got {raw['contact']!r}")
         scene["contact"] = _merge(CONTACT_DEFAULTS, raw["contact"], "contact.")
-    assignments = [parse_assignment(text) for text in overrides]
+    # An override is `key=value` text (--set) or an Override (the Python API's values).
+    assignments = [getattr(text, "assignment", None) or parse_assignment(text)
+                   for text in overrides]
     _check_material_pairs(raw.get("material", {}), assignments)
     for path, value in assignments:          # a preset from --set first, then the rest
         if path == ["preset"]:
@@ -360,7 +374,7 @@ def origin(message: str, path, text: str, overrides) -> str:
     for text_set in reversed(list(overrides)):      # the last --set of a key wins
         set_key = text_set.split("=", 1)[0].strip()
         if dotted == set_key or dotted.startswith(set_key + "."):
-            return f" (from --set {text_set})"
+            return f" (from {getattr(text_set, 'source', '--set')} {text_set})"
     found = _line_of(dotted, text)
     if found:
         number, line = found

@@ -32,6 +32,7 @@ Power-law kernels in the same block (the full part, so the equation stays scalar
 """
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -96,10 +97,12 @@ def orders(errors: list[float], sizes: list[float]) -> list[float]:
             for a, b, h, k in zip(errors, errors[1:], sizes, sizes[1:])]
 
 
-def hertz(overrides=(), comm=MPI.COMM_WORLD) -> dict:
+def hertz(overrides=(), comm=MPI.COMM_WORLD, scene=None) -> dict:
     """The hertz scene against the closed form: the contact half-width (midway between the last
-    node in contact and the next) and the pressure at the centre, with their relative errors."""
-    scene = scene_module.load("hertz", list(overrides))
+    node in contact and the next) and the pressure at the centre, with their relative errors.
+    The scene is the built-in one with `overrides` (--set texts), or `scene` when given."""
+    scene = copy.deepcopy(scene) if scene is not None else \
+        scene_module.load("hertz", list(overrides))
     scene["output"]["probes"] = []
     result = simulate(scene, comm=comm, progress=False, keep_tables=True)
     table = result.tables[-1]

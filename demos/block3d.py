@@ -24,14 +24,12 @@ import pathlib
 import numpy as np
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.notebook import quick, show_images
-from contactvisco.run import simulate
+from contactvisco import load_scene, quick, show_images, solve
 
-overrides = ["time.steps=4", "output.xdmf=false"] if quick() else []
-scene = scene_module.load("block3d", overrides)
+overrides = {"time": {"steps": 4}, "output": {"xdmf": False}} if quick() else {}
+scene = load_scene("block3d", **overrides)
 out = pathlib.Path("results/demo_block3d")
-result = simulate(scene, out, comm=MPI.COMM_WORLD, keep_tables=True)
+result = solve(scene, out, progress=True)
 
 # %% [markdown]
 # ## Friction on the contact face
@@ -39,7 +37,7 @@ result = simulate(scene, out, comm=MPI.COMM_WORLD, keep_tables=True)
 # against its tangential displacement.
 
 # %%
-table = result.tables[-1]
+table = result.contact[-1]
 sliding = (np.linalg.norm(table["u_tau_vector"], axis=1) > 1e-8) & (table["radius"] > 0)
 direction = table["u_tau_vector"][sliding] / np.linalg.norm(
     table["u_tau_vector"][sliding], axis=1)[:, None]

@@ -40,8 +40,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from contactvisco.coulomb import cattaneo_mindlin, cattaneo_traction
-from contactvisco.notebook import quick
+from contactvisco import cattaneo_mindlin, cattaneo_traction, quick
 
 h = 0.005 if quick() else 0.0025          # mesh size at the contact (a / 11 or a / 22)
 results = {nu: cattaneo_mindlin(h, nu=nu) for nu in (0.49, 0.3)}

@@ -25,17 +25,12 @@
 # %%
 import matplotlib.pyplot as plt
 import numpy as np
-from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.notebook import quick
-from contactvisco.run import simulate
-from contactvisco.verification import hertz
+from contactvisco import hertz, load_scene, quick, solve
 
-overrides = ["preset='fast'"] if quick() else []
-scene = scene_module.load("hertz", overrides)
+scene = load_scene("hertz", preset="fast" if quick() else None)
 print(scene["geometry"]["parameters"])
-result = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
+result = solve(scene)
 
 # %% [markdown]
 # ## Pressure along the contact boundary
@@ -46,7 +41,7 @@ R, q = 1.0, -scene["traction"][0]["value"][1]
 P = 2 * q * R
 a = np.sqrt(4 * P * R / (np.pi * E / (1 - nu**2)))
 p0 = 2 * P / (np.pi * a)
-table = result.tables[-1]
+table = result.contact[-1]
 x, p = table["x"][:, 0], table["reaction_nu"]
 near = x < 2 * a
 fig, ax = plt.subplots(figsize=(6.4, 4))
@@ -65,7 +60,7 @@ plt.show()
 # at the centre is the nodal value. `benchmarks/verification.py` refines the contact mesh.
 
 # %%
-summary = hertz(overrides)
+summary = hertz(scene=scene)
 print(f"a  = {summary['a']:.4f} (Hertz {summary['a_exact']:.4f}, error {summary['a_error']:.1%})")
 print(f"p0 = {summary['p0']:.3f} (Hertz {summary['p0_exact']:.3f}, "
       f"error {summary['p0_error']:.2%})")

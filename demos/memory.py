@@ -23,11 +23,8 @@
 
 # %%
 import matplotlib.pyplot as plt
-from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.notebook import quick
-from contactvisco.run import simulate
+from contactvisco import load_scene, quick, solve
 
 alphas = [0.0, 100.0] if quick() else [0.0, 25.0, 50.0, 100.0, 200.0]
 cells = 16 if quick() else 32
@@ -40,12 +37,10 @@ cells = 16 if quick() else 32
 # %%
 runs = {}
 for alpha in alphas:
-    overrides = [f"geometry.cells=[{cells}, {cells}]", f"memory.alpha={alpha}",
-                 "output.probes=[[0.5, 1.0]]"]
-    if alpha == 0:
-        overrides.append("memory.kernel='none'")
-    scene = scene_module.load("paper", overrides)
-    result = simulate(scene, comm=MPI.COMM_WORLD, progress=False)
+    memory = {"alpha": alpha} if alpha else {"alpha": alpha, "kernel": "none"}
+    scene = load_scene("paper", geometry={"cells": [cells, cells]}, memory=memory,
+                       output={"probes": [[0.5, 1.0]]})
+    result = solve(scene)
     runs[alpha] = result
     print(f"alpha = {alpha:5.0f}: history built: {result.problem.history is not None}, "
           f"final states {result.steps[-1]['status_counts']}")

@@ -42,11 +42,7 @@ import pathlib
 
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.figures import step_records
-from contactvisco.notebook import quick, show_images
-from contactvisco.output import read_summary
-from contactvisco.run import simulate
+from contactvisco import load_scene, quick, read_results, show_images, solve
 
 # %% [markdown]
 # ## The scene
@@ -54,9 +50,7 @@ from contactvisco.run import simulate
 # $g = -0.05$ while defining $g > 0$ as a thickness; the scene uses $g = 0.05$.
 
 # %%
-scene = scene_module.load("paper")
-if quick():
-    scene["output"]["xdmf"] = False
+scene = load_scene("paper", output={"xdmf": not quick()})
 for table in ("material", "memory", "contact", "time"):
     print(f"{table:9s}", scene[table])
 
@@ -67,7 +61,7 @@ for table in ("material", "memory", "contact", "time"):
 
 # %%
 out = pathlib.Path("results/demo_paper")
-result = simulate(scene, out, comm=MPI.COMM_WORLD)
+result = solve(scene, out, progress=True)
 
 # %% [markdown]
 # ## Zones at $T = 1$
@@ -77,8 +71,8 @@ result = simulate(scene, out, comm=MPI.COMM_WORLD)
 # %%
 counts = result.steps[-1]["status_counts"]
 print(counts)
-steps = step_records(out)            # the step records the run wrote
-for step in (steps[1], steps[-1]):
+summary = read_results(out)      # summary.json with the step records of steps.jsonl
+for step in (summary["steps"][1], summary["steps"][-1]):
     print(f"t = {step['t']:.1f}:", {tuple(p["x"]): round(p["u"][1], 5) for p in step["probes"]})
 
 # %% [markdown]

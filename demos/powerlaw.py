@@ -28,11 +28,8 @@ import math
 
 import matplotlib.pyplot as plt
 import numpy as np
-from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.notebook import quick
-from contactvisco.run import simulate
+from contactvisco import load_scene, quick, solve
 
 alpha, tau, beta = 100.0, 0.1, 0.5
 tau_e = 1.0 / (beta * math.log(1.0 + 1.0 / tau))
@@ -65,17 +62,16 @@ plt.show()
 
 # %%
 kernels = {
-    "power": ["memory.kernel='power'", f"memory.alpha={alpha}", f"memory.tau={tau}",
-              f"memory.beta={beta}", "memory.tolerance=1e-6"],
-    "exponential": ["memory.kernel='exponential'", f"memory.alpha=[{alpha}]",
-                    f"memory.tau=[{tau_e}]"],
+    "power": {"kernel": "power", "alpha": alpha, "tau": tau, "beta": beta,
+              "tolerance": 1e-6},
+    "exponential": {"kernel": "exponential", "alpha": [alpha], "tau": [tau_e]},
 }
 runs = {}
-for name, overrides in kernels.items():
-    scene = scene_module.load("paper", [f"geometry.cells=[{cells}, {cells}]", f"time.T={T}",
-                                        f"time.steps={steps}", "time.rule='trapezoid'",
-                                        "output.probes=[[0.5, 1.0]]"] + overrides)
-    runs[name] = simulate(scene, comm=MPI.COMM_WORLD, progress=False)
+for name, memory in kernels.items():
+    scene = load_scene("paper", geometry={"cells": [cells, cells]},
+                       time={"T": T, "steps": steps, "rule": "trapezoid"},
+                       output={"probes": [[0.5, 1.0]]}, memory=memory)
+    runs[name] = solve(scene)
     history = runs[name].problem.history
     note = getattr(history, "note", f"{len(history.terms)} exponential term(s)")
     print(f"{name:12s} {note}")

@@ -24,8 +24,7 @@
 import matplotlib.pyplot as plt
 from mpi4py import MPI
 
-from contactvisco import tradeoff
-from contactvisco.notebook import quick
+from contactvisco import quick, tradeoff
 
 base = ["geometry.cells=[16,16]", "time.steps=4"] if quick() else []
 levels = 3 if quick() else 4

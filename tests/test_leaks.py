@@ -60,7 +60,7 @@ def test_many_runs_leak_no_options_and_no_problems():
     for i in range(RUNS):
         if i % CONTACT_EVERY == 7:            # 10 runs that fail
             failing = rejected if i % 2 else diverging
-            with pytest.raises((SceneError, NewtonFailure)):
+            with pytest.raises((PETSc.Error, scene_module.SceneError, NewtonFailure)):
                 simulate(failing, comm=COMM, progress=False)
             assert our_options() == before
             continue
@@ -86,7 +86,7 @@ def test_rejected_option_leaves_the_database_clean():
     scene = small(True)
     problem = build(scene, build_geometry(scene, COMM))
     before = our_options()
-    with pytest.raises(SceneError):
+    with pytest.raises(scene_module.SceneError, match="PETSc rejected"):
         solver_module.create(problem, COMM, {"snes_type": "no_such_method"})
     assert our_options() == before
     # A solver made afterwards works with the defaults.

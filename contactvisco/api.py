@@ -1,0 +1,185 @@
+"""The Python interface: load a scene with Python overrides, solve it (on its own mesh or on a
+DOLFINx mesh of the caller's), read the result. The command line is a layer over these.
+
+    scene = load_scene("paper", contact={"mu": 0.4}, time={"steps": 20})
+    result = solve(scene, mesh=mesh, facet_tags=tags, boundaries={"bottom": 1, ...})
+    result.u, result.steps[-1]["status_counts"], result.contact[-1]["p_nu"]
+
+DOLFINx and PETSc are imported when `solve` is first called, not on import.
+"""
+from __future__ import annotations
+
+import numbers
+
+from . import scene as scene_module
+from .scene import SceneError
+
+#: Scene tables whose keys are free (a nested dict is one value, not more overrides).
+_FREE_FORM = {("geometry", "parameters"), ("solver", "petsc_options")}
+
+
+def load_scene(name_or_path, preset: str | None = None, sets=(), **overrides) -> dict:
+    """The scene `name_or_path` (a built-in name, see `builtin_scenes()`, or a TOML file) with
+    its defaults filled in and `overrides` applied, checked as a whole.
+
+    Overrides are Python values nested by table, as in the TOML file:
+    ``load_scene("paper", contact={"mu": 0.4}, time={"steps": 20})``; a table given as a dict
+    changes only the keys it names. `preset` ("fast", "balanced", "accurate") scales the mesh
+    and the steps. Raises SceneError (what, where it came from, what is allowed) for an
+    unknown key or a value out of range, exactly as ``contactvisco run --set`` does.
+    `sets` takes ``"key=value"`` texts (TOML values) as the command line's --set, applied
+    before the keyword overrides.
+    """
+    python = list(_assignments(overrides, []))
+    given = list(sets) + python
+    if preset is not None:
+        given.insert(0, scene_module.Override(["preset"], preset))
+    try:
+        return scene_module.load(str(name_or_path), given)
+    except SceneError as err:
+        # The checks are those of --set; their messages name the override as it was given.
+        message = str(err).replace("--set material", "load_scene material")
+        located = SceneError(message.replace("--set", "load_scene") if python else message)
+        located.located = err.located
+        raise located from None
+
+
+def _assignments(values: dict, path: list):
+    """One Override per leaf of the nested dict (lists and free-form tables are leaves)."""
+    for key, value in values.items():
+        where = path + [str(key)]
+        if isinstance(value, dict) and value and tuple(where) not in _FREE_FORM:
+            yield from _assignments(value, where)
+        else:
+            yield scene_module.Override(where, _plain(value))
+
+
+def _plain(value):
+    """numpy scalars and tuples as the TOML reader would give them (float, int, list)."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        return float(value)
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)) or hasattr(value, "tolist"):
+        return [_plain(v) for v in (value.tolist() if hasattr(value, "tolist") else value)]
+    return value
+
+
+def builtin_scenes() -> dict[str, str]:
+    """The built-in scenes: name -> description."""
+    return {name: scene_module.load(name)["description"]
+            for name in scene_module.builtin_names()}
+
+
+def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on_step=None,
+          comm=None, progress=False, restart=False, overwrite=True, keep_contact=True):
+    """Solve `scene` (from load_scene) and return a Result.
+
+    mesh, facet_tags, boundaries: a DOLFINx mesh, its facet meshtags and a dict
+        {boundary name: tag value}; they replace the scene's geometry table. Every boundary
+        the scene names (dirichlet, traction, contact) must be in `boundaries`, and each tag
+        must mark facets of the mesh's boundary (SceneError otherwise).
+    out: a folder for the files of `contactvisco run` (steps.jsonl, summary.json, XDMF,
+        checkpoints, figures); None writes nothing. restart=True continues the run in `out`
+        from its checkpoint; overwrite=False refuses a folder holding an earlier run.
+    on_step(record): called on every rank after every accepted step with its record.
+    comm: the MPI communicator (default: the mesh's, else COMM_WORLD). Collective.
+    progress: print a line per step (rank 0).
+    keep_contact: keep the contact table of every step in result.contact (False for long
+        runs that write them to `out` anyway).
+
+    Raises SceneError (bad scene or mesh), NewtonFailure (a step that does not converge even
+    when cut), contactvisco.parallel.Stopped (SIGINT/SIGTERM, after a completed step).
+    """
+    from mpi4py import MPI
+
+    from .run import simulate
+    if comm is None:
+        comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
+    geometry = None
+    if mesh is not None or facet_tags is not None or boundaries is not None:
+        geometry = user_geometry(scene, mesh, facet_tags, boundaries)
+    return simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
+                    restart=restart, overwrite=overwrite, geometry=geometry, on_step=on_step)
+
+
+def scene_boundaries(scene: dict) -> dict[str, str]:
+    """The boundary names a scene uses: name -> the first key that names it."""
+    used = {}
+    for key in ("dirichlet", "traction"):
+        for i, item in enumerate(scene[key]):
+            used.setdefault(item["boundary"], f"{key}[{i}].boundary")
+    contact = scene["contact"]
+    if contact is not None:
+        names = contact["boundary"]
+        for name in [names] if isinstance(names, str) else names:
+            used.setdefault(name, "contact.boundary")
+    return used
+
+
+def user_geometry(scene: dict, mesh, facet_tags, boundaries):
+    """A Geometry from a caller's mesh, facet meshtags and {name: tag}, checked against the
+    scene: dimension, facet dimension, every boundary name the scene uses, every tag present
+    on some rank, probes inside the mesh."""
+    from mpi4py import MPI
+
+    from . import geometry as geometry_module
+    if mesh is None or facet_tags is None or boundaries is None:
+        raise SceneError("solve: a mesh needs all three of mesh, facet_tags and boundaries "
+                         "(a dict {boundary name: facet tag value})")
+    d = scene_module.dimension(scene)
+    if mesh.geometry.dim != d or mesh.topology.dim != d:
+        raise SceneError(f"solve: material.model = '{scene['material']['model']}' needs a "
+                         f"{d}D mesh; this mesh has topological dimension "
+                         f"{mesh.topology.dim} in {mesh.geometry.dim}D")
+    if facet_tags.dim != d - 1:
+        raise SceneError(f"solve: facet_tags must tag facets (dimension {d - 1}); these tag "
+                         f"entities of dimension {facet_tags.dim}")
+    if not isinstance(boundaries, dict) or not all(
+            isinstance(k, str) and isinstance(v, numbers.Integral) and not isinstance(v, bool)
+            for k, v in boundaries.items()):
+        raise SceneError(f"solve: boundaries must map names to integer tag values, got "
+                         f"{boundaries!r}")
+    missing = {name: key for name, key in scene_boundaries(scene).items()
+               if name not in boundaries}
+    if missing:
+        name, key = next(iter(missing.items()))
+        raise SceneError(f"{key}: no boundary named '{name}' in solve(boundaries=...); it "
+                         f"has {', '.join(sorted(boundaries)) or 'none'}")
+    present = set(int(v) for v in facet_tags.values)
+    for name, tag in sorted(boundaries.items()):
+        if not mesh.comm.allreduce(int(tag) in present, MPI.LOR):
+            raise SceneError(f"solve: boundaries['{name}'] = {tag} tags no facet of the mesh "
+                             f"(the tag values are "
+                             f"{sorted(set().union(*mesh.comm.allgather(present)))})")
+    geometry = geometry_module.Geometry(mesh, facet_tags,
+                                        {name: int(tag) for name, tag in boundaries.items()})
+    geometry_module.check_probes(mesh, scene["output"]["probes"])
+    return geometry
+
+
+def pyvista_grid(u):
+    """This rank's part of a P1 vector field `u` (e.g. result.u) as a pyvista
+    UnstructuredGrid, with point data "u" (3 components, zero-padded in 2D) made the active
+    vectors, ready for ``grid.warp_by_vector("u")``."""
+    import numpy as np
+    import pyvista
+
+    from . import compat
+    grid = pyvista.UnstructuredGrid(*compat.vtk_mesh(u.function_space))
+    d = u.function_space.mesh.geometry.dim
+    values = np.zeros((grid.n_points, 3))
+    values[:, :d] = u.x.array.reshape(-1, d)[:grid.n_points]
+    grid.point_data["u"] = values
+    grid.set_active_vectors("u")
+    return grid
+
+
+def read_results(folder) -> dict:
+    """The summary.json of a run's output folder with "steps": the step records."""
+    from .output import read_summary
+    return read_summary(folder)

@@ -1,0 +1,80 @@
+"""Step cutting as a function: `run.advance` yields accepted states that tile the step with
+halved sizes, each one converged, and a step that may not be cut leaves the unknowns as they
+were. On COMM_SELF: where Newton needs more than 8 iterations depends on the partition."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from contactvisco import load_scene
+from contactvisco import geometry as geometry_module
+from contactvisco import solver as solver_module
+from contactvisco.problem import build
+from contactvisco.run import StepFailed, advance
+
+STEPS = 5
+
+
+def ironing(max_newton):
+    """The moving load of the ironing scene in 5 large steps: up to 29 Newton iterations per
+    step without cuts."""
+    scene = load_scene("ironing", geometry={"parameters": {"h": 0.1}}, time={"steps": STEPS},
+                       output={"probes": []},
+                       solver={"petsc_options": {"snes_max_it": max_newton}})
+    problem = build(scene, geometry_module.build(scene, MPI.COMM_SELF))
+    return scene, problem, solver_module.create(problem, MPI.COMM_SELF)
+
+
+def test_cut_states_tile_the_step_and_converge():
+    scene, problem, snes = ironing(8)
+    t_end = scene["time"]["T"]
+    try:
+        t, cut = 0.0, 0
+        for n in range(STEPS + 1):
+            t_to = n * t_end / STEPS
+            states = []
+            for state in advance(problem, snes, t, t_to, n == 0, 4, lambda text: None):
+                # Converged: the residual fell by 1e6 at least (or was already at round-off).
+                assert snes.residuals[-1] <= 1e-6 * max(snes.residuals[0], 1e-8)
+                assert state.iterations <= 8
+                states.append(state)
+            if n == 0:                                    # the initial state: never cut
+                assert len(states) == 1 and states[0].k is None and states[0].t == 0.0
+                continue
+            times = [t] + [s.t for s in states]
+            assert times[-1] == t_to                       # the step's end, exactly
+            assert all(b > a for a, b in zip(times, times[1:]))
+            for a, b, s in zip(times, times[1:], states):
+                assert s.k == pytest.approx(b - a, abs=1e-15)     # the exact size for eq (19)
+                halvings = np.log2((t_to - t) / s.k)
+                assert abs(halvings - round(halvings)) < 1e-9 and 0 <= halvings <= 4
+                assert s.cuts >= round(halvings)
+            cut += len(states) > 1
+            t = t_to
+        assert cut >= 1                                   # some step was cut
+    finally:
+        snes.destroy()
+
+
+def test_a_step_that_may_not_be_cut_restores_the_unknowns():
+    scene, problem, snes = ironing(8)
+    t_end = scene["time"]["T"]
+    try:
+        list(advance(problem, snes, 0.0, 0.0, True, 0, lambda text: None))
+        failures = 0
+        for n in range(1, STEPS + 1):
+            t_from, t_to = (n - 1) * t_end / STEPS, n * t_end / STEPS
+            before = [f.x.array.copy() for f in problem.unknowns]
+            try:
+                list(advance(problem, snes, t_from, t_to, False, 0, lambda text: None))
+            except StepFailed as failed:
+                failures += 1
+                assert failed.cuts == 0
+                assert failed.failure.reason < 0 and failed.t_to == t_to
+                for f, values in zip(problem.unknowns, before):
+                    assert np.array_equal(f.x.array, values)
+                # From the restored state the step goes through when it may be cut.
+                states = list(advance(problem, snes, t_from, t_to, False, 4, lambda text: None))
+                assert len(states) > 1 and states[-1].t == t_to
+        assert failures >= 1
+    finally:
+        snes.destroy()
