@@ -67,3 +67,111 @@ def test_row_replacement_checks_the_pattern():
     assert np.allclose(dense[0], [5.0, 0.0, 0.0, 0.0]) and np.allclose(dense[1], [2.0, 2.0, 0, 0])
     with pytest.raises(ValueError, match=r"lack the node's own columns \[2\]"):
         replace_rows(A, np.array([[2, 3]], dtype=PETSc.IntType), P[1:], L[1:])
+
+
+def _lu(A, comm):
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    return ksp
+
+
+def _coupled_step(problem, comm):
+    """The Newton step (du, dl) of the assembled coupled system at the current state, as
+    arrays over the owned dofs of u and of each multiplier."""
+    from contactvisco.solver import BlockSNES
+    block = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, comm)
+    try:
+        block._from_functions(block.x)
+        block._residual(None, block.x, block.b)
+        block._jacobian(None, block.x, block.A, block.A)
+        step = block.b.duplicate()
+        _lu(block.A, comm).solve(block.b, step)
+        step.scale(-1.0)
+        out, offset = [], 0
+        for f in problem.unknowns:
+            n = f.function_space.dofmap.index_map.size_local * \
+                f.function_space.dofmap.index_map_bs
+            out.append(step.array[offset:offset + n].copy())
+            offset += n
+        return out
+    finally:
+        block.destroy()
+
+
+def _condensed_step(problem, comm):
+    """The step of the condensed system: J_red du = -F_red, dl recovered node by node.
+    Returns du (owned dofs), dl (owned contact nodes, m columns) and the nodes' nullities."""
+    from contactvisco import compat
+    from contactvisco.condensed import NodalCondensation, recover
+    system = NodalCondensation(problem)
+    x = compat.petsc_vector(problem.u).copy()
+    b = x.duplicate()
+    system.residual(x, b)
+    system.jacobian()
+    du = b.duplicate()
+    _lu(system.J_red, comm).solve(b, du)
+    du.scale(-1.0)
+    Jdu = system.J_contact.createVecLeft()
+    system.J_contact.mult(du, Jdu)
+    p = system.parts
+    d = system.d
+    dl = recover(p, p["B"], p["C"], p["F"], p["G"], du.array.reshape(-1, d)[system.own],
+                 Jdu.array.reshape(-1, d))
+    return du.array.copy(), dl, system
+
+
+def _block(cells, **contact):
+    """The Coulomb sliding block in its stick regime (every contact node sticks), as a scene."""
+    from contactvisco import coulomb
+    raw, _ = coulomb.block_scene("stick", cells=cells)
+    raw["contact"].update(contact)
+    return scene_module.resolve(raw)
+
+
+BLOCK3D = ["geometry.parameters.h=0.25", "time.T=0.4", "time.steps=2"]
+
+PIECE_SCENES = {     # the scene at whose final state the steps are compared; the nullities
+    # (active conditions per node) that must occur there
+    "2D bound + stick": (lambda: _block((8, 4)), {2}),
+    # compliance (g never reached) and a large mu: lambda_nu's block is regular, lambda_tau's
+    # has 2 nulls
+    "3D stick": (lambda: scene_module.load("block3d", BLOCK3D + ["contact.g=1.0",
+                                                                 "contact.mu=5.0"]), {2}),
+    "3D bound + stick": (lambda: scene_module.load("block3d", BLOCK3D), {1, 3}),
+}
+
+
+@pytest.mark.parametrize("label", list(PIECE_SCENES))
+def test_condensed_step_is_the_coupled_step(label):
+    """At the end of a run, with u perturbed so that the residual is not small: the condensed
+    displacement step and the recovered multiplier step equal the solution of the assembled
+    coupled Newton system (the Schur complement of its multiplier block, taken node by node),
+    to 1e-9 relative; each null-space size named occurs at some node."""
+    from contactvisco import compat
+    make, nullities = PIECE_SCENES[label]
+    comm = MPI.COMM_WORLD
+    scene = make()
+    scene["output"]["probes"] = []
+    problem = simulate(scene, comm=comm, progress=False).problem
+    rng = np.random.default_rng(comm.rank)
+    u = compat.petsc_vector(problem.u)
+    u.array[:] += 1e-3 * np.max(np.abs(problem.u.x.array)) * rng.standard_normal(u.array.size)
+    u.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    coupled = _coupled_step(problem, comm)
+    du, dl, system = _condensed_step(problem, comm)
+    du_scale = comm.allreduce(np.max(np.abs(coupled[0])), MPI.MAX)
+    assert comm.allreduce(np.max(np.abs(du - coupled[0])), MPI.MAX) <= 1e-9 * du_scale
+    for a, f in enumerate(system.fields):
+        bs = system.bs[a]
+        expected = coupled[1 + a].reshape(-1, bs)[system.own]
+        got = dl[:, system.offsets[a]:system.offsets[a + 1]]
+        # Relative to the step, or to the multiplier itself where the step is round-off.
+        scale = comm.allreduce(max(np.max(np.abs(expected), initial=0.0),
+                                   np.max(np.abs(f.x.array), initial=0.0)), MPI.MAX)
+        error = comm.allreduce(np.max(np.abs(got - expected), initial=0.0), MPI.MAX)
+        assert error <= 1e-9 * scale, (f.name, error, scale)
+    seen = set().union(*comm.allgather(set(system.parts["nullity"].tolist())))
+    assert nullities <= seen, seen
