@@ -175,3 +175,54 @@ def test_condensed_step_is_the_coupled_step(label):
         assert error <= 1e-9 * scale, (f.name, error, scale)
     seen = set().union(*comm.allgather(set(system.parts["nullity"].tolist())))
     assert nullities <= seen, seen
+
+
+RANKS_SCRIPT = """
+import json, sys
+import numpy as np
+from mpi4py import MPI
+from contactvisco import scene as scene_module
+from contactvisco.run import simulate
+scene = scene_module.load("paper")
+scene["output"]["probes"] = []
+result = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
+owned = MPI.COMM_WORLD.allgather(int(result.problem.nodes.owned.sum()))
+table = result.tables[-1]
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps({"owned": owned, "newton": [s["newton_iterations"] for s in result.steps],
+                      **{key: table[key].tolist() for key in KEYS}}))
+"""
+RANK_KEYS = ("x", "u_nu", "u_tau", "lambda_nu", "reaction_tau", "status")
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
+                    reason="starts its own 3 MPI processes; run on one rank")
+def test_three_ranks_split_the_contact_nodes():
+    """The paper scene on 3 ranks: its contact nodes are owned by more than one rank (so the
+    node-wise condensation runs across a partition boundary), and the answer is the 1-rank
+    one: Newton counts, contact status and values to 1e-10 relative."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from contactvisco import compat
+    launcher = compat.mpi_launcher()
+    if not launcher:
+        pytest.skip("no MPI launcher found")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    script = f"KEYS = {RANK_KEYS!r}\n" + RANKS_SCRIPT
+    proc = subprocess.run([*launcher, "-n", "3", sys.executable, "-c", script], env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    three = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert len(three["owned"]) == 3 and sum(n > 0 for n in three["owned"]) >= 2, three["owned"]
+    scene = scene_module.load("paper")
+    scene["output"]["probes"] = []
+    one = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
+    assert three["newton"] == [s["newton_iterations"] for s in one.steps]
+    table = one.tables[-1]
+    for key in RANK_KEYS:
+        expected, got = np.asarray(table[key], float), np.asarray(three[key], float)
+        scale = max(1e-300, np.max(np.abs(expected)))
+        assert np.max(np.abs(got - expected)) <= 1e-10 * scale, key
