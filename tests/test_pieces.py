@@ -226,3 +226,45 @@ def test_three_ranks_split_the_contact_nodes():
         expected, got = np.asarray(table[key], float), np.asarray(three[key], float)
         scale = max(1e-300, np.max(np.abs(expected)))
         assert np.max(np.abs(got - expected)) <= 1e-10 * scale, key
+
+
+def _homogeneous_run(displacement, part):
+    """A unit square (plane strain) with u = displacement(x) on its whole boundary, under a
+    softening Prony term on the given part of the strain; returns the mean stress
+    (xx, xy, yx, yy) at t = 2, two relaxation times."""
+    from dolfinx import fem
+    raw = {"name": "homogeneous",
+           "geometry": {"type": "box", "lower": [0.0, 0.0], "upper": [1.0, 1.0],
+                        "cells": [2, 2]},
+           "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3},
+           "memory": {"kernel": "prony",
+                      "terms": [{"alpha": -30.0, "tau": 1.0, "part": part}]},
+           "dirichlet": [{"boundary": side, "components": "all", "value": displacement}
+                         for side in ("left", "right", "bottom", "top")],
+           "time": {"T": 2.0, "steps": 4}, "output": {"probes": []}}
+    problem = simulate(scene_module.resolve(raw), comm=MPI.COMM_WORLD, progress=False).problem
+    sigma = fem.Function(problem.T)
+    sigma.interpolate(problem.sigma_expression)
+    values = sigma.x.array.reshape(-1, 4)
+    comm = problem.V.mesh.comm
+    return comm.allreduce(values.sum(axis=0), MPI.SUM) / comm.allreduce(len(values), MPI.SUM)
+
+
+@pytest.mark.parametrize("part", ["deviatoric", "volumetric"])
+def test_memory_acts_on_its_part_of_the_strain(part):
+    """Under a pure shear (eps deviatoric) a deviatoric kernel changes the stress and a
+    volumetric one does not; under a pure dilatation (eps = e I) the other way round. A swap
+    of the two parts fails both."""
+    from contactvisco.material import lame_constants
+    lame_lambda, lame_mu = lame_constants("plane_strain", 100.0, 0.3)
+    e = 0.01
+    shear = _homogeneous_run([f"{e} * x[1]", f"{e} * x[0]"], part)
+    dilatation = _homogeneous_run([f"{e} * x[0]", f"{e} * x[1]"], part)
+    elastic_shear = 2 * lame_mu * e                      # sigma_xy
+    elastic_dilatation = (2 * lame_lambda + 2 * lame_mu) * e   # sigma_xx = sigma_yy
+    shear_change = abs(shear[1] - elastic_shear) / elastic_shear
+    dilatation_change = abs(dilatation[0] - elastic_dilatation) / elastic_dilatation
+    relaxed, kept = ((shear_change, dilatation_change) if part == "deviatoric"
+                     else (dilatation_change, shear_change))
+    assert relaxed > 0.05, (shear_change, dilatation_change)
+    assert kept < 1e-10, (shear_change, dilatation_change)
