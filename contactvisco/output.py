@@ -84,16 +84,21 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
                  reaction_nu=reaction_nu, reaction_tau=r_tau, radius=radius,
                  u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau, slip_vector=slip_vec,
                  weight=nodes.weights[nodes.owned])
-    gathered = comm.allgather(local)
-    table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
-    # Sort by position rounded to 1e-9 of the body's size: coordinates that are zero can
-    # come out as +-1e-17 depending on the partition.
-    key = np.round(table["x"] / (1e-9 * problem.length_scale))
-    order = np.lexsort(key.T[::-1])
-    table = {key: value[order] for key, value in table.items()}
+    table = _gather_sorted(local, comm, problem.length_scale)
     table["status"] = classify(table["penetration"], contact["g"], problem.length_scale)
     table["friction"] = friction_state(table)
     return table
+
+
+def _gather_sorted(local: dict, comm, length: float) -> dict:
+    """Every rank's rows of a node table, on every rank, sorted by position rounded to 1e-9
+    of the body's size `length` (coordinates that are zero can come out as +-1e-17
+    depending on the partition)."""
+    gathered = comm.allgather(local)
+    table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
+    key = np.round(table["x"] / (1e-9 * length))
+    order = np.lexsort(key.T[::-1])
+    return {key: value[order] for key, value in table.items()}
 
 
 FRICTION_STATES = ("none", "stick", "slip")

@@ -23,7 +23,7 @@ which also forces lambda_tau . nu = 0.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import ufl
@@ -357,12 +357,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                                        W.tabulate_dof_coordinates()):
         raise RuntimeError("displacement and multiplier node numberings differ")
     n = _contact_normal(mesh, Q, W, dsc, nodes)
-    gap_value = context.scalar(contact["gap"], "contact.gap")
-    gap_function = fem.Function(Q, name="gap")
-    gap_update = _interpolator(gap_function, gap_value, Q)
-    gap_update()
-    if context.depends_on_time(contact["gap"]):
-        updates.append(gap_update)
+    gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
 
     g = contact["g"]
     constants = {"r": _scalar(mesh, contact["augmentation"]),
@@ -400,6 +395,17 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                        Q_coordinates=Q.tabulate_dof_coordinates(),
                        u_p1=fem.Function(W) if degree > 1 else None, constants=constants)
     return part, F_u, pairs
+
+
+def _gap(expression, Q, context, updates):
+    """The initial gap h: its UFL value and its P1 interpolant (kept up to date in time)."""
+    value = context.scalar(expression, "contact.gap")
+    function = fem.Function(Q, name="gap")
+    update = _interpolator(function, value, Q)
+    update()
+    if context.depends_on_time(expression):
+        updates.append(update)
+    return value, function
 
 
 def _memory(scene, mesh, u) -> MemoryPart | None:
@@ -479,33 +485,43 @@ def _dirichlet(scene, geometry, V, context, updates):
             continue
         if not isinstance(comps, list):
             raise SceneError(f"{where}.components must be 'all' or a list, got {comps!r}")
-        vals = value if isinstance(value, (list, tuple)) else [value] * len(comps)
-        if len(vals) != len(comps):
-            raise SceneError(f"{where}.value needs one entry per component, got {vals}")
-        for comp, val in zip(comps, vals):
-            if not (isinstance(comp, int) and 0 <= comp < d):
-                raise SceneError(f"{where}.components: {comp} is not a component "
-                                 f"of a {d}D displacement (0..{d - 1})")
-            scalar = context.scalar(val, f"{where}.value")
-            if isinstance(scalar, fem.Constant):
-                dofs = fem.locate_dofs_topological(V.sub(comp), fdim, facets)
-                bcs.append(fem.dirichletbc(scalar.value, dofs, V.sub(comp)))
-            else:
-                Vc, _ = V.sub(comp).collapse()
-                g = fem.Function(Vc)
-                update = _interpolator(g, scalar, Vc)
-                update()
-                if context.depends_on_time(val):
-                    updates.append(update)
-                pair = fem.locate_dofs_topological((V.sub(comp), Vc), fdim, facets)
-                bcs.append(fem.dirichletbc(g, pair, V.sub(comp)))
-                dofs = pair[0]
-            fixed.x.array[dofs] = 1.0
+        bcs += _component_bcs(item, where, comps, facets, V, context, updates, fixed)
     # A rank may hold a prescribed node as a ghost without the facet that prescribes it.
     fixed_vector = compat.petsc_vector(fixed)
     fixed_vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     fixed_vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
     return bcs, fixed.x.array.reshape(-1, V.dofmap.index_map_bs)
+
+
+def _component_bcs(item, where, comps, facets, V, context, updates, fixed):
+    """The conditions of one dirichlet entry on the listed components; marks their dofs in
+    the Function `fixed`."""
+    d = V.mesh.geometry.dim
+    value = item.get("value", 0.0)
+    vals = value if isinstance(value, (list, tuple)) else [value] * len(comps)
+    if len(vals) != len(comps):
+        raise SceneError(f"{where}.value needs one entry per component, got {vals}")
+    bcs = []
+    for comp, val in zip(comps, vals):
+        if not (isinstance(comp, int) and 0 <= comp < d):
+            raise SceneError(f"{where}.components: {comp} is not a component "
+                             f"of a {d}D displacement (0..{d - 1})")
+        scalar = context.scalar(val, f"{where}.value")
+        if isinstance(scalar, fem.Constant):
+            dofs = fem.locate_dofs_topological(V.sub(comp), d - 1, facets)
+            bcs.append(fem.dirichletbc(scalar.value, dofs, V.sub(comp)))
+        else:
+            Vc, _ = V.sub(comp).collapse()
+            g = fem.Function(Vc)
+            update = _interpolator(g, scalar, Vc)
+            update()
+            if context.depends_on_time(val):
+                updates.append(update)
+            pair = fem.locate_dofs_topological((V.sub(comp), Vc), d - 1, facets)
+            bcs.append(fem.dirichletbc(g, pair, V.sub(comp)))
+            dofs = pair[0]
+        fixed.x.array[dofs] = 1.0
+    return bcs
 
 
 def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:

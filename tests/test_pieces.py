@@ -108,7 +108,8 @@ def _condensed_step(problem, comm):
     from contactvisco.condensed import NodalCondensation, recover
     system = NodalCondensation(problem)
     x = compat.petsc_vector(problem.u).copy()
-    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)   # copy(): owned only
+    # copy() copies the owned values only: the lifting reads the ghosts too.
+    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
     b = x.duplicate()
     system.residual(x, b)
     system.jacobian()
