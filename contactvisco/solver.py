@@ -390,9 +390,9 @@ class CondensedSNES(_Newton):
                 f"{problems[0]}: the condensed Newton system (solver.linear_system = "
                 "'condensed', the default with nodal contact quadrature) follows the coupled "
                 "Newton method only with a Jacobian at every iterate and the full step "
-                "(snes_type newtonls, snes_linesearch_type basic, no lag, no damping); "
-                f"refused: {', '.join(problems)}. Use solver.linear_system = 'coupled' for "
-                "these options")
+                "(snes_type newtonls, snes_linesearch_type basic, no lag, no damping)"
+                + (f"; also refused: {', '.join(problems[1:])}" if problems[1:] else "")
+                + ". Use solver.linear_system = 'coupled' for such options")
 
     def solve(self) -> int:
         self._pending = False
