@@ -264,7 +264,8 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         contact, contact_terms, multipliers = _contact(scene, geometry, u, v, ds, context,
                                                        updates)
         constants.update(contact.constants)
-        F_u += contact_terms
+        if contact_terms is not None:
+            F_u += contact_terms
         for function, residual in multipliers:
             unknowns.append(function)
             spaces.append(function.function_space)
