@@ -26,6 +26,7 @@ from dolfinx import fem, io
 
 from . import compat
 from . import contact as law
+from . import problem as problem_module
 
 STATUSES = ("separated", "compliance", "bound")
 
@@ -66,6 +67,19 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     u_nu = law.normal_part(u, normals, law.NUMPY)
     u_tau_vec = law.tangential_part(u, normals, law.NUMPY)
     p_nu = terms["p_nu"] if terms["p_nu"] is not None else np.zeros_like(u_nu)
+    slip_vec = terms["slip"]
+    if problem.contact.corner_forms is not None:
+        # At corners of Gamma_C the forms use each facet's normal: the values there are the
+        # law's as the forms see them (the facets' weighted mean), not at the mean normal.
+        at = np.isin(own, nodes.corners)
+        corner = problem_module.corner_values(problem, own[at])
+        penetration, u_nu, slip_vec, u_tau_vec = (
+            penetration.copy(), u_nu.copy(), slip_vec.copy(), u_tau_vec.copy())
+        penetration[at], u_nu[at] = corner["s_nu"], corner["u_nu"]
+        slip_vec[at], u_tau_vec[at] = corner["slip"], corner["u_tau"]
+        if "p_nu" in corner:
+            p_nu = p_nu.copy()
+            p_nu[at] = corner["p_nu"]
     if d == 2:
         t = nodes.tangents[nodes.owned]
         u_tau = np.einsum("ij,ij->i", u_tau_vec, t)
@@ -79,7 +93,6 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     reaction_nu = p_nu - lam_nu
     radius = law.friction_radius(contact["mu"], p_nu, -lam_nu,
                                  contact.get("friction") == "coulomb")
-    slip_vec = terms["slip"]
     local = dict(x=x, normal=normals, u_nu=u_nu, gap=gap, penetration=penetration, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
                  reaction_nu=reaction_nu, reaction_tau=r_tau, radius=radius,
                  u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau, slip_vector=slip_vec,

@@ -93,6 +93,7 @@ class ContactPart:
     Q_coordinates: np.ndarray
     u_p1: fem.Function | None
     constants: dict                            # r, g, stiffness, friction (the coefficient)
+    corner_forms: dict | None = None           # corner_forms() (None without corners)
 
 
 @dataclass
@@ -391,11 +392,51 @@ def _contact(scene, geometry, u, v, ds, context, updates):
         F_u = friction if F_u is None else F_u + friction
         pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
                                                       ufl.TestFunction(W)) * dsc))
+    corners = mesh.comm.allreduce(nodes.corners.size, MPI.SUM) > 0
     part = ContactPart(nodes=nodes, lambda_nu=lambda_nu, lambda_tau=lambda_tau,
                        gap=gap_function, u_previous=u_previous,
                        Q_coordinates=Q.tabulate_dof_coordinates(),
-                       u_p1=fem.Function(W) if degree > 1 else None, constants=constants)
+                       u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
+                       corner_forms=_corner_forms(terms, u, n, Q, W, dsc) if corners else None)
     return part, F_u, pairs
+
+
+def _corner_forms(terms, u, n, Q, W, dsc):
+    """Forms whose assembled vectors, divided by the node's weight, are the law's node values
+    as the forms see them: with the vertex rule, node i gets sum_f w_f value_f(x_i) over its
+    facets f. Where the normal is one P1 field this is the value at the node; at a corner of
+    Gamma_C, where the forms use each facet's normal, it is their weighted mean, which is what
+    the node's single multiplier and force act on. Keys: weight, u_nu, s_nu, p_nu (if any),
+    slip, u_tau (vectors)."""
+    d = Q.mesh.geometry.dim
+    vertex = dsc.reconstruct(metadata=nodal_rule(d))
+    q, w = ufl.TestFunction(Q), ufl.TestFunction(W)
+    scalars = {"weight": 1.0, "u_nu": law.normal_part(u, n), "s_nu": terms["s_nu"],
+               "p_nu": terms["p_nu"]}
+    vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, n)}
+    forms = {key: fem.form(value * q * vertex) for key, value in scalars.items()
+             if value is not None}
+    forms.update({key: fem.form(ufl.dot(value, w) * vertex) for key, value in vectors.items()})
+    return forms
+
+
+def corner_values(problem, nodes_local) -> dict:
+    """The law's values at the local P1 nodes `nodes_local` from corner_forms (collective):
+    a dict of (n,) or (n, d) arrays, keys as in corner_forms but the weight."""
+    d = problem.V.mesh.geometry.dim
+    out = {}
+    for key, form in problem.contact.corner_forms.items():
+        vec = assemble_vector(form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        with vec.localForm() as local:
+            values = local.array.copy()
+        vec.destroy()
+        out[key] = values.reshape(-1, d)[nodes_local] if key in ("slip", "u_tau") \
+            else values[nodes_local]
+    weight = out.pop("weight")
+    return {key: value / (weight[:, None] if value.ndim == 2 else weight)
+            for key, value in out.items()}
 
 
 def _gap(expression, Q, context, updates):

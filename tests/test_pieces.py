@@ -274,3 +274,29 @@ def test_memory_acts_on_its_part_of_the_strain(part):
                      else (dilatation_change, shear_change))
     assert relaxed > 0.05, (shear_change, dilatation_change)
     assert kept < 1e-10, (shear_change, dilatation_change)
+
+
+def test_corner_values_are_the_forms_values():
+    """At the corner of a contact boundary made of two faces (bottom, left), the forms use
+    each face's normal: the contact table reports the law as the forms apply it there, the
+    mean over the two faces, not the law at the mean normal. A block pressed by p and q onto
+    compliant layers (stiffness c) has u = (-p/c, -q/c) at the corner: penetration
+    (p + q) / (2c) and p_nu = (p + q) / 2, where the mean normal would give sqrt(2) times
+    these."""
+    q, p, c = 3.0, 1.0, 100.0
+    raw = {"name": "corner",
+           "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [5, 5]},
+           "material": {"model": "plane_strain", "E": 50.0, "nu": 0.3},
+           "traction": [{"boundary": "top", "value": [0.0, -q]},
+                        {"boundary": "right", "value": [-p, 0.0]}],
+           "contact": {"boundary": ["bottom", "left"], "stiffness": c, "g": 1.0, "mu": 0.0},
+           "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
+    result = simulate(scene_module.resolve(raw), comm=MPI.COMM_WORLD, progress=False,
+                      keep_tables=True)
+    table = result.tables[-1]
+    corner = np.flatnonzero(np.all(np.abs(table["x"]) < 1e-12, axis=1))
+    assert corner.size == 1
+    assert table["penetration"][corner[0]] == pytest.approx((p + q) / (2 * c), rel=1e-10)
+    assert table["p_nu"][corner[0]] == pytest.approx((p + q) / 2, rel=1e-10)
+    others = np.arange(len(table["x"])) != corner[0]     # one normal: the law at the node
+    assert np.allclose(table["p_nu"][others], c * table["penetration"][others], rtol=1e-12)
