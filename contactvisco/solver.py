@@ -346,7 +346,10 @@ class BlockSNES(_Newton):
 
 class CondensedSNES(_Newton):
     """SNES over u alone, the nodal multipliers eliminated node by node in every Newton step
-    (contactvisco.condensed); they are updated from each displacement step."""
+    (contactvisco.condensed); they are updated from each displacement step, as the coupled
+    Newton step's dl for that du. That holds for full Newton steps with a Jacobian at every
+    iterate: options that change this are refused (_check_options), and a residual evaluated
+    away from such a step stops the solve with a clear error rather than wrong iterates."""
 
     system_kind = "condensed"
 
