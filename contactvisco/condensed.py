@@ -15,11 +15,11 @@ on lambda_nu and not the other way round; the SVD below keeps the left (U_0) and
 null vectors apart, so the elimination holds for any D_i. With the SVD D_i = U S V^T split into range (r) and null (0) parts:
 
     dl_i = D_i^+ (-G_i - C_i du_i) + V_0 b_i,      D_i^+ = V_r S_r^-1 U_r^T,
-    U_0^T C_i du_i = -U_0^T G_i                    (k = m - r constraints on du_i),
+    U_0^T C_i du_i = -U_0^T G_i                    (m - r constraints on du_i),
     (J du)_i + B_i dl_i = -F_u,i.
 
 With Z_i = B_i V_0 = Q_i R_i, the projection P_i = I - Q_i Q_i^T removes b_i from the rows of
-u_i and the k constraints take its place in the directions Q_i, scaled by s_i (the size of J's
+u_i and the m - r constraints take its place in the directions Q_i, scaled by s_i (the size of J's
 diagonal at the node):
 
     P_i (J du)_i + L_i du_i = -[P_i (F_u,i - E_i G_i) + s_i Q_i U_0^T G_i],
@@ -54,10 +54,11 @@ def eliminate(B, C, D, F, G, scale, d_scale):
 
     B (n, d, m), C (n, m, d), D (n, m, m), F (n, d) = F_u,i, G (n, m), scale (n,) = s_i,
     d_scale (n,) = the size of a non-zero D_i. Returns a dict of arrays: F_red (n, d),
-    L (n, d, d), P (n, d, d), and what the recovery of dl needs (Dp, W, k)."""
+    L (n, d, d), P (n, d, d), what the recovery of dl needs (Dp, W) and per node the number
+    of active conditions, nullity = m - rank D_i (the size of D_i's null space)."""
     n, d, m = B.shape
-    U, sigma, Vt = np.linalg.svd(D)
-    rank = np.sum(sigma > RANK_TOLERANCE * d_scale[:, None], axis=1)
+    U, singular, Vt = np.linalg.svd(D)
+    rank = np.sum(singular > RANK_TOLERANCE * d_scale[:, None], axis=1)
     Dp = np.zeros((n, m, m))
     P = np.broadcast_to(np.eye(d), (n, d, d)).copy()
     K = np.zeros((n, d, m))            # Q U_0^T: the constraints written in the directions Q
@@ -65,7 +66,7 @@ def eliminate(B, C, D, F, G, scale, d_scale):
     for r in np.unique(rank):
         idx = np.flatnonzero(rank == r)
         Ur, Vr = U[idx][:, :, :r], np.transpose(Vt[idx][:, :r, :], (0, 2, 1))
-        Dp[idx] = Vr @ (Ur.transpose(0, 2, 1) / sigma[idx][:, :r, None])
+        Dp[idx] = Vr @ (Ur.transpose(0, 2, 1) / singular[idx][:, :r, None])
         if r == m:
             continue
         if m - r > d:
@@ -81,7 +82,7 @@ def eliminate(B, C, D, F, G, scale, d_scale):
                 "a contact node has a multiplier that acts on no free displacement component "
                 "(singular Newton matrix); use solver.linear_system = 'coupled' to see where")
         P[idx] -= Q @ Q.transpose(0, 2, 1)
-        # Write the constraints as s_i (Q^T du_i - ...) = 0: with A = U_0^T C_i Q (k x k),
+        # Write the constraints as s_i (Q^T du_i - ...) = 0: with A = U_0^T C_i Q (square),
         # the rows are s_i Q A^-1 U_0^T (C_i du_i + G_i), whose block on the directions Q is
         # s_i I. Any invertible A^-1 gives the same solution, but this one keeps the diagonal
         # positive, which multigrid smoothers need.
@@ -93,13 +94,74 @@ def eliminate(B, C, D, F, G, scale, d_scale):
     L = -P @ E @ C + s * (K @ C)
     F_red = np.einsum("nij,nj->ni", P, F - np.einsum("nij,nj->ni", E, G)) \
         + scale[:, None] * np.einsum("nij,nj->ni", K, G)
-    return {"F_red": F_red, "L": L, "P": P, "Dp": Dp, "W": W, "k": m - rank}
+    return {"F_red": F_red, "L": L, "P": P, "Dp": Dp, "W": W, "nullity": m - rank}
 
 
 def recover(parts, B, C, F, G, du, Jdu):
     """dl_i = a_i + W_i (-F_u,i - (J du)_i - B_i a_i), a_i = D_i^+ (-G_i - C_i du_i)."""
     a = np.einsum("nij,nj->ni", parts["Dp"], -G - np.einsum("nij,nj->ni", C, du))
     return a + np.einsum("nij,nj->ni", parts["W"], -F - Jdu - np.einsum("nij,nj->ni", B, a))
+
+
+def replace_rows(A, rows, P, L):
+    """Rows of node i of the assembled matrix A (rows[i]: its d global row indices, owned)
+    become P_i (A's rows) + L_i on the node's own d x d block, for every node where
+    P_i != I or L_i != 0; A is assembled afterwards.
+
+    The new rows keep A's column pattern, so L_i needs the node's own columns rows[i] in the
+    pattern of each of its rows (the diagonal block of an assembled stiffness matrix has
+    them). Raises ValueError naming the row if one is missing, rather than writing L_i into
+    other columns."""
+    d = rows.shape[1]
+    changed = np.flatnonzero(np.any(np.abs(P - np.eye(d)) > 0, axis=(1, 2))
+                             | np.any(L != 0, axis=(1, 2)))
+    new_rows = []
+    for i in changed:
+        columns, values = _node_rows(A, rows[i])
+        where = np.searchsorted(columns, rows[i])
+        present = (where < len(columns)) & (columns[np.minimum(where, len(columns) - 1)]
+                                              == rows[i])
+        if not np.all(present):
+            raise ValueError(
+                f"rows {rows[i].tolist()} of the condensed matrix lack the node's own columns "
+                f"{rows[i][~present].tolist()} in their sparsity pattern; the condensed rows "
+                "need the d x d diagonal block of each contact node")
+        values = P[i] @ values
+        values[:, where] += L[i]
+        new_rows.append((rows[i], columns, values))
+    for node_rows, columns, values in new_rows:
+        A.setValues(node_rows, columns, values)
+    A.assemble()
+
+
+def _node_rows(A, rows):
+    """The d rows `rows` of A on the union of their column patterns: (columns, (d, n))."""
+    pattern = [A.getRow(int(row)) for row in rows]
+    columns = np.unique(np.concatenate([c for c, _ in pattern]))
+    values = np.zeros((len(rows), len(columns)))
+    for c, (cols, vals) in enumerate(pattern):
+        values[c, np.searchsorted(columns, cols)] = vals
+    return columns.astype(PETSc.IntType), values
+
+
+def block_actions(J, e_u, e):
+    """The forms whose assembled vectors, read at contact node i, give the node blocks for
+    the unit fields e_u (of u) and e[a] (of multiplier a):
+
+        B form:        sum_a J[0][1 + a] e[a]                     (rows of u),
+        row form b:    J[1 + b][0] e_u + sum_a J[1 + b][1 + a] e[a]  (rows of multiplier b).
+
+    J is the block Jacobian (None for empty blocks). Returns (B form or None, [row forms])."""
+    count = len(e)
+    terms = [ufl.action(J[0][1 + a], e[a]) for a in range(count) if J[0][1 + a] is not None]
+    B_form = fem.form(sum(terms[1:], terms[0])) if terms else None
+    row_forms = []
+    for b in range(count):
+        terms = [ufl.action(J[1 + b][0], e_u)] if J[1 + b][0] is not None else []
+        terms += [ufl.action(J[1 + b][1 + a], e[a]) for a in range(count)
+                  if J[1 + b][1 + a] is not None]
+        row_forms.append(fem.form(sum(terms[1:], terms[0])))
+    return B_form, row_forms
 
 
 class NodalCondensation:
@@ -130,16 +192,7 @@ class NodalCondensation:
         # vertex rule).
         self.e_u = fem.Function(V)
         self.e = [fem.Function(f.function_space) for f in self.fields]
-        J = problem.J
-        terms = [ufl.action(J[0][1 + a], self.e[a]) for a in range(len(self.fields))
-                 if J[0][1 + a] is not None]
-        self.B_form = fem.form(sum(terms[1:], terms[0])) if terms else None
-        self.row_forms = []
-        for b in range(len(self.fields)):
-            terms = [ufl.action(J[1 + b][0], self.e_u)] if J[1 + b][0] is not None else []
-            terms += [ufl.action(J[1 + b][1 + a], self.e[a]) for a in range(len(self.fields))
-                      if J[1 + b][1 + a] is not None]
-            self.row_forms.append(fem.form(sum(terms[1:], terms[0])))
+        self.B_form, self.row_forms = block_actions(problem.J, self.e_u, self.e)
         self.B_vec = compat.form_vector(self.B_form) if self.B_form is not None else None
         self.row_vecs = [compat.form_vector(f) for f in self.row_forms]
         self.G_vecs = [compat.form_vector(f) for f in self.G]
@@ -187,7 +240,13 @@ class NodalCondensation:
         assemble_vector(vec, form)
 
     def local_blocks(self):
-        """B (n, d, m), C (n, m, d), D (n, m, m) at the owned contact nodes."""
+        """The node blocks at the current iterate (the Functions of the Problem):
+        B (n, d, m) = dF_u,i/dlambda_i, C (n, m, d) = dG_i/du_i, D (n, m, m) = dG_i/dlambda_i
+        at the n owned contact nodes, m multiplier components per node (lambda_nu first).
+        Column j of a block at node i is the block's action on the unit field of component j,
+        read at node i: the vertex rule couples u_i and lambda_i only, so one assembly per
+        component gives every node's column at once (d + m assemblies). Rows and columns of
+        prescribed components are decoupled: B, C zero there and D the identity (dl = 0)."""
         n, d, m = len(self.own), self.d, self.m
         B, C, D = np.zeros((n, d, m)), np.zeros((n, m, d)), np.zeros((n, m, m))
         directions = [(None, c) for c in range(d)] + \
@@ -246,24 +305,7 @@ class NodalCondensation:
         every node where P_i != I or L_i != 0 replaced by P_i (J rows) + L_i."""
         self._assemble_J()
         self.A.createSubMatrix(self._contact_rows, self._columns, submat=self.J_contact)
-        P, L = self.parts["P"], self.parts["L"]
-        changed = np.flatnonzero(np.any(np.abs(P - np.eye(self.d)) > 0, axis=(1, 2))
-                                 | np.any(L != 0, axis=(1, 2)))
-        new_rows = []
-        for i in changed:
-            rows = self.rows[i]
-            columns, first = self.A.getRow(int(rows[0]))
-            values = np.empty((self.d, len(columns)))
-            values[0] = first
-            for c in range(1, self.d):
-                values[c] = self.A.getRow(int(rows[c]))[1]
-            values = P[i] @ values
-            # The node's own d x d block: its columns are the rows' indices.
-            values[:, np.searchsorted(columns, rows)] += L[i]
-            new_rows.append((rows, columns, values))
-        for rows, columns, values in new_rows:
-            self.A.setValues(rows, columns, values)
-        self.A.assemble()
+        replace_rows(self.A, self.rows, self.parts["P"], self.parts["L"])
 
     def update_multipliers(self, du):
         """Add the node-wise dl for the displacement step du (a PETSc vector)."""

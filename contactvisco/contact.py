@@ -1,4 +1,4 @@
-"""The contact law on Gamma_C (eqs 11-12) and its discretization (eqs 20-21) in UFL.
+"""The contact law on Gamma_C (eqs 11-12) and its discretization (eqs 20-21), written once.
 
 Signs: nu is the outward unit normal, u_nu = u.nu (> 0 means penetration into the layer),
 sigma_nu = (sigma nu).nu (< 0 in compression). The foundation's normal reaction is
@@ -7,51 +7,121 @@ sigma_nu = (sigma nu).nu (< 0 in compression). The foundation's normal reaction 
 Friction: sigma_tau lies in the ball of radius mu p_nu(u_nu) (the paper's law) or
 mu (p_nu(u_nu) + R_nu) = -mu sigma_nu (Coulomb on the total normal pressure), and opposes the
 slip where it reaches the bound. The slip is u_tau (the paper's) or the step's
-u_tau - u_tau(t_{n-1}) (Coulomb's incremental law); friction_force takes either.
+u_tau - u_tau(t_{n-1}) (Coulomb's incremental law).
+
+Every function takes the array namespace `ops` it is evaluated in: UFL (the forms of
+contactvisco.problem) or NUMPY (the node values of the contact table, one row per node,
+vectors as (n, d) arrays). The law is thus one set of expressions for both.
 """
 from __future__ import annotations
 
+import numpy as np
 import ufl
 
 
-def positive_part(s):
+class UFL:
+    """UFL operations: the forms."""
+    where_ge = staticmethod(lambda a, b, x, y: ufl.conditional(ufl.ge(a, b), x, y))
+    where_le = staticmethod(lambda a, b, x, y: ufl.conditional(ufl.le(a, b), x, y))
+    minimum = staticmethod(ufl.min_value)
+    maximum = staticmethod(ufl.max_value)
+    sqrt = staticmethod(ufl.sqrt)
+    dot = staticmethod(ufl.dot)
+    times = staticmethod(lambda s, v: s * v)          # scalar times vector
+    divide = staticmethod(lambda v, s: v / s)         # vector over scalar
+
+
+def _per_node(condition, x):
+    """A per-node condition (n,) broadcast to x's shape ((n,) or (n, d))."""
+    condition = np.asarray(condition)
+    return condition[..., None] if np.ndim(x) > condition.ndim else condition
+
+
+class NUMPY:
+    """numpy operations on node arrays: scalars (n,), vectors (n, d)."""
+    where_ge = staticmethod(lambda a, b, x, y: np.where(_per_node(np.asarray(a) >= b, x), x, y))
+    where_le = staticmethod(lambda a, b, x, y: np.where(_per_node(np.asarray(a) <= b, x), x, y))
+    minimum = staticmethod(np.minimum)
+    maximum = staticmethod(np.maximum)
+    sqrt = staticmethod(np.sqrt)
+    dot = staticmethod(lambda a, b: np.einsum("...i,...i->...", a, b))
+    times = staticmethod(lambda s, v: _per_node(s, v) * v)
+    divide = staticmethod(lambda v, s: v / _per_node(s, v))
+
+
+def positive_part(s, ops=UFL):
     """s_+ = max(0, s), with slope 1 taken at s = 0 so a body resting at u_nu = 0 still has a
     non-singular Newton matrix."""
-    return ufl.conditional(ufl.ge(s, 0.0), s, 0.0)
+    return ops.where_ge(s, 0.0, s, 0.0 * s)
 
 
-def normal_part(u, n):
+def normal_part(u, n, ops=UFL):
     """u_nu = u . nu."""
-    return ufl.dot(u, n)
+    return ops.dot(u, n)
 
 
-def tangential_part(u, n):
+def tangential_part(u, n, ops=UFL):
     """u_tau = u - u_nu nu."""
-    return u - ufl.dot(u, n) * n
+    return u - ops.times(ops.dot(u, n), n)
 
 
-def p_nu(u_nu, stiffness, g=None):
+def p_nu(u_nu, stiffness, g=None, ops=UFL):
     """Normal compliance p_nu(s) = c_nu s_+, saturated at the bound: p_nu(min(s, g)).
 
     The paper's [s]_g (zero above g) would switch the force off at nodes that round-off puts
     at g + 1e-17; saturating gives the same converged solution without that trap.
     """
-    s = u_nu if g is None else ufl.min_value(u_nu, g)
-    return stiffness * positive_part(s)
+    s = u_nu if g is None else ops.minimum(u_nu, g)
+    return stiffness * positive_part(s, ops)
 
 
-def unilateral_reaction(lambda_nu, u_nu, g, r):
+def unilateral_reaction(lambda_nu, u_nu, g, r, ops=UFL):
     """R_nu = (lambda_nu - r (u_nu - g))_-, the augmented-Lagrangian reaction of eq (20)."""
-    return positive_part(r * (u_nu - g) - lambda_nu)
+    return positive_part(r * (u_nu - g) - lambda_nu, ops)
 
 
-def project_ball(z, radius):
+def project_ball(z, radius, ops=UFL):
     """P_B(z): projection of the vector z onto the ball of centre 0 and the given radius."""
-    norm = ufl.sqrt(ufl.dot(z, z))
-    return ufl.conditional(ufl.le(norm, radius), z, radius * z / ufl.max_value(norm, 1e-300))
+    norm = ops.sqrt(ops.dot(z, z))
+    return ops.where_le(norm, radius, z,
+                        ops.divide(ops.times(radius, z), ops.maximum(norm, 1e-300)))
 
 
-def friction_force(lambda_tau, u_tau, n, radius, r):
-    """sigma_tau = P_B(lambda_tau - r u_tau) with B the ball of the given radius (eq 20);
-    u_tau is the slip the law acts on."""
-    return project_ball(tangential_part(lambda_tau, n) - r * u_tau, radius)
+def friction_radius(mu, p, R, coulomb):
+    """The friction ball's radius: mu p_nu (the paper's law), or mu (p_nu + R_nu) with
+    Coulomb's law on the total normal pressure (with g = 0: Signorini-Coulomb). p or R may be
+    None where the scene has no such term; None if there is no pressure at all."""
+    pressure = p
+    if coulomb and R is not None:
+        pressure = R if p is None else p + R
+    return None if pressure is None else mu * pressure
+
+
+def friction_force(lambda_tau, slip, n, radius, r, ops=UFL):
+    """sigma_tau = P_B(lambda_tau - r slip) with B the ball of the given radius (eq 20);
+    slip is the tangential motion the law acts on (u_tau or its increment)."""
+    return project_ball(tangential_part(lambda_tau, n, ops) - r * slip, radius, ops)
+
+
+def law_terms(ops, u, n, gap, lambda_nu, lambda_tau, u_previous, constants, coulomb):
+    """The law's quantities at u with normal n (eqs 20-21): s_nu = u . nu - h (the
+    penetration past the initial gap h), p_nu, R_nu, the normal force p_nu + R_nu, the
+    friction radius, the slip and sigma_tau; None where the scene has no such term.
+
+    constants: r, g (None for no bound), stiffness (absent without compliance), friction
+    (the coefficient mu, absent without friction); UFL Constants or numbers."""
+    s_nu = normal_part(u, n, ops) - gap
+    g = constants.get("g")
+    p = (p_nu(s_nu, constants["stiffness"], g, ops) if "stiffness" in constants else None)
+    R = (unilateral_reaction(lambda_nu, s_nu, g, constants["r"], ops)
+         if lambda_nu is not None else None)
+    normal_force = p if R is None else (R if p is None else p + R)
+    moved = u if u_previous is None else u - u_previous
+    slip = tangential_part(moved, n, ops)
+    radius = sigma_tau = None
+    if "friction" in constants:
+        radius = friction_radius(constants["friction"], p, R, coulomb)
+        if lambda_tau is not None and radius is not None:
+            sigma_tau = friction_force(lambda_tau, slip, n, radius, constants["r"], ops)
+    return {"s_nu": s_nu, "p_nu": p, "R_nu": R, "normal_force": normal_force,
+            "radius": radius, "slip": slip, "sigma_tau": sigma_tau}

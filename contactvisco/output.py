@@ -25,6 +25,8 @@ import numpy as np
 from dolfinx import fem, io
 
 from . import compat
+from . import contact as law
+from . import problem as problem_module
 
 STATUSES = ("separated", "compliance", "bound")
 
@@ -49,50 +51,67 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     normals = nodes.normals[nodes.owned]
     # Node values of u (P1: node i of the multiplier spaces is dof block i of V).
     u = _nodal_displacement(problem)[own]
-    u_nu = np.einsum("ij,ij->i", u, normals)
-    u_tau_vec = u - u_nu[:, None] * normals
     gap = problem.gap.x.array[own]
-    penetration = u_nu - gap
-    g = contact["g"]
-    p_nu = (contact["stiffness"] * np.maximum(0.0, np.minimum(penetration, g))
-            if g > 0 else np.zeros_like(u_nu))
     lam_nu = (problem.lambda_nu.x.array[own] if problem.lambda_nu is not None
-              else np.zeros_like(u_nu))
-    if problem.lambda_tau is not None:
-        sig_tau = problem.lambda_tau.x.array.reshape(-1, d)[own]
-    else:
-        sig_tau = np.zeros_like(u)
+              else np.zeros(len(own)))
+    sig_tau = (problem.lambda_tau.x.array.reshape(-1, d)[own]
+               if problem.lambda_tau is not None else np.zeros_like(u))
+    u_prev = (problem.u_previous.x.array.reshape(-1, d)[own]
+              if problem.u_previous is not None else None)
+    # The law of the forms (contactvisco.contact), evaluated at the nodes.
+    constants = {key: float(c.value) for key, c in problem.constants.items()
+                 if key in ("r", "g", "stiffness", "friction") and c is not None}
+    terms = law.law_terms(law.NUMPY, u, normals, gap, None, None, u_prev, constants,
+                          coulomb=contact.get("friction") == "coulomb")
+    penetration = terms["s_nu"]
+    u_nu = law.normal_part(u, normals, law.NUMPY)
+    u_tau_vec = law.tangential_part(u, normals, law.NUMPY)
+    p_nu = terms["p_nu"] if terms["p_nu"] is not None else np.zeros_like(u_nu)
+    slip_vec = terms["slip"]
+    if problem.contact.corner_forms is not None:
+        # At corners of Gamma_C the forms use each facet's normal: the values there are the
+        # law's as the forms see them (the facets' weighted mean), not at the mean normal.
+        at = np.isin(own, nodes.corners)
+        corner = problem_module.corner_values(problem, own[at])
+        penetration, u_nu, slip_vec, u_tau_vec = (
+            penetration.copy(), u_nu.copy(), slip_vec.copy(), u_tau_vec.copy())
+        penetration[at], u_nu[at] = corner["s_nu"], corner["u_nu"]
+        slip_vec[at], u_tau_vec[at] = corner["slip"], corner["u_tau"]
+        if "p_nu" in corner:
+            p_nu = p_nu.copy()
+            p_nu[at] = corner["p_nu"]
     if d == 2:
         t = nodes.tangents[nodes.owned]
         u_tau = np.einsum("ij,ij->i", u_tau_vec, t)
         r_tau = np.einsum("ij,ij->i", sig_tau, t)
     else:
         u_tau = np.linalg.norm(u_tau_vec, axis=1)
-        r_tau = np.linalg.norm(sig_tau - np.einsum("ij,ij->i", sig_tau, normals)[:, None]
-                               * normals, axis=1)
+        r_tau = np.linalg.norm(law.tangential_part(sig_tau, normals, law.NUMPY), axis=1)
     x = problem.Q_coordinates[own][:, :d]
+    # The rigid part's reaction is the one the multiplier carries, R_nu = -lambda_nu (the
+    # law's R_nu(lambda_nu, u_nu) at the converged state).
     reaction_nu = p_nu - lam_nu
-    # The friction ball's radius under the scene's law: mu p_nu or mu (p_nu + R_nu).
-    pressure = reaction_nu if contact.get("friction") == "coulomb" else p_nu
-    slip_vec = u_tau_vec
-    if problem.u_previous is not None:     # slip = "increment": the step's tangential motion
-        u_prev = problem.u_previous.x.array.reshape(-1, d)[own]
-        slip_vec = u_tau_vec - (u_prev - np.einsum("ij,ij->i", u_prev, normals)[:, None]
-                                * normals)
+    radius = law.friction_radius(contact["mu"], p_nu, -lam_nu,
+                                 contact.get("friction") == "coulomb")
     local = dict(x=x, normal=normals, u_nu=u_nu, gap=gap, penetration=penetration, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
-                 reaction_nu=reaction_nu, reaction_tau=r_tau, radius=contact["mu"] * pressure,
+                 reaction_nu=reaction_nu, reaction_tau=r_tau, radius=radius,
                  u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau, slip_vector=slip_vec,
                  weight=nodes.weights[nodes.owned])
-    gathered = comm.allgather(local)
-    table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
-    # Sort by position rounded to 1e-9 of the body's size: coordinates that are zero can
-    # come out as +-1e-17 depending on the partition.
-    key = np.round(table["x"] / (1e-9 * problem.length_scale))
-    order = np.lexsort(key.T[::-1])
-    table = {key: value[order] for key, value in table.items()}
-    table["status"] = classify(table["penetration"], g, problem.length_scale)
+    table = _gather_sorted(local, comm, problem.length_scale)
+    table["status"] = classify(table["penetration"], contact["g"], problem.length_scale)
     table["friction"] = friction_state(table)
     return table
+
+
+def _gather_sorted(local: dict, comm, length: float) -> dict:
+    """Every rank's rows of a node table, on every rank, sorted by position rounded to 1e-9
+    of the body's size `length` (coordinates that are zero can come out as +-1e-17
+    depending on the partition)."""
+    gathered = comm.allgather(local)
+    table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
+    key = np.round(table["x"] / (1e-9 * length))
+    order = np.lexsort(key.T[::-1])
+    return {key: value[order] for key, value in table.items()}
 
 
 FRICTION_STATES = ("none", "stick", "slip")

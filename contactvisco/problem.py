@@ -23,7 +23,7 @@ which also forces lambda_tau . nu = 0.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import ufl
@@ -66,38 +66,74 @@ class ContactNodes:
     weights: np.ndarray | None = None  # nodal quadrature weight (the node's share of Gamma_C)
 
 
+@dataclass(frozen=True)
+class MemoryPart:
+    """The history of eq (19): the integrator, the history stress H it sets (a known DG
+    field), eps(u) interpolated for its commits, and the (Constant, part) weights of the
+    implicit term of the trapezoid rule."""
+    history: History
+    H: fem.Function
+    eps_function: fem.Function
+    eps_expression: fem.Expression
+    tensor_space: fem.FunctionSpace
+    implicit_terms: list
+    constants: dict                            # memory_implicit_<part>
+
+
+@dataclass(frozen=True)
+class ContactPart:
+    """The unknowns and node data of Gamma_C: the multipliers (None where the scene needs
+    none), the contact nodes, the initial gap h at the P1 nodes, u(t_{n-1}) for
+    slip = "increment", the P1 node coordinates and u's P1 interpolant (degree > 1)."""
+    nodes: ContactNodes
+    lambda_nu: fem.Function | None
+    lambda_tau: fem.Function | None
+    gap: fem.Function
+    u_previous: fem.Function | None
+    Q_coordinates: np.ndarray
+    u_p1: fem.Function | None
+    constants: dict                            # r, g, stiffness, friction (the coefficient)
+    corner_forms: dict | None = None           # corner_forms() (None without corners)
+
+
 @dataclass
 class Problem:
+    """The discrete problem, complete when built (build()); afterwards only the values of
+    its Functions and Constants change (time, history, iterates)."""
     scene: dict
     geometry: Geometry
     V: fem.FunctionSpace                      # displacement
     u: fem.Function
-    lambda_nu: fem.Function | None
-    lambda_tau: fem.Function | None
     F: list
     J: list
     bcs: list                                 # on every unknown
-    constants: dict
-    bcs_u: list = field(default_factory=list)  # on u only
-    u_fixed: np.ndarray | None = None         # (nodes, d) 1 where u's component is prescribed
-    multiplier_free: list = field(default_factory=list)  # per multiplier: (nodes, bs) bool
-    history: History | None = None
-    H: fem.Function | None = None             # history stress (DG, tensor)
-    eps_function: fem.Function | None = None
-    eps_expression: fem.Expression | None = None
-    sigma_expression: fem.Expression | None = None
-    T: fem.FunctionSpace | None = None
-    nodes: ContactNodes | None = None
-    Q_coordinates: np.ndarray | None = None   # P1 node coordinates (contact node positions)
-    u_p1: fem.Function | None = None          # u interpolated to P1 nodes (degree > 1 only)
-    length_scale: float = 1.0
-    context: Context | None = None            # x and t of the scene's expressions
-    updates: list = field(default_factory=list)   # callables run at each new time
-    gap: fem.Function | None = None           # initial gap h at the P1 nodes
-    implicit_terms: list = field(default_factory=list)  # (Constant, part) of the trapezoid
+    bcs_u: list                               # on u only
+    u_fixed: np.ndarray                       # (nodes, d) 1 where u's component is prescribed
+    multiplier_free: list                     # per multiplier: (nodes, bs) bool
+    constants: dict                           # every Constant of the forms, by name
+    context: Context                          # x and t of the scene's expressions
+    updates: list                             # callables run at each new time
+    loads: object                             # the linear form of the external loads (UFL)
+    T: fem.FunctionSpace                      # the stress output's tensor space
+    sigma_expression: fem.Expression
+    length_scale: float
+    memory: MemoryPart | None = None
+    contact: ContactPart | None = None
     history_started: bool = False
-    u_previous: fem.Function | None = None    # u(t_{n-1}), for slip = "increment" only
-    loads: object = None                      # the linear form of the external loads (UFL)
+
+    # The parts' fields under the names the rest of the package uses.
+    history = property(lambda self: self.memory and self.memory.history)
+    H = property(lambda self: self.memory and self.memory.H)
+    eps_function = property(lambda self: self.memory and self.memory.eps_function)
+    eps_expression = property(lambda self: self.memory and self.memory.eps_expression)
+    implicit_terms = property(lambda self: self.memory.implicit_terms if self.memory else [])
+    nodes = property(lambda self: self.contact and self.contact.nodes)
+    lambda_nu = property(lambda self: self.contact and self.contact.lambda_nu)
+    lambda_tau = property(lambda self: self.contact and self.contact.lambda_tau)
+    gap = property(lambda self: self.contact and self.contact.gap)
+    u_previous = property(lambda self: self.contact and self.contact.u_previous)
+    Q_coordinates = property(lambda self: self.contact and self.contact.Q_coordinates)
+    u_p1 = property(lambda self: self.contact and self.contact.u_p1)
 
     def load_resultant(self) -> np.ndarray:
         """The resultant of the external loads at the current time, int f + int_N f_N
@@ -193,176 +229,253 @@ def _block_jacobian(F, unknowns, spaces):
 
 
 def build(scene: dict, geometry: Geometry) -> Problem:
+    """The Problem of a scene on a geometry, built complete in one call: elasticity with the
+    memory part (eq 19), the external loads, the Dirichlet conditions, and the contact part
+    (eqs 20-21) with its multipliers, residual blocks F and Jacobian blocks J."""
     mesh = geometry.mesh
     d = mesh.geometry.dim
-    disc = scene["discretization"]
-    degree = disc["degree"]
+    degree = scene["discretization"]["degree"]
     mat = scene["material"]
-    contact = scene["contact"]
-    time = scene["time"]
-    k = time["T"] / time["steps"]
     context = Context(mesh)
     updates = []                               # run at each new time
 
     V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
-    lmbda, mu = lame_constants(mat["model"], mat["E"], mat["nu"])
-    constants = {"lambda": _scalar(mesh, lmbda), "mu": _scalar(mesh, mu), "t": context.t}
+    lame_lambda, lame_mu = lame_constants(mat["model"], mat["E"], mat["nu"])
+    constants = {"lambda": _scalar(mesh, lame_lambda), "mu": _scalar(mesh, lame_mu),
+                 "t": context.t}
     sigma = elasticity(strain(u), constants["lambda"], constants["mu"])
-    sigma, problem_memory = _memory(scene, mesh, u, sigma, k, constants)
+    memory = _memory(scene, mesh, u)
+    if memory is not None:
+        sigma = sigma + memory.H
+        for constant, part in memory.implicit_terms:
+            sigma = sigma + constant * _strain_part(u, part, d)
+        constants.update(memory.constants)
 
-    dx = ufl.dx
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
-    F_u = ufl.inner(sigma, strain(v)) * dx
-    loads = []                                 # (f, v) and (f_N, v): the external loads
-    body = scene["body_force"]["value"]
-    if body is not None:
-        loads.append(ufl.dot(context.vector(body, "body_force.value", d), v) * dx)
-    for i, traction in enumerate(scene["traction"]):
-        geometry.facets(traction["boundary"], f"traction[{i}].boundary")   # checks the name
-        fN = context.vector(traction["value"], f"traction[{i}].value", d)
-        loads.append(ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]]))
-    for load in loads:
-        F_u -= load
-
+    loads = _loads(scene, geometry, context, v, ds)
+    F_u = ufl.inner(sigma, strain(v)) * ufl.dx
+    if loads is not None:
+        F_u -= loads
     bcs, fixed_components = _dirichlet(scene, geometry, V, context, updates)
 
-    unknowns, spaces = [u], [V]
-    F_extra = []
-    lambda_nu = lambda_tau = u_previous = None
-    nodes = Q = W = gap_function = None
-    if contact is not None:
-        if disc["contact_quadrature"] == "nodal":
-            if degree != 1:
-                raise SceneError("discretization.contact_quadrature = 'nodal' needs degree 1; "
-                                 "use 'gauss' for degree 2")
-            metadata = nodal_rule(d)
-        else:
-            metadata = {"quadrature_degree": 2 * degree + 2}
-        names = contact["boundary"]
-        names = [names] if isinstance(names, str) else list(names)
-        for name in names:
-            geometry.facets(name, "contact.boundary")     # checks the name
-        dsc = ds(tuple(geometry.names[name] for name in names), metadata=metadata)
-
-        # P1 spaces for the multipliers and for the node tables of the output.
-        Q = compat.scalar_space(mesh, "CG", 1)
-        # Its own space object, even for P1: block assembly keys boundary conditions and
-        # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
-        W = compat.vector_space(mesh, "CG", 1)
-        nodes = _contact_nodes(mesh, Q, W, dsc)
-        if degree == 1 and not np.allclose(V.tabulate_dof_coordinates(),
-                                           W.tabulate_dof_coordinates()):
-            raise RuntimeError("displacement and multiplier node numberings differ")
-        n = _contact_normal(mesh, Q, W, dsc, nodes)
-        gap = context.scalar(contact["gap"], "contact.gap")
-        s_nu = law.normal_part(u, n) - gap        # penetration into the layer
-        u_tau = law.tangential_part(u, n)
-        g = contact["g"]
-        bounded = math.isfinite(g)
-        c = constants
-        c["r"] = _scalar(mesh, contact["augmentation"])
-        c["g"] = _scalar(mesh, g) if bounded else None
-        normal_force = p_nu = None
-        if contact["stiffness"] > 0 and g > 0:
-            c["stiffness"] = _scalar(mesh, contact["stiffness"])
-            p_nu = normal_force = law.p_nu(s_nu, c["stiffness"], c["g"])
-        gap_function = fem.Function(Q, name="gap")
-        gap_update = _interpolator(gap_function, gap, Q)
-        gap_update()
-        if context.depends_on_time(contact["gap"]):
-            updates.append(gap_update)
-        if bounded:
-            lambda_nu = fem.Function(Q, name="lambda_nu")
-            gamma = ufl.TestFunction(Q)
-            R_nu = law.unilateral_reaction(lambda_nu, s_nu, c["g"], c["r"])
-            normal_force = R_nu if normal_force is None else normal_force + R_nu
-            F_extra.append(-1.0 / c["r"] * (lambda_nu + R_nu) * gamma * dsc)
-            unknowns.append(lambda_nu)
-            spaces.append(Q)
-        if normal_force is not None:
-            F_u += normal_force * law.normal_part(v, n) * dsc
-        # The friction ball's radius: mu p_nu (the paper's law) or mu (p_nu + R_nu), Coulomb
-        # on the total normal pressure (with g = 0: Signorini-Coulomb).
-        pressure = normal_force if contact["friction"] == "coulomb" else p_nu
-        if contact["mu"] > 0 and pressure is not None:
-            c["friction"] = _scalar(mesh, contact["mu"])
-            lambda_tau = fem.Function(W, name="lambda_tau")
-            gamma = ufl.TestFunction(W)
-            if contact["slip"] == "increment":
-                # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
-                u_previous = fem.Function(V, name="u_previous")
-                u_tau = law.tangential_part(u - u_previous, n)
-            sigma_tau = law.friction_force(lambda_tau, u_tau, n, c["friction"] * pressure,
-                                           c["r"])
-            F_u -= ufl.dot(sigma_tau, law.tangential_part(v, n)) * dsc
-            F_extra.append(-1.0 / c["r"] * ufl.dot(lambda_tau - sigma_tau, gamma) * dsc)
-            unknowns.append(lambda_tau)
-            spaces.append(W)
-    bcs_u = list(bcs)
-    multiplier_bcs, multiplier_free = _multiplier_bcs(nodes, lambda_nu, lambda_tau,
-                                                      fixed_components, d)
-    bcs += multiplier_bcs
+    unknowns, spaces, F_extra = [u], [V], []
+    contact = None
+    if scene["contact"] is not None:
+        contact, contact_terms, multipliers = _contact(scene, geometry, u, v, ds, context,
+                                                       updates)
+        constants.update(contact.constants)
+        if contact_terms is not None:
+            F_u += contact_terms
+        for function, residual in multipliers:
+            unknowns.append(function)
+            spaces.append(function.function_space)
+            F_extra.append(residual)
+    multiplier_bcs, multiplier_free = _multiplier_bcs(
+        contact and contact.nodes, contact and contact.lambda_nu,
+        contact and contact.lambda_tau, fixed_components, d)
 
     F = [F_u] + F_extra
-    J = _block_jacobian(F, unknowns, spaces)
-
-    problem = Problem(scene=scene, geometry=geometry, V=V, u=u, lambda_nu=lambda_nu,
-                      lambda_tau=lambda_tau, F=F, J=J, bcs=bcs, constants=constants,
-                      bcs_u=bcs_u, u_fixed=fixed_components,
-                      multiplier_free=multiplier_free,
-                      nodes=nodes, context=context, updates=updates, gap=gap_function,
-                      u_previous=u_previous, loads=sum(loads[1:], loads[0]) if loads else None,
-                      **problem_memory)
-    if nodes is not None:
-        problem.Q_coordinates = Q.tabulate_dof_coordinates()
-        if degree > 1:
-            problem.u_p1 = fem.Function(W)
-    x = mesh.geometry.x[:, :d]
-    upper, lower = np.empty(d), np.empty(d)
-    mesh.comm.Allreduce(x.max(axis=0), upper, op=MPI.MAX)
-    mesh.comm.Allreduce(x.min(axis=0), lower, op=MPI.MIN)
-    problem.length_scale = float(np.max(upper - lower))
-    T_out = problem.T or compat.tensor_space(mesh, "DG", degree - 1)
-    problem.T = T_out
-    problem.sigma_expression = fem.Expression(sigma, compat.interpolation_points(T_out))
+    tensor_space = memory.tensor_space if memory else compat.tensor_space(mesh, "DG",
+                                                                            degree - 1)
+    problem = Problem(
+        scene=scene, geometry=geometry, V=V, u=u, F=F, J=_block_jacobian(F, unknowns, spaces),
+        bcs=bcs + multiplier_bcs, bcs_u=list(bcs), u_fixed=fixed_components,
+        multiplier_free=multiplier_free, constants=constants, context=context,
+        updates=updates, loads=loads, T=tensor_space,
+        sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
+        length_scale=_length_scale(mesh), memory=memory, contact=contact)
     rigid.check(problem)
     return problem
 
 
-def _memory(scene, mesh, u, sigma, k, constants):
-    """Add the history stress H (eq 19), a known DG field, and for the trapezoid rule the
-    implicit w P eps(u) to sigma (w = k/2 R(0), or the product-integration weight of the
-    fractional kernel: history.implicit). Nothing is built without memory."""
+def _strain_part(u, part, d):
+    """The part of eps(u) a memory term acts on: full, deviatoric or volumetric."""
+    eps = strain(u)
+    if part == "deviatoric":
+        return ufl.dev(eps)
+    if part == "volumetric":
+        return ufl.tr(eps) / d * ufl.Identity(d)
+    return eps
+
+
+def _length_scale(mesh) -> float:
+    """The largest extent of the mesh's bounding box (collective)."""
+    d = mesh.geometry.dim
+    x = mesh.geometry.x[:, :d]
+    upper, lower = np.empty(d), np.empty(d)
+    mesh.comm.Allreduce(x.max(axis=0), upper, op=MPI.MAX)
+    mesh.comm.Allreduce(x.min(axis=0), lower, op=MPI.MIN)
+    return float(np.max(upper - lower))
+
+
+def _loads(scene, geometry, context, v, ds):
+    """(f, v) + sum (f_N, v)_Gamma_N: the linear form of the external loads, None without."""
+    d = geometry.mesh.geometry.dim
+    loads = []
+    body = scene["body_force"]["value"]
+    if body is not None:
+        loads.append(ufl.dot(context.vector(body, "body_force.value", d), v) * ufl.dx)
+    for i, traction in enumerate(scene["traction"]):
+        geometry.facets(traction["boundary"], f"traction[{i}].boundary")   # checks the name
+        fN = context.vector(traction["value"], f"traction[{i}].value", d)
+        loads.append(ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]]))
+    return sum(loads[1:], loads[0]) if loads else None
+
+
+def _contact_measure(scene, geometry, ds):
+    """ds restricted to Gamma_C with the contact quadrature (nodal: the vertex rule)."""
+    disc = scene["discretization"]
+    d = geometry.mesh.geometry.dim
+    if disc["contact_quadrature"] == "nodal":
+        if disc["degree"] != 1:
+            raise SceneError("discretization.contact_quadrature = 'nodal' needs degree 1; "
+                             "use 'gauss' for degree 2")
+        metadata = nodal_rule(d)
+    else:
+        metadata = {"quadrature_degree": 2 * disc["degree"] + 2}
+    names = scene["contact"]["boundary"]
+    names = [names] if isinstance(names, str) else list(names)
+    for name in names:
+        geometry.facets(name, "contact.boundary")     # checks the name
+    return ds(tuple(geometry.names[name] for name in names), metadata=metadata)
+
+
+def _contact(scene, geometry, u, v, ds, context, updates):
+    """The contact part (eqs 20-21): returns the ContactPart, the terms it adds to F_u and
+    the (multiplier, its residual F_nu or F_tau) pairs, in the order lambda_nu, lambda_tau.
+    The law itself is contactvisco.contact.law_terms."""
+    mesh = geometry.mesh
+    contact = scene["contact"]
+    degree = scene["discretization"]["degree"]
+    dsc = _contact_measure(scene, geometry, ds)
+    # P1 spaces for the multipliers and for the node tables of the output.
+    Q = compat.scalar_space(mesh, "CG", 1)
+    # Its own space object, even for P1: block assembly keys boundary conditions and
+    # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
+    W = compat.vector_space(mesh, "CG", 1)
+    nodes = _contact_nodes(mesh, Q, W, dsc)
+    if degree == 1 and not np.allclose(u.function_space.tabulate_dof_coordinates(),
+                                       W.tabulate_dof_coordinates()):
+        raise RuntimeError("displacement and multiplier node numberings differ")
+    n = _contact_normal(mesh, Q, W, dsc, nodes)
+    gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
+
+    g = contact["g"]
+    constants = {"r": _scalar(mesh, contact["augmentation"]),
+                 "g": _scalar(mesh, g) if math.isfinite(g) else None}
+    if contact["stiffness"] > 0 and g > 0:
+        constants["stiffness"] = _scalar(mesh, contact["stiffness"])
+    lambda_nu = fem.Function(Q, name="lambda_nu") if math.isfinite(g) else None
+    has_pressure = ("stiffness" in constants
+                    or (contact["friction"] == "coulomb" and lambda_nu is not None))
+    lambda_tau = u_previous = None
+    if contact["mu"] > 0 and has_pressure:
+        constants["friction"] = _scalar(mesh, contact["mu"])
+        lambda_tau = fem.Function(W, name="lambda_tau")
+        if contact["slip"] == "increment":
+            # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
+            u_previous = fem.Function(u.function_space, name="u_previous")
+    terms = law.law_terms(law.UFL, u, n, gap_value, lambda_nu, lambda_tau, u_previous,
+                          constants, coulomb=contact["friction"] == "coulomb")
+    F_u = None
+    pairs = []
+    if terms["normal_force"] is not None:
+        F_u = terms["normal_force"] * law.normal_part(v, n) * dsc
+    if lambda_nu is not None:
+        r = constants["r"]
+        pairs.append((lambda_nu, -1.0 / r * (lambda_nu + terms["R_nu"])
+                      * ufl.TestFunction(Q) * dsc))
+    if lambda_tau is not None:
+        r, sigma_tau = constants["r"], terms["sigma_tau"]
+        friction = -ufl.dot(sigma_tau, law.tangential_part(v, n)) * dsc
+        F_u = friction if F_u is None else F_u + friction
+        pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
+                                                      ufl.TestFunction(W)) * dsc))
+    corners = mesh.comm.allreduce(nodes.corners.size, MPI.SUM) > 0
+    part = ContactPart(nodes=nodes, lambda_nu=lambda_nu, lambda_tau=lambda_tau,
+                       gap=gap_function, u_previous=u_previous,
+                       Q_coordinates=Q.tabulate_dof_coordinates(),
+                       u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
+                       corner_forms=_corner_forms(terms, u, n, Q, W, dsc) if corners else None)
+    return part, F_u, pairs
+
+
+def _corner_forms(terms, u, n, Q, W, dsc):
+    """Forms whose assembled vectors, divided by the node's weight, are the law's node values
+    as the forms see them: with the vertex rule, node i gets sum_f w_f value_f(x_i) over its
+    facets f. Where the normal is one P1 field this is the value at the node; at a corner of
+    Gamma_C, where the forms use each facet's normal, it is their weighted mean, which is what
+    the node's single multiplier and force act on. Keys: weight, u_nu, s_nu, p_nu (if any),
+    slip, u_tau (vectors)."""
+    d = Q.mesh.geometry.dim
+    vertex = dsc.reconstruct(metadata=nodal_rule(d))
+    q, w = ufl.TestFunction(Q), ufl.TestFunction(W)
+    scalars = {"weight": 1.0, "u_nu": law.normal_part(u, n), "s_nu": terms["s_nu"],
+               "p_nu": terms["p_nu"]}
+    vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, n)}
+    forms = {key: fem.form(value * q * vertex) for key, value in scalars.items()
+             if value is not None}
+    forms.update({key: fem.form(ufl.dot(value, w) * vertex) for key, value in vectors.items()})
+    return forms
+
+
+def corner_values(problem, nodes_local) -> dict:
+    """The law's values at the local P1 nodes `nodes_local` from corner_forms (collective):
+    a dict of (n,) or (n, d) arrays, keys as in corner_forms but the weight."""
+    d = problem.V.mesh.geometry.dim
+    out = {}
+    for key, form in problem.contact.corner_forms.items():
+        vec = assemble_vector(form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        with vec.localForm() as local:
+            values = local.array.copy()
+        vec.destroy()
+        out[key] = values.reshape(-1, d)[nodes_local] if key in ("slip", "u_tau") \
+            else values[nodes_local]
+    weight = out.pop("weight")
+    return {key: value / (weight[:, None] if value.ndim == 2 else weight)
+            for key, value in out.items()}
+
+
+def _gap(expression, Q, context, updates):
+    """The initial gap h: its UFL value and its P1 interpolant (kept up to date in time)."""
+    value = context.scalar(expression, "contact.gap")
+    function = fem.Function(Q, name="gap")
+    update = _interpolator(function, value, Q)
+    update()
+    if context.depends_on_time(expression):
+        updates.append(update)
+    return value, function
+
+
+def _memory(scene, mesh, u) -> MemoryPart | None:
+    """The history of eq (19) (None without memory): H, a known DG field, and for the
+    trapezoid rule the implicit weights w of w P eps(u) (w = k/2 R(0), or the
+    product-integration weight of the fractional kernel: history.implicit), as Constants
+    that are zero at t_0, where there is no history yet; prepare(k) sets them."""
     terms, table, power = memory_terms(scene), memory_table(scene), memory_power(scene)
     if not terms and table is None and power is None:
-        return sigma, {}
-    rule = scene["time"]["rule"]
+        return None
+    time = scene["time"]
+    dt = time["T"] / time["steps"]
     d = mesh.geometry.dim
-    T = compat.tensor_space(mesh, "DG", scene["discretization"]["degree"] - 1)
-    H = fem.Function(T, name="history_stress")
+    tensor_space = compat.tensor_space(mesh, "DG", scene["discretization"]["degree"] - 1)
     if table is not None:
-        history = DirectHistory(table_kernel(*table), k, rule)
+        history = DirectHistory(table_kernel(*table), dt, time["rule"])
     elif power is not None:
-        history = kernels.history(power, scene["time"], scene["solver"]["max_cuts"], d)
+        history = kernels.history(power, time, scene["solver"]["max_cuts"], d)
     else:
-        history = History(terms, k, rule, d)
-    implicit = history.implicit(k)
-    eps = strain(u)
-    parts = {"full": eps, "deviatoric": ufl.dev(eps),
-             "volumetric": ufl.tr(eps) / d * ufl.Identity(d)}
-    sigma = sigma + H
-    implicit_terms = []
-    for part in implicit:
-        # Zero at t_0, where there is no history yet; prepare(k) sets it (k/2 R(0) for a
-        # kernel finite at 0).
-        constants[f"memory_implicit_{part}"] = _scalar(mesh, 0.0)
-        implicit_terms.append((constants[f"memory_implicit_{part}"], part))
-        sigma = sigma + constants[f"memory_implicit_{part}"] * parts[part]
-    memory = dict(history=history, H=H, eps_function=fem.Function(T),
-                  eps_expression=fem.Expression(eps, compat.interpolation_points(T)), T=T,
-                  implicit_terms=implicit_terms)
-    return sigma, memory
+        history = History(terms, dt, time["rule"], d)
+    constants = {f"memory_implicit_{part}": _scalar(mesh, 0.0)
+                 for part in history.implicit(dt)}
+    return MemoryPart(
+        history=history, H=fem.Function(tensor_space, name="history_stress"),
+        eps_function=fem.Function(tensor_space),
+        eps_expression=fem.Expression(strain(u), compat.interpolation_points(tensor_space)),
+        tensor_space=tensor_space, constants=constants,
+        implicit_terms=[(c, name[len("memory_implicit_"):]) for name, c in constants.items()])
 
 
 def _interpolator(function, value, space):
@@ -414,33 +527,43 @@ def _dirichlet(scene, geometry, V, context, updates):
             continue
         if not isinstance(comps, list):
             raise SceneError(f"{where}.components must be 'all' or a list, got {comps!r}")
-        vals = value if isinstance(value, (list, tuple)) else [value] * len(comps)
-        if len(vals) != len(comps):
-            raise SceneError(f"{where}.value needs one entry per component, got {vals}")
-        for comp, val in zip(comps, vals):
-            if not (isinstance(comp, int) and 0 <= comp < d):
-                raise SceneError(f"{where}.components: {comp} is not a component "
-                                 f"of a {d}D displacement (0..{d - 1})")
-            scalar = context.scalar(val, f"{where}.value")
-            if isinstance(scalar, fem.Constant):
-                dofs = fem.locate_dofs_topological(V.sub(comp), fdim, facets)
-                bcs.append(fem.dirichletbc(scalar.value, dofs, V.sub(comp)))
-            else:
-                Vc, _ = V.sub(comp).collapse()
-                g = fem.Function(Vc)
-                update = _interpolator(g, scalar, Vc)
-                update()
-                if context.depends_on_time(val):
-                    updates.append(update)
-                pair = fem.locate_dofs_topological((V.sub(comp), Vc), fdim, facets)
-                bcs.append(fem.dirichletbc(g, pair, V.sub(comp)))
-                dofs = pair[0]
-            fixed.x.array[dofs] = 1.0
+        bcs += _component_bcs(item, where, comps, facets, V, context, updates, fixed)
     # A rank may hold a prescribed node as a ghost without the facet that prescribes it.
     fixed_vector = compat.petsc_vector(fixed)
     fixed_vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     fixed_vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
     return bcs, fixed.x.array.reshape(-1, V.dofmap.index_map_bs)
+
+
+def _component_bcs(item, where, comps, facets, V, context, updates, fixed):
+    """The conditions of one dirichlet entry on the listed components; marks their dofs in
+    the Function `fixed`."""
+    d = V.mesh.geometry.dim
+    value = item.get("value", 0.0)
+    vals = value if isinstance(value, (list, tuple)) else [value] * len(comps)
+    if len(vals) != len(comps):
+        raise SceneError(f"{where}.value needs one entry per component, got {vals}")
+    bcs = []
+    for comp, val in zip(comps, vals):
+        if not (isinstance(comp, int) and 0 <= comp < d):
+            raise SceneError(f"{where}.components: {comp} is not a component "
+                             f"of a {d}D displacement (0..{d - 1})")
+        scalar = context.scalar(val, f"{where}.value")
+        if isinstance(scalar, fem.Constant):
+            dofs = fem.locate_dofs_topological(V.sub(comp), d - 1, facets)
+            bcs.append(fem.dirichletbc(scalar.value, dofs, V.sub(comp)))
+        else:
+            Vc, _ = V.sub(comp).collapse()
+            g = fem.Function(Vc)
+            update = _interpolator(g, scalar, Vc)
+            update()
+            if context.depends_on_time(val):
+                updates.append(update)
+            pair = fem.locate_dofs_topological((V.sub(comp), Vc), d - 1, facets)
+            bcs.append(fem.dirichletbc(g, pair, V.sub(comp)))
+            dofs = pair[0]
+        fixed.x.array[dofs] = 1.0
+    return bcs
 
 
 def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:

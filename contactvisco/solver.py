@@ -134,6 +134,16 @@ def _is_number(text: str) -> bool:
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
 _FORWARD = PETSc.ScatterMode.FORWARD
 
+#: Options whose values keep the condensed iterates the coupled method's, as a test of the
+#: value PETSc reads: any other value is refused by CondensedSNES.
+EQUIVALENCE_OPTIONS = {
+    "snes_type": lambda value: value.lower() == "newtonls",
+    "snes_linesearch_type": lambda value: value.lower() in ("basic", "none"),
+    "snes_linesearch_damping": lambda value: _is_number(value) and float(value) == 1.0,
+    "snes_lag_jacobian": lambda value: _is_number(value) and float(value) == 1.0,
+    "snes_lag_preconditioner": lambda value: _is_number(value) and float(value) == 1.0,
+}
+
 
 class NewtonFailure(RuntimeError):
     """SNES did not converge."""
@@ -168,10 +178,21 @@ class _Newton:
         self.snes.setMonitor(_weak(self._monitor))
         try:
             self.snes.setFromOptions()
+            self._check_options()
         except PETSc.Error as err:
             raise self._rejected(err) from None
         finally:                       # also when PETSc rejects an option
             self.remove_options()
+
+    def _check_options(self):
+        """Refuse options this linear system cannot follow (raises SceneError); the options
+        are still in PETSc's database here."""
+
+    def _origin(self, key: str) -> str:
+        """Where option `key` came from, for messages: the scene key or the command line."""
+        if key in self._scene_options:
+            return f"solver.petsc_options.{key}"
+        return f"the option -{key}"
 
     def _rejected(self, err) -> SceneError:
         """The error for an option value PETSc rejected, naming the given options it had read
@@ -325,7 +346,10 @@ class BlockSNES(_Newton):
 
 class CondensedSNES(_Newton):
     """SNES over u alone, the nodal multipliers eliminated node by node in every Newton step
-    (contactvisco.condensed); they are updated from each displacement step."""
+    (contactvisco.condensed); they are updated from each displacement step, as the coupled
+    Newton step's dl for that du. That holds for full Newton steps with a Jacobian at every
+    iterate: options that change this are refused (_check_options), and a residual evaluated
+    away from such a step stops the solve with a clear error rather than wrong iterates."""
 
     system_kind = "condensed"
 
@@ -338,6 +362,8 @@ class CondensedSNES(_Newton):
         self._x_jacobian = u_vector.copy()   # the iterate of the last Jacobian
         self._du = u_vector.copy()
         self._pending = False            # a step from _x_jacobian awaits its multiplier update
+        self._residuals_since_jacobian = 0
+        self._broken = None              # why the iterates left the coupled method's, if so
         self.snes.setFunction(_weak(self._residual), self.b)
         self.snes.setJacobian(_weak(self._jacobian), self.system.J_red)
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
@@ -346,9 +372,41 @@ class CondensedSNES(_Newton):
         self.system.J_red.setNearNullSpace(rigid_body_modes(problem.V))
         self._finish_setup()
 
+    def _check_options(self):
+        """The multipliers are recovered from each displacement step as the coupled Newton
+        step's dl: that needs a Jacobian at every iterate and the full step taken. Options
+        that change either (a lagged Jacobian or preconditioner, a line search other than the
+        full step, damping, another SNES type, matrix-free or finite-difference Jacobians) are
+        refused here by name."""
+        opts = PETSc.Options()
+        problems = []
+        for key, allowed in EQUIVALENCE_OPTIONS.items():
+            if opts.hasName(key) and not allowed(opts.getString(key, "").strip()):
+                problems.append(f"{self._origin(key)} = {opts.getString(key, '')}")
+        if self.snes.getType() != "newtonls" and not problems:
+            problems.append(f"the SNES type {self.snes.getType()}")
+        if self.snes.getUseMF() or self.snes.getUseFD():
+            problems.append("a matrix-free or finite-difference Jacobian (-snes_mf, "
+                            "-snes_mf_operator, -snes_fd)")
+        if problems:
+            raise SceneError(
+                f"{problems[0]}: the condensed Newton system (solver.linear_system = "
+                "'condensed', the default with nodal contact quadrature) follows the coupled "
+                "Newton method only with a Jacobian at every iterate and the full step "
+                "(snes_type newtonls, snes_linesearch_type basic, no lag, no damping)"
+                + (f"; also refused: {', '.join(problems[1:])}" if problems[1:] else "")
+                + ". Use solver.linear_system = 'coupled' for such options")
+
     def solve(self) -> int:
         self._pending = False
-        return super().solve()
+        self._broken = None
+        self._residuals_since_jacobian = 0
+        try:
+            return super().solve()
+        except (NewtonFailure, SceneError, PETSc.Error):
+            if self._broken:
+                raise SceneError(self._broken) from None
+            raise
 
     def _monitor(self, snes, it, norm):
         super()._monitor(snes, it, self.system.full_norm)
@@ -361,6 +419,18 @@ class CondensedSNES(_Newton):
             self._du.axpy(-1.0, self._x_jacobian)
             self.system.update_multipliers(self._du)
             self._pending = False
+        elif self._residuals_since_jacobian > 0:
+            # A second residual since the last Jacobian (a lagged Jacobian, a line search
+            # trying a shorter step): the multipliers would not follow. Stop with NaN, and
+            # solve() turns it into a clear error.
+            self._broken = (
+                "the condensed Newton system evaluated a residual away from the full Newton "
+                "step of the last Jacobian (an option lagging the Jacobian or changing the "
+                "line search?); use solver.linear_system = 'coupled' for such options")
+            b.set(np.nan)
+            self.system.full_norm = float("nan")
+            return
+        self._residuals_since_jacobian += 1
         self._to_functions(x)
         self.system.residual(x, b)
 
@@ -368,6 +438,7 @@ class CondensedSNES(_Newton):
         self.system.jacobian()
         x.copy(self._x_jacobian)
         self._pending = True
+        self._residuals_since_jacobian = 0
 
     def _converged(self, snes, it, norms):
         norm = self.system.full_norm

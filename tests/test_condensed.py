@@ -66,7 +66,7 @@ def test_elimination_is_exact(d, m):
     full, condensed, parts = _dense_and_condensed(rng, len(kinds), d, m, kinds)
     assert np.max(np.abs(full - condensed)) <= 1e-10 * np.max(np.abs(full))
     expected_k = {"regular": 0, "zero": m, "deficient": 1}
-    assert list(parts["k"]) == [expected_k[k] for k in kinds]
+    assert list(parts["nullity"]) == [expected_k[k] for k in kinds]
 
 
 def test_constraint_rows_have_positive_diagonal():
@@ -81,7 +81,7 @@ def test_constraint_rows_have_positive_diagonal():
     D[0, 2, 2] = -1.0
     parts = eliminate(B, C, D, rng.standard_normal((1, d)), rng.standard_normal((1, m)),
                       np.array([7.0]), np.array([1.0]))
-    assert parts["k"][0] == 2
+    assert parts["nullity"][0] == 2
     assert np.allclose(parts["L"][0], np.diag([7.0, 7.0, 0.0]), atol=1e-12)
     assert np.allclose(parts["P"][0], np.diag([0.0, 0.0, 1.0]), atol=1e-12)
 

@@ -199,7 +199,7 @@ def test_elimination_of_a_general_multiplier_block():
         K[u, lam], K[lam, u], K[lam, lam] = B[i], C[i], D[i]
     full = np.linalg.solve(K, -np.concatenate([F.ravel(), G.ravel()]))
     parts = eliminate(B, C, D, F, G, np.full(n, np.mean(np.diag(J))), np.ones(n))
-    assert list(parts["k"]) == [1] * n
+    assert list(parts["nullity"]) == [1] * n
     S, L = np.zeros((N, N)), np.zeros((N, N))
     for i in range(n):
         u = slice(i * d, i * d + d)
