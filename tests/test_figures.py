@@ -117,14 +117,20 @@ def test_step_records_from_either_layout(paper_folder, tmp_path):
     """summary.json with the steps in it, or a small summary and steps.jsonl."""
     if COMM.rank != 0:
         return
-    folder = tmp_path / "jsonl"
+    steps = figures.step_records(paper_folder)                  # from steps.jsonl
+    assert [s["step"] for s in steps] == list(range(len(steps))) and len(steps) > 1
+    folder = tmp_path / "summary_with_steps"                    # the earlier layout
     shutil.copytree(paper_folder, folder)
     summary = json.loads((folder / "summary.json").read_text())
-    steps = summary.pop("steps")
+    summary["steps"] = steps
     (folder / "summary.json").write_text(json.dumps(summary))
-    (folder / "steps.jsonl").write_text("".join(json.dumps(s) + "\n" for s in steps)
-                                        + '{"step": 99, "t"')          # a cut last line
+    (folder / "steps.jsonl").unlink()
     assert figures.step_records(folder) == steps
+    cut = tmp_path / "cut"
+    shutil.copytree(paper_folder, cut)
+    with open(cut / "steps.jsonl", "a") as f:
+        f.write('{"step": 99, "t"')                             # a line cut by a hard stop
+    assert figures.step_records(cut) == steps
     a = dict(figures.build_all(paper_folder))["probes"]
     b = dict(figures.build_all(folder))["probes"]
     assert not figures.compare_signatures(figures.signature(b), figures.signature(a))
