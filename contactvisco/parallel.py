@@ -17,6 +17,7 @@ Two ways a run stops early, both ending every rank with one message and a non-ze
 """
 from __future__ import annotations
 
+import os
 import signal
 import sys
 import time
@@ -104,6 +105,8 @@ def fail_together(comm, code: int, message: str, err: BaseException) -> int:
     if not together(comm, err):
         _print(f"{message} [rank {comm.rank}; ending all {comm.size} ranks]")
         comm.Abort(code)
+        os._exit(code)      # MPICH's MPI_Abort may return to the caller before the launcher
+                            # ends the job: this rank must not go on (and print again)
     agree = _agreement_comm(comm)
     if comm.rank == 0:                 # every rank failed: rank 0's message, once
         _print(message)
