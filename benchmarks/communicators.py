@@ -37,7 +37,7 @@ def main(what: str = "problem", runs: int = 1200):
             newton.destroy()
         del problem
         gc.collect()
-        if comm.rank == 0 and (i + 1) % 50 == 0:
+        if comm.rank == 0 and (i + 1) % 10 == 0:
             print(f"{what}: {i + 1} builds", flush=True)
     if comm.rank == 0:
         print(f"{what}: all {runs} builds done", flush=True)
