@@ -85,9 +85,9 @@ def cell_dofs(dofmap) -> np.ndarray:
 def release_dispatch_caches():
     """Stop functools.singledispatchmethod from caching bound methods in UFL and FFCx.
 
-    CPython 3.12.8 and 3.13.0-3.13.1 cache each bound method in a WeakKeyDictionary whose
-    value refers back to its key, so no entry is ever dropped (CPython issue gh-127750, the
-    cache removed in 3.12.9 and 3.13.2). UFL >= 2025 differentiates with DAGTraverser
+    CPython 3.13.0 caches each bound method in a WeakKeyDictionary whose value refers back
+    to its key, so no entry is ever dropped (CPython issue gh-127750; the cache came with
+    3.13.0 and went in a later 3.13 bugfix release, gh-130008). UFL >= 2025 differentiates with DAGTraverser
     objects whose `process` is such a method, and each traverser keeps the expressions it
     saw: every ufl.derivative, fem.form and fem.Expression then keeps its meshes, spaces and
     Functions alive for ever, and with them the MPI communicators of their index maps, until
@@ -110,7 +110,7 @@ def release_dispatch_caches():
             for attribute in vars(cls).values():
                 if isinstance(attribute, functools.singledispatchmethod) \
                         and getattr(attribute, "_method_cache", None) is not None:
-                    attribute._method_cache = None     # what CPython 3.13.2 does
+                    attribute._method_cache = None     # as the fixed CPython does
 
 
 release_dispatch_caches()
