@@ -87,12 +87,13 @@ def release_dispatch_caches():
 
     CPython 3.13.0 caches each bound method in a WeakKeyDictionary whose value refers back
     to its key, so no entry is ever dropped (CPython issue gh-127750; the cache came with
-    3.13.0 and went in a later 3.13 bugfix release, gh-130008). UFL >= 2025 differentiates with DAGTraverser
-    objects whose `process` is such a method, and each traverser keeps the expressions it
-    saw: every ufl.derivative, fem.form and fem.Expression then keeps its meshes, spaces and
-    Functions alive for ever, and with them the MPI communicators of their index maps, until
-    MPI runs out of them (MPICH: 2048 per process). Without the cache attribute (older UFL,
-    other Python versions) nothing is done."""
+    3.13.0 and went in a later 3.13 bugfix release, gh-130008). UFL >= 2025 differentiates
+    with DAGTraverser objects whose `process` is such a method, and each traverser keeps the
+    expressions it saw: every ufl.derivative, fem.form and fem.Expression then keeps its
+    meshes, spaces and Functions alive for ever, and with them the MPI communicators of their
+    index maps, until MPI runs out of them (MPICH: 2048 per process). Without the cache
+    attribute (older UFL, other Python versions) nothing is done. Called on import.
+    """
     import importlib
     import sys
     for name in ("ufl.algorithms.apply_derivatives", "ufl.algorithms.apply_coefficient_split",
