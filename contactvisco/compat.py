@@ -80,6 +80,43 @@ def cell_dofs(dofmap) -> np.ndarray:
     return layout.array.reshape(-1, dofmap.dof_layout.num_dofs)
 
 
+# ------------------------------------------------------------------ UFL traversal caches
+
+def release_dispatch_caches():
+    """Stop functools.singledispatchmethod from caching bound methods in UFL and FFCx.
+
+    CPython 3.13.0 caches each bound method in a WeakKeyDictionary whose value refers back
+    to its key, so no entry is ever dropped (CPython issue gh-127750; the cache came with
+    3.13.0 and went in a later 3.13 bugfix release, gh-130008). UFL >= 2025 differentiates
+    with DAGTraverser objects whose `process` is such a method, and each traverser keeps the
+    expressions it saw: every ufl.derivative, fem.form and fem.Expression then keeps its
+    meshes, spaces and Functions alive for ever, and with them the MPI communicators of their
+    index maps, until MPI runs out of them (MPICH: 2048 per process). Without the cache
+    attribute (older UFL, other Python versions) nothing is done. Called on import.
+    """
+    import importlib
+    import sys
+    for name in ("ufl.algorithms.apply_derivatives", "ufl.algorithms.apply_coefficient_split",
+                 "ffcx.codegeneration.C.formatter"):
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            pass
+    for name, module in list(sys.modules.items()):
+        if module is None or name.split(".")[0] not in ("ufl", "ffcx"):
+            continue
+        for cls in list(vars(module).values()):
+            if not isinstance(cls, type):
+                continue
+            for attribute in vars(cls).values():
+                if isinstance(attribute, functools.singledispatchmethod) \
+                        and getattr(attribute, "_method_cache", None) is not None:
+                    attribute._method_cache = None     # as the fixed CPython does
+
+
+release_dispatch_caches()
+
+
 # ------------------------------------------------------------------ point location
 
 def colliding_cells(mesh, points: np.ndarray) -> list[int]:

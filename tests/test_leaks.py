@@ -96,3 +96,21 @@ def test_rejected_option_leaves_the_database_clean():
     finally:
         newton.destroy()
     assert our_options() == before
+
+
+def test_collected_problem_frees_its_mesh():
+    """Once a problem, its solver and its compiled forms are collected, nothing keeps the
+    mesh (and the communicators of its index maps) alive: no cache of the form language
+    holds the differentiated expressions."""
+    scene = small(True)
+    geometry = build_geometry(scene, COMM)
+    mesh = weakref.ref(geometry.mesh)
+    problem = build(scene, geometry)
+    newton = solver_module.create(problem, COMM)
+    try:
+        assert newton.solve() >= 1 and newton.residuals[-1] < 1e-8
+    finally:
+        newton.destroy()
+    del geometry, problem, newton
+    gc.collect()
+    assert mesh() is None
