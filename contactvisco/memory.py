@@ -118,7 +118,26 @@ class History:
                      if key.startswith("last_")} or None
 
 
-class DirectHistory:
+class StrainRecord:
+    """The strain of every converged state and its time: what a direct sum (O(n) work and
+    memory per step) keeps, and what its checkpoint holds."""
+
+    def record(self, eps: np.ndarray, k: float | None):
+        """Keep eps, reached by a step of size k (None at t_0)."""
+        self.times.append(0.0 if not self.times else self.times[-1] + k)
+        self.strains.append(eps.copy())
+
+    def state(self) -> dict:
+        out = {"times": np.array(self.times)}
+        out.update({f"strain{j}": e for j, e in enumerate(self.strains)})
+        return out
+
+    def restore(self, state: dict):
+        self.times = list(state["times"])
+        self.strains = [state[f"strain{j}"].copy() for j in range(len(self.times))]
+
+
+class DirectHistory(StrainRecord):
     """Eq (19) summed term by term for a general kernel R(t) eps = r(t) P eps, any step sizes;
     O(n) work and memory per step."""
 
@@ -133,8 +152,7 @@ class DirectHistory:
         return {self.part: 0.5 * k * self.r(0.0)} if self.rule == "trapezoid" else {}
 
     def commit(self, eps: np.ndarray, k: float | None):
-        self.times.append(0.0 if not self.times else self.times[-1] + k)
-        self.strains.append(eps.copy())
+        self.record(eps, k)
 
     def explicit(self, k: float) -> np.ndarray:
         out = direct_sum(lambda t, e: self.r(t) * e, self.times, self.strains,
@@ -145,14 +163,6 @@ class DirectHistory:
         self.commit(eps, None if not self.times else self.k)
         return self.explicit(self.k)
 
-    def state(self) -> dict:
-        out = {"times": np.array(self.times)}
-        out.update({f"strain{j}": e for j, e in enumerate(self.strains)})
-        return out
-
-    def restore(self, state: dict):
-        self.times = list(state["times"])
-        self.strains = [state[f"strain{j}"].copy() for j in range(len(self.times))]
 
 
 def prony(terms, d: int):
@@ -285,7 +295,7 @@ class FractionalHistory:
             self.last = state[f"last_{self.part}"].copy()
 
 
-class DirectFractionalHistory(FractionalHistory):
+class DirectFractionalHistory(StrainRecord, FractionalHistory):
     """The same product integration with the exact kernel on every older step: O(n) work and
     memory per step (the reference of the fitted one). Over [t_{m-1}, t_m], with
     a = t_{n+1} - t_m, b = t_{n+1} - t_{m-1}, h = b - a, I0 = int_a^b sigma^-beta,
@@ -300,8 +310,7 @@ class DirectFractionalHistory(FractionalHistory):
         self.direct = True
 
     def commit(self, eps: np.ndarray, k: float | None):
-        self.times.append(0.0 if not self.times else self.times[-1] + k)
-        self.strains.append(project(eps, self.part, self.d).copy())
+        self.record(project(eps, self.part, self.d), k)
         self.last = self.strains[-1]
 
     def explicit(self, k: float) -> np.ndarray:
@@ -321,12 +330,6 @@ class DirectFractionalHistory(FractionalHistory):
             out = out + weights @ np.asarray(self.strains)
         return out
 
-    def state(self) -> dict:
-        out = {"times": np.array(self.times)}
-        out.update({f"strain{j}": e for j, e in enumerate(self.strains)})
-        return out
-
     def restore(self, state: dict):
-        self.times = list(state["times"])
-        self.strains = [state[f"strain{j}"].copy() for j in range(len(self.times))]
+        StrainRecord.restore(self, state)
         self.last = self.strains[-1] if self.strains else None
