@@ -43,6 +43,13 @@ def write(name, rows, header, line):
     print("\n".join(lines))
 
 
+def write_results(name, rows, lines):
+    """results/<name>.json (the rows) and results/<name>.md (table lines); also printed."""
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{name}.json").write_text(json.dumps(rows, indent=1))
+    write_markdown(name, lines)
+
+
 def write_markdown(name, lines):
     """results/<name>.md from table lines; also printed."""
     RESULTS.mkdir(exist_ok=True)

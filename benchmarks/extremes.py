@@ -8,7 +8,7 @@ The table goes to benchmarks/results/extremes.md (and docs/extremes.md).
 import json
 import time
 
-from common import RESULTS
+from common import write_results
 from mpi4py import MPI
 
 from contactvisco import scene as scene_module
@@ -96,10 +96,7 @@ def main():
                          f"{r['max_u']:.3g} | {r['b']:.3g} | " if "max_u" in r else
                          f"| {r['scene']} | {r['label']} | {outcome} | | | | | | ")
             lines[-1] += f"{r.get('message', '')} |"
-        RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "extremes.json").write_text(json.dumps(rows, indent=1))
-        (RESULTS / "extremes.md").write_text("\n".join(lines) + "\n")
-        print("\n".join(lines))
+        write_results("extremes", rows, lines)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@ import sys
 import tempfile
 import time
 
-from common import RESULTS
+from common import write_results
 
 SMALL = ["--set", "geometry.cells=[4, 4]", "--set", "time.steps=2", "--quiet"]
 MARKER = "PWNED"
@@ -142,10 +142,7 @@ def main():
             message = message[:300] + " ..."
         lines.append(f"| {r['input']} | {r['exit']} | {'yes' if r['traceback'] else 'no'} | "
                      f"{', '.join(r['outside']) or 'none'} | {r['seconds']:.1f} | {message} |")
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "hostile_input.json").write_text(json.dumps(rows, indent=1))
-    (RESULTS / "hostile_input.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_results("hostile_input", rows, lines)
 
 
 if __name__ == "__main__":
