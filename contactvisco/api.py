@@ -30,18 +30,10 @@ def load_scene(name_or_path, preset: str | None = None, sets=(), **overrides) ->
     `sets` takes ``"key=value"`` texts (TOML values) as the command line's --set, applied
     before the keyword overrides.
     """
-    python = list(_assignments(overrides, []))
-    given = list(sets) + python
+    given = list(sets) + list(_assignments(overrides, []))
     if preset is not None:
         given.insert(0, scene_module.Override(["preset"], preset))
-    try:
-        return scene_module.load(str(name_or_path), given)
-    except SceneError as err:
-        # The checks are those of --set; their messages name the override as it was given.
-        message = str(err).replace("--set material", "load_scene material")
-        located = SceneError(message.replace("--set", "load_scene") if python else message)
-        located.located = err.located
-        raise located from None
+    return scene_module.load(str(name_or_path), given)
 
 
 def _assignments(values: dict, path: list):
@@ -100,11 +92,20 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
     from .run import simulate
     if comm is None:
         comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
-    geometry = None
-    if mesh is not None or facet_tags is not None or boundaries is not None:
-        geometry = user_geometry(scene, mesh, facet_tags, boundaries)
-    return simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
-                    restart=restart, overwrite=overwrite, geometry=geometry, on_step=on_step)
+    try:
+        geometry = None
+        if mesh is not None or facet_tags is not None or boundaries is not None:
+            geometry = user_geometry(scene, mesh, facet_tags, boundaries)
+        return simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
+                        restart=restart, overwrite=overwrite, geometry=geometry,
+                        on_step=on_step)
+    except SceneError as err:          # errors found while building name their origin too
+        if not hasattr(scene, "locate"):
+            raise
+        located = scene.locate(err)
+        if located is err:
+            raise
+        raise located from None
 
 
 def scene_boundaries(scene: dict) -> dict[str, str]:
@@ -149,7 +150,7 @@ def user_geometry(scene: dict, mesh, facet_tags, boundaries):
     if missing:
         name, key = next(iter(missing.items()))
         raise SceneError(f"{key}: no boundary named '{name}' in solve(boundaries=...); it "
-                         f"has {', '.join(sorted(boundaries)) or 'none'}")
+                         f"has {', '.join(sorted(boundaries)) or 'none'}", key=key)
     present = set(int(v) for v in facet_tags.values)
     for name, tag in sorted(boundaries.items()):
         if not mesh.comm.allreduce(int(tag) in present, MPI.LOR):

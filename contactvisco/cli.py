@@ -161,8 +161,6 @@ def _run(args, petsc_args, scene_module):
         from .checkpoint import Damaged
         from .lock import FolderError
         kind = "error" if isinstance(err, (Damaged, FolderError)) else "scene error"
-        if kind == "scene error":          # errors found while building name their origin too
-            err = scene_module.locate(err, args.scene, preset + args.set)
         return parallel.fail_together(comm, 2, f"contactvisco: {kind}: {err}", err)
     except NewtonFailure as err:
         return parallel.fail_together(comm, 3, f"contactvisco: {err}", err)

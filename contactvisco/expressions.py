@@ -66,17 +66,19 @@ def parse(text: str, where: str, d: int = 3) -> ast.Expression:
     """The syntax tree of an expression text, checked against the whitelist of node types
     (see :func:`allowed`) without evaluating anything; a SceneError names what is refused."""
     if not isinstance(text, str):
-        raise SceneError(f"{where} must be a number or an expression string, got {text!r}")
+        raise SceneError(f"{where} must be a number or an expression string, got {text!r}",
+                         key=where)
     if len(text) > MAX_LENGTH:
         raise SceneError(f"{where}: the expression has {len(text)} characters; at most "
-                         f"{MAX_LENGTH} are allowed")
+                         f"{MAX_LENGTH} are allowed", key=where)
     try:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as err:
-        raise SceneError(f"{where} = '{text}' is not a valid expression: {err.msg}") from None
+        raise SceneError(f"{where} = '{text}' is not a valid expression: {err.msg}",
+                         key=where) from None
     except (RecursionError, MemoryError, ValueError):
         raise SceneError(f"{where}: the expression is nested too deeply (at most {MAX_DEPTH} "
-                         "levels)") from None
+                         "levels)", key=where) from None
     _Walker(text, where, d, None).value(tree.body, 0)
     return tree
 
@@ -98,12 +100,12 @@ class _Walker:
 
     def refuse(self, what):
         raise SceneError(f"{self.where} = '{self.text}': {what} is not allowed; "
-                         f"{allowed(self.d)}")
+                         f"{allowed(self.d)}", key=self.where)
 
     def value(self, node, depth):
         if depth > MAX_DEPTH:
             raise SceneError(f"{self.where}: the expression is nested too deeply (at most "
-                             f"{MAX_DEPTH} levels)")
+                             f"{MAX_DEPTH} levels)", key=self.where)
         build = self.symbols is not None
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
@@ -147,7 +149,7 @@ class _Walker:
         build = self.symbols is not None
         if depth > MAX_DEPTH:
             raise SceneError(f"{self.where}: the expression is nested too deeply (at most "
-                             f"{MAX_DEPTH} levels)")
+                             f"{MAX_DEPTH} levels)", key=self.where)
         if isinstance(node, ast.Compare):
             operands = [self.value(node.left, depth + 1)] + [
                 self.value(c, depth + 1) for c in node.comparators]
@@ -203,19 +205,21 @@ class _Walker:
         try:
             result = function(*args)
         except OverflowError:
-            raise SceneError(f"{self.where} = '{self.text}' overflows") from None
+            raise SceneError(f"{self.where} = '{self.text}' overflows", key=self.where) from None
         except (ArithmeticError, ValueError) as err:
             raise SceneError(f"{self.where} = '{self.text}' cannot be evaluated: "
-                             f"{err}") from None
+                             f"{err}", key=self.where) from None
         if floats:
             if isinstance(result, complex) or not isinstance(result, numbers.Real):
-                raise SceneError(f"{self.where} = '{self.text}' gives a complex number")
+                raise SceneError(f"{self.where} = '{self.text}' gives a complex number",
+                                 key=self.where)
             return self.finite(float(result))
         return result
 
     def finite(self, value: float) -> float:
         if not math.isfinite(value):
-            raise SceneError(f"{self.where} = '{self.text}' overflows (gives {value})")
+            raise SceneError(f"{self.where} = '{self.text}' overflows (gives {value})",
+                             key=self.where)
         return value
 
 
@@ -234,23 +238,24 @@ class Context:
     def scalar(self, value, where: str):
         """A number -> Constant; a string -> UFL expression."""
         if isinstance(value, bool) or not isinstance(value, (numbers.Real, str)):
-            raise SceneError(f"{where} must be a number or an expression string, got {value!r}")
+            raise SceneError(f"{where} must be a number or an expression string, got {value!r}",
+                             key=where)
         if isinstance(value, str):
             value = self._evaluate(value, where)
             if not isinstance(value, float):
                 return value
         if not math.isfinite(value):
-            raise SceneError(f"{where} must be finite, got {value}")
+            raise SceneError(f"{where} must be finite, got {value}", key=where)
         return _constant(self.mesh, value)
 
     def vector(self, value, where: str, d: int):
         """A list of d numbers -> vector Constant; with any string -> UFL vector."""
         if not isinstance(value, (list, tuple)) or len(value) != d:
             raise SceneError(f"{where} must be a list of {d} components (the mesh is {d}D), "
-                             f"got {value!r}")
+                             f"got {value!r}", key=where)
         if all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in value):
             if not all(math.isfinite(v) for v in value):
-                raise SceneError(f"{where} must be finite, got {value}")
+                raise SceneError(f"{where} must be finite, got {value}", key=where)
             return _constant(self.mesh, tuple(float(v) for v in value))
         return ufl.as_vector([self._evaluate(v, f"{where}[{i}]") if isinstance(v, str)
                               else self._number(v, f"{where}[{i}]")
@@ -259,7 +264,8 @@ class Context:
     def _number(self, value, where):
         if isinstance(value, bool) or not isinstance(value, numbers.Real) \
                 or not math.isfinite(value):
-            raise SceneError(f"{where} must be a finite number or an expression, got {value!r}")
+            raise SceneError(f"{where} must be a finite number or an expression, got {value!r}",
+                             key=where)
         return float(value)
 
     def _evaluate(self, text: str, where: str):
@@ -268,7 +274,7 @@ class Context:
         if isinstance(result, numbers.Real):
             return float(result)
         if not isinstance(result, ufl.core.expr.Expr) or result.ufl_shape != ():
-            raise SceneError(f"{where} = '{text}' must give a scalar")
+            raise SceneError(f"{where} = '{text}' must give a scalar", key=where)
         return result
 
 

@@ -15,7 +15,8 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from . import compat
-from .scene import MESH_DIR, SceneError, dimension
+from .scene import SceneError, dimension
+from .tables import MESH_DIR
 
 
 def _cache_dir() -> pathlib.Path:
@@ -45,11 +46,11 @@ class Geometry:
         names facets inside the body is a scene error naming the key `where`."""
         if name not in self.names:
             raise SceneError(f"{where}: no boundary named '{name}'; this geometry has "
-                             f"{', '.join(sorted(self.names))}")
+                             f"{', '.join(sorted(self.names))}", key=where)
         found = self.facet_tags.find(self.names[name])
         comm = self.mesh.comm
         if comm.allreduce(found.size, MPI.SUM) == 0:
-            raise SceneError(f"{where}: boundary '{name}' has no facets in this mesh")
+            raise SceneError(f"{where}: boundary '{name}' has no facets in this mesh", key=where)
         # A facet with two cells (ghosts included) is inside the body; a boundary facet never
         # has two, and an inner one has two on at least one rank.
         fdim = self.mesh.topology.dim - 1
@@ -58,7 +59,7 @@ class Geometry:
         inside = comm.allreduce(int(np.sum(cells_per_facet[found] == 2)), MPI.SUM)
         if inside:
             raise SceneError(f"{where}: boundary '{name}' has facets inside the body, not "
-                             "on its boundary")
+                             "on its boundary", key=where)
         return found
 
 
@@ -93,7 +94,8 @@ def check_probes(mesh, points) -> None:
     mesh.comm.Allreduce(x.max(axis=0) if len(x) else np.full(d, -np.inf), upper, op=MPI.MAX)
     i = int(np.flatnonzero(found == 0)[0])
     raise SceneError(f"output.probes[{i}] = {list(points[i])} is outside the body (the mesh "
-                     f"spans {np.round(lower, 6).tolist()} to {np.round(upper, 6).tolist()})")
+                     f"spans {np.round(lower, 6).tolist()} to {np.round(upper, 6).tolist()})",
+                     key=f"output.probes[{i}]")
 
 
 def _box(geo, comm) -> Geometry:
@@ -134,16 +136,16 @@ def mesh_file(geo) -> pathlib.Path:
         path = pathlib.Path(geo["file"])
         if path.suffix != ".msh":
             raise SceneError(f"geometry.file must be a gmsh .msh file, got '{path}' (a .geo "
-                             "file is a gmsh script, which can run commands)")
+                             "file is a gmsh script, which can run commands)", key="geometry.file")
         if not path.is_file():
-            raise SceneError(f"geometry.file: no mesh file '{path}'")
+            raise SceneError(f"geometry.file: no mesh file '{path}'", key="geometry.file")
         return path
     name = geo["script"]
     script = MESH_DIR / f"{name}.py"
     if not (isinstance(name, str) and name.isidentifier()) or not script.is_file():
         names = sorted(p.stem for p in MESH_DIR.glob("*.py") if p.stem != "refinement")
         raise SceneError(f"geometry.script: no mesh script '{geo['script']}' in {MESH_DIR} "
-                         f"(there are: {', '.join(names)})")
+                         f"(there are: {', '.join(names)})", key="geometry.script")
     # The hash covers the shared helper too, so editing it remakes the cached meshes, and the
     # gmsh version, whose releases write the same mesh with last-digit differences.
     import gmsh
@@ -171,10 +173,11 @@ def _generate(geo, path: pathlib.Path, d: int):
             module.build(gmsh, **geo["parameters"])
         except TypeError as err:
             raise SceneError(f"geometry.parameters do not fit meshes/{geo['script']}.py: "
-                             f"{err}") from None
+                             f"{err}", key="geometry.parameters") from None
         except Exception as err:    # gmsh reports a geometry it cannot mesh as an Exception
             raise SceneError(f"geometry.parameters: gmsh cannot mesh meshes/"
-                             f"{geo['script']}.py with {geo['parameters']}: {err}") from None
+                             f"{geo['script']}.py with {geo['parameters']}: {err}",
+                             key="geometry.parameters") from None
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.msh")
         gmsh.write(str(tmp))

@@ -207,7 +207,7 @@ class _Newton:
         if scene_keys:
             return SceneError(f"solver.petsc_options.{scene_keys[0]}: PETSc rejected an "
                               f"option value ({reason}); the given options it had read: "
-                              f"{named}")
+                              f"{named}", key=f"solver.petsc_options.{scene_keys[0]}")
         return SceneError(f"PETSc rejected a command-line option value ({reason}); the "
                           f"given options it had read: {named}")
 
@@ -512,7 +512,8 @@ def create(problem, comm, scene_options=None) -> _Newton:
     if not multipliers:
         system = "displacement"                # nothing to condense: u is the only unknown
     if system == "condensed" and not nodal:
-        raise SceneError("solver.linear_system = 'condensed' needs nodal contact quadrature")
+        raise SceneError("solver.linear_system = 'condensed' needs nodal contact quadrature",
+                         key="solver.linear_system")
     d = problem.V.mesh.geometry.dim
     size = problem.count_unknowns()["u"]
     kind = solver["linear_solver"]
@@ -521,7 +522,7 @@ def create(problem, comm, scene_options=None) -> _Newton:
     if kind == "iterative" and system == "coupled":
         raise SceneError("solver.linear_solver = 'iterative' needs the displacement-only "
                          "system: solver.linear_system = 'condensed' (nodal contact "
-                         "quadrature)")
+                         "quadrature)", key="solver.linear_solver")
     defaults = iterative_options() if kind == "iterative" else {}
     if system == "condensed":
         newton = CondensedSNES(problem, comm, options, defaults)

@@ -33,7 +33,7 @@ SCENE_ERRORS = [
     (["geometry.cells=[0, 4]"], "geometry.cells must be positive integers"),
     (["geometry.upper=[0.0, 1.0]"], "geometry.upper must exceed geometry.lower"),
     (["geometry.lower=[0, 0, 0]"], "need 2 entries for material.model = 'plane_stress'"),
-    (["material.E='stiff'"], "material.E must be > 0, got stiff"),
+    (["material.E='stiff'"], "material.E must be > 0, got 'stiff'"),
     (["material.E=nan"], "material.E must be > 0, got nan"),
     (["traction=5"], "traction must be a list of tables"),
     (["traction.0.value=[0.0, -20.0, 1.0]"], "traction[0].value must be a list of 2 components"),

@@ -354,8 +354,8 @@ def test_ranks_agree_with_coulomb():
 
 
 @pytest.mark.parametrize("sets, message", [
-    (["contact.friction='tresca'"], "contact.friction must be one of compliance, coulomb"),
-    (["contact.slip='rate'"], "contact.slip must be one of total, increment"),
+    (["contact.friction='tresca'"], "contact.friction must be compliance or coulomb"),
+    (["contact.slip='rate'"], "contact.slip must be total or increment"),
     (["contact.mu=0.2"], "contact.friction = 'coulomb'"),     # hertz: compliance law refused
 ])
 def test_scene_checks(sets, message):

@@ -92,3 +92,80 @@ def test_presets_scale_the_scene():
     assert hertz["geometry"]["parameters"]["radius"] == 1.0       # not a mesh size
     with pytest.raises(scene_module.SceneError, match="did you mean 'fast'"):
         scene_module.load("paper", ["preset='fats'"])
+
+
+def test_every_declared_key_is_documented():
+    """docs/scenes.md has a row for every key the tables declare, under its table's heading."""
+    import pathlib
+
+    from contactvisco import tables
+    text = (pathlib.Path(__file__).parents[1] / "docs" / "scenes.md").read_text()
+    sections = {}
+    for block in text.split("\n## ")[1:]:
+        heading, _, body = block.partition("\n")
+        names = [part.strip("[]") for part in heading.split("`")[1::2]] or ["top"]
+        sections.update({name: body for name in names})
+    declared = dict(tables.TABLES, **tables.TABLE_LISTS, top=tables.Scene)
+    missing = [f"{name}.{key}" for name, table in declared.items() for key in table.KEYS
+               if not any(f"{form}`" in sections.get(name, "")
+                          for form in (f"`{key}", f".{key}"))]
+    assert not missing, f"keys without a row in docs/scenes.md: {missing}"
+
+
+def test_a_table_checks_itself_and_names_its_origin(tmp_path):
+    """A table refuses a bad value by itself (no whole-scene check), with the dotted key and
+    the line of the scene file it came from; the same table from a --set names the --set."""
+    from contactvisco import tables
+    path = tmp_path / "mine.toml"
+    path.write_text('name = "mine"\n[contact]\nstiffness = 10.0\ng = 0.1\n'
+                    'mu = -0.5   # a negative friction coefficient\n')
+    text = path.read_text()
+    provenance = tables.Provenance(path, text)
+    scene = scene_module.load("paper")
+    contact = tables.Contact(dict(scene["contact"], mu=-0.5), "contact", provenance)
+    with pytest.raises(scene_module.SceneError) as err:
+        contact.validate(scene)
+    assert err.value.key == "contact.mu"
+    assert "contact.mu must be a finite number >= 0, got -0.5" in str(err.value)
+    assert "mine.toml, line 5: mu = -0.5" in str(err.value)
+    with pytest.raises(scene_module.SceneError) as err:
+        scene_module.load(str(path))
+    assert err.value.key == "contact.mu" and "mine.toml, line 5" in str(err.value)
+    with pytest.raises(scene_module.SceneError) as err:
+        scene_module.load(str(path), ["contact.mu=0.3", "contact.g=-1"])
+    assert err.value.key == "contact.g" and "(from --set contact.g=-1)" in str(err.value)
+    # A valid table passes, and the values of the scene are those of its tables.
+    good = scene_module.load(str(path), ["contact.mu=0.3"])
+    assert isinstance(good["contact"], tables.Contact) and good["contact"]["mu"] == 0.3
+    assert good["contact"].origin("g") == " (mine.toml, line 4: g = 0.1)"
+    assert good["time"].origin("steps") == " (a default value)"
+
+
+def test_an_error_found_while_building_names_its_origin(tmp_path):
+    """A boundary name is checked against the mesh only when the mesh exists: the error, raised
+    by the geometry, still names the scene line through the scene's provenance."""
+    from contactvisco import api
+    path = tmp_path / "wrong.toml"
+    path.write_text('name = "wrong"\n[geometry]\ncells = [2, 2]\n[[dirichlet]]\n'
+                    'boundary = "lef"\n')
+    with pytest.raises(scene_module.SceneError) as err:
+        api.solve(scene_module.load(str(path)))
+    assert err.value.key == "dirichlet[0].boundary"
+    assert "no boundary named 'lef'" in str(err.value)
+    assert "wrong.toml, line 5: boundary = \"lef\"" in str(err.value)
+
+
+def test_a_scene_survives_copy_and_pickle():
+    """Scenes are copied (tradeoff ladders, demos) and pickled (MPI): the tables, their values
+    and the origins of the Python API's overrides come through."""
+    import copy
+    import pickle
+
+    from contactvisco import load_scene
+    scene = load_scene("paper", contact={"mu": 0.3}, time={"steps": 12})
+    for other in (copy.deepcopy(scene), pickle.loads(pickle.dumps(scene))):
+        assert other == scene and type(other["contact"]) is type(scene["contact"])
+        assert other["contact"].origin("mu") == " (from load_scene contact.mu=0.3)"
+        other["time"]["steps"] = 0
+        with pytest.raises(scene_module.SceneError, match="load_scene time.steps=12"):
+            other.validate()

@@ -1,0 +1,743 @@
+"""The tables of a scene: each key declared once (default, what is allowed, meaning), each table
+checking its own keys and the rules between them, and naming where a refused value came from.
+
+A table is a dict of its values (``scene["contact"]["mu"]``) with its declarations in ``KEYS``,
+its place in the scene (``path``: "contact", "dirichlet[1]") and the scene's
+:class:`Provenance`. :meth:`Table.fail` raises a :class:`SceneError` that carries the dotted
+key and names its origin (a line of the scene file, a --set or load_scene override, or the
+defaults), so no message is ever parsed to find a key.
+"""
+from __future__ import annotations
+
+import ast
+import copy
+import math
+import pathlib
+
+from .memory import PARTS
+
+#: Scene moduli (E, lambda, mu, stiffness, ...) and box sizes must lie in
+#: [1/MODULUS_RANGE, MODULUS_RANGE]: products of moduli, lengths, displacements and their
+#: squares then stay far inside double precision.
+MODULUS_RANGE = 1e100
+
+#: Most cells a gmsh script may be asked for, estimated as (largest length / smallest size)^d.
+MAX_SCRIPT_CELLS = 1e7
+
+#: Most boxes (each 2 triangles or 6 tetrahedra) of a box geometry.
+MAX_BOX_CELLS = 1e8
+
+
+#: contact.friction: the friction ball's radius is mu p_nu(u_nu) or mu (p_nu(u_nu) + R_nu).
+FRICTION_LAWS = ("compliance", "coulomb")
+#: contact.slip: the friction law acts on u_tau or on u_tau - u_tau(t_{n-1}).
+SLIP_MEASURES = ("total", "increment")
+
+#: Script parameters that are lengths but not extents of the body (a refinement distance).
+NOT_EXTENTS = ("refine",)
+
+
+class SceneError(ValueError):
+    """A scene value that is missing, misspelled or out of range. `key` is the dotted key it
+    concerns (None if none); `located` is True once the message names the value's origin."""
+
+    def __init__(self, message: str, key: str | None = None, located: bool = False):
+        super().__init__(message)
+        self.key = key
+        self.located = located
+
+
+def _mesh_dir() -> pathlib.Path:
+    """The gmsh scripts: installed inside the package, or meshes/ beside it in a source tree."""
+    here = pathlib.Path(__file__).resolve().parent
+    installed = here / "meshes"
+    return installed if installed.is_dir() else here.parent / "meshes"
+
+
+#: Folder of the built-in mesh scripts (geometry.script names one of them).
+MESH_DIR = _mesh_dir()
+
+
+# Value tests, shared by the declarations below.
+def finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def integer(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def modulus(x) -> bool:
+    return finite(x) and 1.0 / MODULUS_RANGE <= abs(x) <= MODULUS_RANGE
+
+
+def one_of(*choices):
+    return lambda x: isinstance(x, str) and x in choices
+
+
+def boolean(x) -> bool:
+    return isinstance(x, bool)
+
+
+def number_list(x) -> bool:
+    return isinstance(x, list) and all(finite(v) for v in x)
+
+
+def is_mesh_size(key: str) -> bool:
+    """A gmsh script parameter that is a mesh size: h or h_<where> (not height)."""
+    return key == "h" or key.startswith("h_")
+
+
+def choices(*names) -> str:
+    return ", ".join(names[:-1]) + f" or {names[-1]}"
+
+
+class Key:
+    """One scene key: its default, a test of its values (None: checked by the table's rules)
+    and the words saying what the test allows."""
+
+    __slots__ = ("default", "test", "allowed")
+
+    def __init__(self, default, test=None, allowed: str = ""):
+        self.default, self.test, self.allowed = default, test, allowed
+
+
+def choice(default: str, *names: str) -> Key:
+    return Key(default, one_of(*names), choices(*names))
+
+
+class Provenance:
+    """Where the values of a scene came from: the scene file (its name and text) and the
+    overrides in the order they were applied (``key=value`` texts or Override objects)."""
+
+    def __init__(self, path=None, text: str = "", overrides=()):
+        self.path = pathlib.Path(path) if path is not None else None
+        self.text = text
+        self.overrides = list(overrides)
+
+    def origin(self, key: str) -> str:
+        """" (from --set k=v)", " (file.toml, line N: ...)", " (a default value)" or "" for
+        the dotted key (list items as [i] or .i)."""
+        dotted = key.replace("[", ".").replace("]", "")
+        for given in reversed(self.overrides):       # the last override of a key wins
+            set_key = given.split("=", 1)[0].strip()
+            if dotted == set_key or dotted.startswith(set_key + "."):
+                return f" (from {getattr(given, 'source', '--set')} {given})"
+        if self.path is None:
+            return ""
+        found = _line_of(dotted, self.text)
+        if found:
+            number, line = found
+            return f" ({self.path.name}, line {number}: {line.strip()})"
+        return " (a default value)"
+
+
+def _line_of(dotted: str, text: str):
+    """(number, line) of the TOML line that sets the dotted key (or a table holding it), with
+    the [table] and [[array]] headers followed; None if no line does."""
+    prefix, counts, best = [], {}, None
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.split("#", 1)[0].strip()
+        if stripped.startswith("[[") and stripped.endswith("]]"):
+            name = stripped[2:-2].strip()
+            counts[name] = counts.get(name, -1) + 1
+            prefix = [name, str(counts[name])]
+            full = ".".join(prefix)
+            if dotted == full or dotted.startswith(full + "."):
+                best = best or (number, line)
+            continue
+        if stripped.startswith("[") and stripped.endswith("]"):
+            prefix = stripped[1:-1].strip().split(".")
+            continue
+        if "=" in stripped:
+            name = stripped.split("=", 1)[0].strip().strip('"')
+            full = ".".join(prefix + [name])
+            if dotted == full or dotted.startswith(full + "."):
+                return number, line
+    return best
+
+
+class Table(dict):
+    """A scene table: its values by key, checked against the declarations KEYS and the rules
+    of :meth:`rules`; errors name the key and its origin."""
+
+    KEYS: dict[str, Key] = {}
+
+    def __init__(self, values=(), path: str = "", provenance: Provenance | None = None):
+        super().__init__(values)
+        self.path = path
+        self.provenance = provenance
+
+    @classmethod
+    def defaults(cls) -> dict:
+        return {name: copy.deepcopy(key.default) for name, key in cls.KEYS.items()}
+
+    def key(self, name: str) -> str:
+        return f"{self.path}.{name}" if self.path else name
+
+    def origin(self, name: str) -> str:
+        return self.provenance.origin(self.key(name)) if self.provenance else ""
+
+    def fail(self, name: str, message: str):
+        raise SceneError(f"{message}{self.origin(name)}", key=self.key(name), located=True)
+
+    def need(self, ok: bool, name: str, message: str) -> None:
+        if not ok:
+            self.fail(name, message)
+
+    def validate(self, scene: "Scene") -> None:
+        """Each declared test, then the table's rules."""
+        for name, key in self.KEYS.items():
+            if key.test is not None and name in self and not key.test(self[name]):
+                self.fail(name, f"{self.key(name)} must be {key.allowed}, got {self[name]!r}")
+        self.rules(scene)
+
+    def rules(self, scene: "Scene") -> None:
+        """Rules that involve several keys, or the rest of the scene."""
+
+    def expression(self, name: str, value, d: int, where: str | None = None) -> None:
+        """A number, or an expression text that passes the whitelist (only its constant parts
+        are computed, to catch overflow and domain errors)."""
+        where = where or self.key(name)
+        if isinstance(value, str):
+            from .expressions import parse
+            try:
+                parse(value, where, d)
+            except SceneError as err:
+                self.fail(name, str(err))
+        elif not finite(value):
+            self.fail(name, f"{where} must be a finite number or an expression string, "
+                            f"got {value!r}")
+
+
+class Geometry(Table):
+    KEYS = {
+        "type": choice("box", "box", "gmsh"),
+        "script": Key(None),
+        "file": Key(None),
+        "parameters": Key({}),
+        "lower": Key([0.0, 0.0], lambda x: isinstance(x, list), "a list"),
+        "upper": Key([1.0, 1.0], lambda x: isinstance(x, list), "a list"),
+        "cells": Key([32, 32], lambda x: isinstance(x, list), "a list"),
+        "diagonal": choice("right", "left", "right", "crossed", "left_right", "right_left"),
+        "rotation": Key(0.0, finite, "a finite number of degrees"),
+    }
+
+    def rules(self, scene):
+        d = scene.dimension
+        if self["type"] == "box":
+            self._box(scene["material"]["model"], d)
+        else:
+            self._gmsh(d)
+
+    def _box(self, model: str, d: int) -> None:
+        lower, upper, cells = self["lower"], self["upper"], self["cells"]
+        self.need(len(lower) == d and len(upper) == d and len(cells) == d, "cells",
+                  f"geometry.lower, upper and cells need {d} entries for material.model = "
+                  f"'{model}', got {lower}, {upper}, {cells}")
+        self.need(all(integer(n) and n >= 1 for n in cells), "cells",
+                  f"geometry.cells must be positive integers, got {cells}")
+        self.need(math.prod(cells) <= MAX_BOX_CELLS, "cells",
+                  f"geometry.cells = {cells} asks for {math.prod(cells):.3g} boxes (at most "
+                  f"{MAX_BOX_CELLS:.0g}: the mesh is made on one rank before it is "
+                  "distributed)")
+        self.need(all(finite(a) and finite(b) and b > a for a, b in zip(lower, upper)), "upper",
+                  f"geometry.upper must exceed geometry.lower, got {lower}, {upper}")
+        self.need(all(abs(a) <= MODULUS_RANGE and abs(b) <= MODULUS_RANGE
+                      and b - a >= 1 / MODULUS_RANGE for a, b in zip(lower, upper)), "upper",
+                  f"geometry.lower and upper must lie within +-{MODULUS_RANGE:g} and be at "
+                  f"least {1 / MODULUS_RANGE:g} apart (change the units), got {lower}, {upper}")
+
+    def _gmsh(self, d: int) -> None:
+        self.need((self["script"] is None) != (self["file"] is None), "type",
+                  "geometry.type = 'gmsh' needs exactly one of geometry.script or geometry.file")
+        if self["script"] is not None:
+            self._script(d)
+            return
+        self.need(isinstance(self["file"], str) and self["file"].endswith(".msh"), "file",
+                  f"geometry.file must be a gmsh .msh file, got {self['file']!r} (a .geo file "
+                  "is a gmsh script, which can run commands: mesh it into a .msh first)")
+        self.need(not self["parameters"], "parameters",
+                  "geometry.parameters belong to a geometry.script; a geometry.file has none")
+
+    def _script(self, d: int) -> None:
+        """geometry.script names a built-in script of meshes/ (never a path), and its
+        parameters are the script's, positive and finite, and not so fine that the mesh
+        cannot be made."""
+        scripts = sorted(p.stem for p in MESH_DIR.glob("*.py") if p.stem != "refinement")
+        name = self["script"]
+        self.need(isinstance(name, str) and name in scripts, "script",
+                  f"geometry.script must be the name of a built-in mesh script "
+                  f"({', '.join(scripts)}), not a path; got {name!r}")
+        signature = script_signature(name)
+        parameters = self["parameters"]
+        self.need(isinstance(parameters, dict), "parameters",
+                  f"geometry.parameters must be a table, got {parameters!r}")
+        unknown = sorted(set(parameters) - set(signature))
+        if unknown:
+            self.fail("parameters", f"geometry.parameters.{unknown[0]}: meshes/{name}.py has "
+                                    f"no parameter {', '.join(unknown)}; it has "
+                                    f"{', '.join(signature)}")
+        for key, value in parameters.items():
+            self.need(finite(value) and value > 0, f"parameters.{key}",
+                      f"geometry.parameters.{key} must be a finite number > 0 (a length or a "
+                      f"mesh size), got {value!r}")
+        values = dict(signature, **parameters)
+        sizes = {k: v for k, v in values.items() if is_mesh_size(k) and v is not None}
+        lengths = [v for k, v in values.items() if not is_mesh_size(k) and v is not None
+                   and k not in NOT_EXTENTS]
+        if sizes and lengths:
+            finest = min(sizes, key=sizes.get)
+            cells = (max(lengths) / sizes[finest]) ** d
+            self.need(cells <= MAX_SCRIPT_CELLS, f"parameters.{finest}",
+                      f"geometry.parameters.{finest}: mesh size {sizes[finest]:g} for a body up "
+                      f"to {max(lengths):g} long would make about {cells:.2g} cells (at most "
+                      f"{MAX_SCRIPT_CELLS:.0g})")
+
+
+def script_signature(name: str) -> dict:
+    """Keyword parameters of build() in meshes/<name>.py with their default values, read from
+    the script's syntax tree (nothing is run)."""
+    tree = ast.parse((MESH_DIR / f"{name}.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef) and node.name == "build":
+            names = [a.arg for a in node.args.args][1:]          # after gmsh
+            defaults = [ast.literal_eval(v) for v in node.args.defaults]
+            return dict(zip(names[len(names) - len(defaults):], defaults))
+    return {}
+
+
+class Material(Table):
+    KEYS = {
+        "model": choice("plane_strain", "plane_stress", "plane_strain", "3d"),
+        "E": Key(1.0, lambda x: finite(x) and x > 0, "> 0"),
+        "nu": Key(0.3),
+        "lambda": Key(None),
+        "mu": Key(None),
+    }
+
+    def normalize(self) -> None:
+        """lambda and mu given: E and nu from them (E = mu (3 lambda + 2 mu) / (lambda + mu),
+        nu = lambda / (2 (lambda + mu)))."""
+        lam, mu = self["lambda"], self["mu"]
+        if lam is None and mu is None:
+            return
+        if not (finite(lam) and finite(mu) and mu > 0 and lam + mu > 0):
+            self.fail("lambda" if mu is not None else "mu",
+                      f"material.lambda and material.mu must both be given with mu > 0 and "
+                      f"lambda + mu > 0, got lambda = {lam}, mu = {mu}")
+        self["E"] = mu * (3 * lam + 2 * mu) / (lam + mu)
+        self["nu"] = lam / (2 * (lam + mu))
+
+    def rules(self, scene):
+        self.need(modulus(self["E"]), "E", f"material.E must lie in [{1 / MODULUS_RANGE:g}, "
+                                           f"{MODULUS_RANGE:g}] (change the units), got "
+                                           f"{self['E']}")
+        upper = 1.0 if self["model"] == "plane_stress" else 0.5
+        self.need(finite(self["nu"]) and -1.0 < self["nu"] < upper, "nu",
+                  f"material.nu must lie in (-1, {upper}) for {self['model']}, got "
+                  f"{self['nu']}")
+
+
+KERNELS = ("none", "constant", "exponential", "prony", "table", "power", "fractional")
+
+
+class Memory(Table):
+    KEYS = {
+        "kernel": choice("none", *KERNELS),
+        "alpha": Key(0.0),
+        "tau": Key([]),
+        "beta": Key(0.5),
+        "part": Key("full"),
+        "tolerance": Key(1e-6),
+        "summation": Key("soe"),
+        "terms": Key([]),
+        "times": Key([]),
+        "values": Key([]),
+    }
+
+    def rules(self, scene):
+        kernel = self["kernel"]
+        if kernel in ("power", "fractional"):
+            self._power(kernel)
+        elif kernel == "constant":
+            self.need(finite(self["alpha"]), "alpha",
+                      f"memory.alpha must be a number, got {self['alpha']}")
+        elif kernel == "exponential":
+            self._exponential()
+        elif kernel == "prony":
+            self._prony()
+        elif kernel == "table":
+            self._table()
+
+    def _exponential(self) -> None:
+        alphas, taus = as_list(self["alpha"]), as_list(self["tau"])
+        self.need(len(alphas) == len(taus) and len(taus) > 0, "tau",
+                  "memory.alpha and memory.tau must have the same (non-zero) length")
+        self.need(all(finite(t) and t > 0 for t in taus), "tau",
+                  f"memory.tau must be > 0, got {taus}")
+        self.need(all(finite(a) for a in alphas), "alpha",
+                  f"memory.alpha must be numbers, got {alphas}")
+
+    def _prony(self) -> None:
+        terms = self["terms"]
+        self.need(isinstance(terms, list) and len(terms) > 0, "terms",
+                  "memory.kernel = 'prony' needs memory.terms = [{alpha, tau, part}, ...]")
+        for i, term in enumerate(terms):
+            where = f"memory.terms[{i}]"
+            self.need(isinstance(term, dict) and set(term) <= {"alpha", "tau", "part"}
+                      and "alpha" in term, f"terms[{i}]",
+                      f"{where} must be a table with alpha and optional tau, part; got {term}")
+            self.need(finite(term["alpha"]), f"terms[{i}].alpha",
+                      f"{where}.alpha must be a number")
+            tau = term.get("tau", math.inf)
+            self.need(isinstance(tau, (int, float)) and not isinstance(tau, bool) and tau > 0,
+                      f"terms[{i}].tau", f"{where}.tau must be > 0 (inf: constant), got {tau}")
+            self.need(term.get("part", "full") in PARTS, f"terms[{i}].part",
+                      f"{where}.part must be full, deviatoric or volumetric")
+
+    def _table(self) -> None:
+        times, values = self["times"], self["values"]
+        self.need(isinstance(times, list) and isinstance(values, list)
+                  and len(times) == len(values) and len(times) >= 1, "times",
+                  "memory.times and memory.values must have the same (non-zero) length")
+        self.need(all(finite(v) for v in times + values), "values",
+                  "memory.times and memory.values must be finite numbers")
+        self.need(all(b > a for a, b in zip(times, times[1:])), "times",
+                  "memory.times must increase")
+
+    def _power(self, kernel: str) -> None:
+        """R = alpha (1 + t/tau)^-beta P (power) or alpha t^-beta / Gamma(1 - beta) P
+        (fractional), summed as exponentials to a relative tolerance."""
+        self.need(finite(self["alpha"]), "alpha", f"memory.alpha must be a number for "
+                                                  f"memory.kernel = '{kernel}', got "
+                                                  f"{self['alpha']!r}")
+        beta = self["beta"]
+        if kernel == "power":
+            self.need(finite(beta) and 0 < beta <= 20, "beta",
+                      f"memory.beta must be a number in (0, 20] for the power kernel, got "
+                      f"{beta!r}")
+            self.need(finite(self["tau"]) and self["tau"] > 0, "tau",
+                      f"memory.tau must be a number > 0 (the time scale of R = alpha "
+                      f"(1 + t/tau)^-beta) for the power kernel, got {self['tau']!r}")
+        else:
+            self.need(finite(beta) and 0.01 <= beta <= 0.99, "beta",
+                      f"memory.beta must lie in [0.01, 0.99] for the fractional kernel "
+                      f"(t^-beta must be integrable at 0), got {beta!r}")
+        tol = self["tolerance"]
+        self.need(finite(tol) and 1e-12 <= tol <= 1e-2, "tolerance",
+                  f"memory.tolerance must be a number in [1e-12, 1e-2] (relative error of the "
+                  f"sum of exponentials), got {tol!r}")
+        self.need(self["part"] in PARTS, "part", f"memory.part must be full, deviatoric or "
+                                                 f"volumetric, got {self['part']!r}")
+        self.need(self["summation"] in ("soe", "direct"), "summation",
+                  f"memory.summation must be soe or direct, got {self['summation']!r}")
+
+
+def as_list(x) -> list:
+    return list(x) if isinstance(x, (list, tuple)) else [x]
+
+
+class Dirichlet(Table):
+    """One [[dirichlet]] table: u = value on the boundary, for all or the listed components."""
+
+    KEYS = {
+        "boundary": Key(None),
+        "components": Key("all"),
+        "value": Key(0.0),
+    }
+    REQUIRED = ("boundary",)
+
+    def rules(self, scene):
+        d = scene.dimension
+        boundary_name(self)
+        comps = self.get("components", "all")
+        self.need(comps == "all" or (isinstance(comps, list) and all(
+            integer(c) and 0 <= c < d for c in comps)), "components",
+            f"{self.key('components')} must be 'all' or a list of components 0..{d - 1} of a "
+            f"{d}D displacement, got {comps!r}")
+        value = self.get("value", 0.0)
+        if isinstance(value, list):
+            count = d if comps == "all" else len(comps)
+            self.need(len(value) == count, "value",
+                      f"{self.key('value')} needs one entry per component ({count}), got "
+                      f"{value!r}")
+            for j, v in enumerate(value):
+                self.expression("value", v, d, f"{self.key('value')}[{j}]")
+        else:
+            self.expression("value", value, d)
+
+
+def boundary_name(table: Table) -> None:
+    table.need(isinstance(table["boundary"], str), "boundary",
+               f"{table.key('boundary')} must be a boundary name, got {table['boundary']!r}")
+
+
+class Traction(Table):
+    """One [[traction]] table: a surface load (a vector of d components) on a boundary."""
+
+    KEYS = {
+        "boundary": Key(None),
+        "value": Key(None),
+    }
+    REQUIRED = ("boundary", "value")
+
+    def rules(self, scene):
+        d = scene.dimension
+        boundary_name(self)
+        value = self["value"]
+        self.need(isinstance(value, list) and len(value) == d, "value",
+                  f"{self.key('value')} must be a list of {d} components, got {value!r}")
+        for j, v in enumerate(value):
+            self.expression("value", v, d, f"{self.key('value')}[{j}]")
+
+
+class BodyForce(Table):
+    KEYS = {"value": Key(None)}
+
+    def rules(self, scene):
+        d = scene.dimension
+        body = self["value"]
+        self.need(body is None or (isinstance(body, list) and len(body) == d), "value",
+                  f"body_force.value must be a list of {d} components, got {body!r}")
+        for j, v in enumerate(body or []):
+            self.expression("value", v, d, f"body_force.value[{j}]")
+
+
+def nonnegative(x) -> bool:
+    return finite(x) and x >= 0
+
+
+class Contact(Table):
+    """Normal compliance p_nu(s) = c_nu max(0, s) up to a layer g, then a rigid bound; friction
+    bound mu p_nu (or mu times the total pressure); augmented-Lagrangian parameter r."""
+
+    KEYS = {
+        "boundary": Key("bottom"),
+        "gap": Key(0.0),
+        "stiffness": Key(0.0, nonnegative, "a finite number >= 0"),
+        "g": Key(math.inf),
+        "mu": Key(0.0, nonnegative, "a finite number >= 0"),
+        "friction": choice("compliance", *FRICTION_LAWS),
+        "slip": choice("total", *SLIP_MEASURES),
+        "augmentation": Key(None, lambda x: finite(x) and x > 0, "> 0 (and finite)"),
+    }
+
+    def normalize(self, material: dict) -> None:
+        """g given as a text ("inf") read as a number; augmentation r defaults to the
+        stiffness, or E if that is 0."""
+        if isinstance(self["g"], str):
+            try:
+                self["g"] = float(self["g"])
+            except ValueError:
+                self.fail("g", f"contact.g must be a number >= 0 or inf, got {self['g']!r}")
+        if self["augmentation"] is None:
+            self["augmentation"] = self["stiffness"] or material["E"]
+
+    def rules(self, scene):
+        names = self["boundary"]
+        self.need(isinstance(names, str) or (isinstance(names, list) and names
+                                             and all(isinstance(b, str) for b in names)),
+                  "boundary", f"contact.boundary must be a boundary name or a list of names, "
+                              f"got {names!r}")
+        g = self["g"]
+        self.need(isinstance(g, (int, float)) and not isinstance(g, bool) and g >= 0, "g",
+                  f"contact.g must be >= 0 (inf: no bound), got {g}")
+        for name in ("stiffness", "augmentation"):
+            self.need(self[name] == 0 or modulus(self[name]), name,
+                      f"contact.{name} must be 0 or lie in [{1 / MODULUS_RANGE:g}, "
+                      f"{MODULUS_RANGE:g}] (change the units), got {self[name]}")
+        self.expression("gap", self["gap"], scene.dimension)
+        self.need(self["stiffness"] > 0 or math.isfinite(g), "stiffness",
+                  "contact.stiffness: a contact boundary needs a compliance stiffness > 0 or a "
+                  "finite bound g")
+        self.need(self["mu"] == 0 or self["friction"] == "coulomb"
+                  or (self["stiffness"] > 0 and g > 0), "mu",
+                  f"contact.mu = {self['mu']} has no effect: the friction bound mu p_nu(u_nu) "
+                  "is zero without a compliance stiffness > 0 and a layer g > 0; set "
+                  "contact.mu = 0, or contact.friction = 'coulomb' for a bound mu times the "
+                  "total normal pressure")
+
+
+class Time(Table):
+    KEYS = {
+        "T": Key(1.0, lambda x: finite(x) and x > 0, "> 0"),
+        "steps": Key(10, lambda x: integer(x) and x >= 1, "an integer >= 1"),
+        "rule": choice("paper", "paper", "trapezoid"),
+        "allow_unstable": Key(False, boolean, "true or false"),
+    }
+
+    def rules(self, scene):
+        from .scene import amplifies, stability_number, steps_for_stability
+        b = stability_number(scene)
+        steps = self["steps"]
+        self.need(self["rule"] != "paper" or not amplifies(b, steps) or self["allow_unstable"],
+                  "steps",
+                  f"time.steps = {steps}: the paper's time rule is unstable here (b = "
+                  f"k R(0) (1 + nu) / E = {b:.3g} >= 1, the solution grows without bound); use "
+                  f"time.steps > {steps_for_stability(steps, b)}, time.rule = 'trapezoid', "
+                  "or set time.allow_unstable = true to run it anyway")
+
+
+class Discretization(Table):
+    KEYS = {
+        "degree": Key(1, lambda x: integer(x) and x in (1, 2), "1 or 2"),
+        "contact_quadrature": choice("nodal", "nodal", "gauss"),
+    }
+
+
+def petsc_value(x) -> bool:
+    return isinstance(x, (str, int, float, bool))
+
+
+class Solver(Table):
+    KEYS = {
+        "petsc_options": Key({}, lambda x: isinstance(x, dict), "a table"),
+        "max_cuts": Key(4, lambda x: integer(x) and 0 <= x <= 20, "an integer from 0 to 20"),
+        "linear_system": choice("auto", "auto", "condensed", "coupled"),
+        "linear_solver": choice("auto", "auto", "direct", "iterative"),
+    }
+
+    def rules(self, scene):
+        for name, value in self["petsc_options"].items():
+            self.need(isinstance(name, str) and name.replace("_", "").isalnum()
+                      and not name.startswith("_"), "petsc_options",
+                      f"solver.petsc_options: '{name}' is not a PETSc option name (letters, "
+                      "digits and _, without the leading '-')")
+            self.need(petsc_value(value), f"petsc_options.{name}",
+                      f"solver.petsc_options.{name} must be a string, number or boolean, got "
+                      f"{value!r}")
+        if self["linear_system"] == "condensed" and scene["contact"] is not None:
+            self.need(scene["discretization"]["contact_quadrature"] == "nodal",
+                      "linear_system",
+                      "solver.linear_system = 'condensed' needs "
+                      "discretization.contact_quadrature = 'nodal' (the conditions must hold "
+                      "node by node); use 'coupled' or 'auto'")
+
+
+#: output.fields: the fields an XDMF file may hold.
+FIELDS = ("u", "sigma", "history_stress", "lambda_nu", "lambda_tau")
+
+
+class Output(Table):
+    KEYS = {
+        "probes": Key([], lambda x: isinstance(x, list), "a list of points"),
+        "figure_times": Key([], number_list, "a list of any number of finite numbers"),
+        "xdmf": Key(True, boolean, "true or false"),
+        "fields": Key(["u", "sigma"], lambda x: isinstance(x, list) and all(
+            isinstance(f, str) and f in FIELDS for f in x), f"a list of {', '.join(FIELDS)}"),
+        "figures": Key(True, boolean, "true or false"),
+        "snapshot_max_nodes": Key(200000, lambda x: (integer(x) and x >= 0) or x == math.inf,
+                                  "an integer >= 0 or inf"),
+        "checkpoint": Key(True, boolean, "true or false"),
+    }
+
+    def rules(self, scene):
+        d = scene.dimension
+        for i, point in enumerate(self["probes"]):
+            self.need(number_list(point) and len(point) == d, "probes",
+                      f"output.probes[{i}] must be a list of {d} finite numbers, got {point!r}")
+
+
+def label(x) -> bool:
+    return x is None or isinstance(x, str)
+
+
+class Units(Table):
+    """Labels on figure axes only (no conversion), e.g. "mm", "N", "s"."""
+
+    KEYS = {name: Key(None, label, 'a text label such as "mm"')
+            for name in ("length", "force", "time")}
+
+
+#: The tables of a scene, in the order they are checked (the material first: the dimension
+#: of the other tables' vectors follows from it).
+TABLES = {
+    "material": Material, "geometry": Geometry, "discretization": Discretization,
+    "body_force": BodyForce, "memory": Memory, "time": Time, "contact": Contact,
+    "solver": Solver, "output": Output, "units": Units,
+}
+
+#: Lists of tables ([[dirichlet]], [[traction]]) and the class of their items.
+TABLE_LISTS = {"dirichlet": Dirichlet, "traction": Traction}
+
+
+def plain_name(x) -> bool:
+    """The name is the default output folder results/<name>: one plain folder name."""
+    return (isinstance(x, str) and 0 < len(x) <= 100 and "/" not in x and "\\" not in x
+            and x not in (".", "..") and x.isprintable())
+
+
+class Scene(Table):
+    """A whole scene: the top-level keys, its tables (one class each in TABLES) and the lists
+    of tables in TABLE_LISTS. ``scene["contact"]`` is None for a scene without contact."""
+
+    KEYS = {
+        "name": Key("unnamed", plain_name,
+                    "a plain folder name (1 to 100 printable characters, no '/' or '\\', not "
+                    "'.' or '..'): it is the default output folder results/<name>;"),
+        "description": Key("", lambda x: isinstance(x, str), "a string"),
+        "preset": Key(None),
+    }
+
+    @classmethod
+    def defaults(cls) -> dict:
+        out = super().defaults()
+        for name in ("geometry", "material", "memory"):
+            out[name] = TABLES[name].defaults()
+        out["dirichlet"] = []
+        out["body_force"] = BodyForce.defaults()
+        out["traction"] = []
+        out["contact"] = None
+        for name in ("time", "discretization", "solver", "output", "units"):
+            out[name] = TABLES[name].defaults()
+        return out
+
+    @property
+    def dimension(self) -> int:
+        return 3 if self["material"]["model"] == "3d" else 2
+
+    @classmethod
+    def build(cls, values: dict, provenance: Provenance | None = None) -> "Scene":
+        """The typed scene of a dict of plain values (defaults filled in); not yet checked."""
+        scene = cls(values, "", provenance)
+        for name, table in TABLES.items():
+            value = scene[name]
+            if name == "contact" and value is None:
+                continue
+            scene.need(isinstance(value, dict), name,
+                       f"{name} must be a table ([{name}] in TOML), got {value!r}")
+            scene[name] = table(value, name, provenance)
+        for name, table in TABLE_LISTS.items():
+            items = scene[name]
+            scene.need(isinstance(items, list) and all(isinstance(i, dict) for i in items),
+                       name, f"{name} must be a list of tables ([[{name}]] in TOML), got "
+                             f"{items!r}")
+            scene[name] = [table(item, f"{name}[{i}]", provenance)
+                           for i, item in enumerate(items)]
+        return scene
+
+    def validate(self, scene=None) -> None:
+        """Every table's keys and rules, the material first."""
+        super().validate(self)
+        for item in (item for name in TABLE_LISTS for item in self[name]):
+            missing = [r for r in item.REQUIRED if r not in item]
+            item.need(not missing, missing[0] if missing else "",
+                      f"{item.path} needs {', '.join(missing)}")
+            unknown = sorted(set(item) - set(item.KEYS))
+            if unknown:
+                item.fail(unknown[0], f"{item.path}.{unknown[0]}: unknown key; a "
+                                      f"[[{item.path.split('[')[0]}]] table has "
+                                      f"{', '.join(item.KEYS)}")
+        for name in TABLES:
+            if self[name] is not None:
+                self[name].validate(self)
+        for item in (item for name in TABLE_LISTS for item in self[name]):
+            item.validate(self)
+
+    def locate(self, err: SceneError) -> SceneError:
+        """`err` (raised while building) with the origin of its key appended, once."""
+        if err.located or err.key is None or self.provenance is None:
+            return err
+        out = SceneError(f"{err}{self.provenance.origin(err.key)}", key=err.key, located=True)
+        return out
