@@ -464,6 +464,9 @@ SMALL = ["--set", "geometry.cells=[4, 4]", "--set", "time.steps=2", "--quiet"]
      "-pc_factor_mat_solver_type nonsense"),
     (["run", "paper", "--set", "solver.petsc_options.snes_rtol='abc'", *SMALL], 2,
      "solver.petsc_options.snes_rtol: PETSc rejected an option value"),
+    (["run", "paper", "--set", "solver.petsc_options.mat_mumps_icntl_14='abc'", *SMALL], 2,
+     "while setting up the solve (its message is above); given options it had read: "
+     "-mat_mumps_icntl_14 abc"),
     (["run", "paper", "-snes_monitr", "-snes_rtol", "1e-9", *SMALL], 0,
      "PETSc options no solver used: -snes_monitr (misspelled"),
 ])
