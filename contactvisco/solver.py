@@ -15,6 +15,7 @@ linear solver.
 """
 from __future__ import annotations
 
+import itertools
 import weakref
 
 import numpy as np
@@ -81,8 +82,10 @@ GAMG_OPTIONS = {
 #: on (by dimension), where it was measured to beat MUMPS (benchmarks/scaling.py).
 AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
 
-#: Scene options (solver.petsc_options) that no solver had read when they were removed.
-UNUSED_SCENE_OPTIONS: set[str] = set()
+#: Scene options (solver.petsc_options) -> the solvers (by number) that were given the option
+#: and have not read it, neither at setup nor in any solve so far.
+_UNREAD_SCENE_OPTIONS: dict[str, set[int]] = {}
+_SOLVER_NUMBERS = itertools.count()
 
 
 def _petsc_library():
@@ -119,7 +122,8 @@ def unused_options(arguments) -> list[str]:
     names = [a.lstrip("-") for a in arguments if a.startswith("-") and len(a) > 1
              and not _is_number(a)]
     unused = [f"-{name}" for name in names if option_used(name) is False]
-    unused += [f"-{name} (solver.petsc_options)" for name in sorted(UNUSED_SCENE_OPTIONS)]
+    unused += [f"-{name} (solver.petsc_options)"
+               for name, solvers in sorted(_UNREAD_SCENE_OPTIONS.items()) if solvers]
     return unused
 
 
@@ -161,28 +165,31 @@ class _Newton:
         self.functions = functions
         self.residuals: list[float] = []
         self.krylov_iterations: list[int] = []
-        # Command-line options win over the scene, the scene over the defaults. Options set
-        # here are removed again after setFromOptions so they do not leak into later solvers.
+        # Command-line options win over the scene, the scene over the defaults. This solver's
+        # options are in PETSc's global database only during its setup and each of its
+        # solves (_push_options, _pop_options), so they do not leak into other solvers.
         opts = PETSc.Options()
         merged = dict(DEFAULT_OPTIONS)
         merged.update(defaults or {})
         merged.update(scene_options or {})
         self._scene_options = set(scene_options or {})
-        self._scene_read: list[str] = []
-        self._inserted = [key for key in merged if not opts.hasName(key)]
-        for key in self._inserted:
-            opts[key] = merged[key]
+        self._options = {key: value for key, value in merged.items()
+                         if not opts.hasName(key)}
+        self._number = next(_SOLVER_NUMBERS)
+        self._scene_read: dict[str, str] = {}    # scene options PETSc read: key -> "-key value"
+        self._pushed = False
         self.snes = PETSc.SNES().create(comm)
 
     def _finish_setup(self):
         self.snes.setMonitor(_weak(self._monitor))
+        self._push_options()
         try:
             self.snes.setFromOptions()
             self._check_options()
         except PETSc.Error as err:
             raise self._rejected(err) from None
         finally:                       # also when PETSc rejects an option
-            self.remove_options()
+            self._pop_options()
 
     def _check_options(self):
         """Refuse options this linear system cannot follow (raises SceneError); the options
@@ -199,7 +206,7 @@ class _Newton:
         (by scene key where the scene gave it, so that the message gets its origin)."""
         opts = PETSc.Options()
         given = {key: value for key, value in opts.getAll().items()
-                 if key in self._scene_options or key not in self._inserted}
+                 if key in self._scene_options or key not in self._options}
         read = [key for key in given if option_used(key)]
         reason = f"PETSc error {err.ierr}" + (": unknown type" if err.ierr == 86 else "")
         named = ", ".join(f"-{k} {given[k] or ''}".strip() for k in read) or "none"
@@ -211,36 +218,58 @@ class _Newton:
         return SceneError(f"PETSc rejected a command-line option value ({reason}); the "
                           f"given options it had read: {named}")
 
-    def remove_options(self):
-        """Take the options this solver set out of PETSc's global database (idempotent),
-        noting which of the scene's options PETSc read."""
+    def _push_options(self):
+        """Put this solver's options into PETSc's global database: for its setup, and for
+        each solve, since PETSc reads some options only while solving (MUMPS its ICNTL and
+        CNTL when it first factors the matrix)."""
         opts = PETSc.Options()
-        for key in self._inserted:
-            if key in self._scene_options:
-                used = option_used(key)
-                if used is False:
-                    UNUSED_SCENE_OPTIONS.add(key)
-                elif used:
-                    self._scene_read.append(f"-{key} {opts.getString(key, '')}".strip())
+        for key, value in self._options.items():
+            opts[key] = value
+        self._pushed = True
+
+    def _pop_options(self):
+        """Take this solver's options out of PETSc's global database again (idempotent),
+        noting first which of the scene's options PETSc has read: deleting an option drops
+        PETSc's record of its use, so the record is kept here across pushes."""
+        if not self._pushed:
+            return
+        self._note_reads()
+        opts = PETSc.Options()
+        for key in self._options:
             opts.delValue(key)
-        self._inserted = []
+        self._pushed = False
+
+    def _note_reads(self):
+        """Record the scene options PETSc has read since the push, and keep the scene
+        options this solver has never read in _UNREAD_SCENE_OPTIONS (for unused_options)."""
+        opts = PETSc.Options()
+        for key in self._scene_options & self._options.keys():
+            used = option_used(key)
+            if used:
+                self._scene_read[key] = f"-{key} {opts.getString(key, '')}".strip()
+            unread = _UNREAD_SCENE_OPTIONS.setdefault(key, set())
+            if used is False and key not in self._scene_read:
+                unread.add(self._number)
+            else:                      # read now or before, or unknown: not reported
+                unread.discard(self._number)
 
     def destroy(self):
         """Free the SNES and its vectors and matrices (idempotent); the object is unusable
         afterwards."""
-        self.remove_options()
+        self._pop_options()
         for name in ("snes", "b", "x", "A", "_x_jacobian", "_du"):
             obj = self.__dict__.get(name)
             if obj is not None:
                 obj.destroy()
 
     def _given_read(self) -> list[str]:
-        """Options of the scene and of the command line that PETSc has read."""
-        inserted = set(self._inserted)
+        """Options of the scene and of the command line that PETSc has read (at setup or in
+        a solve); called while this solver's options are in PETSc's database."""
+        self._note_reads()
         command_line = [f"-{key} {value or ''}".strip()
                         for key, value in PETSc.Options().getAll().items()
-                        if key not in inserted and option_used(key)]
-        return self._scene_read + command_line
+                        if key not in self._options and option_used(key)]
+        return list(self._scene_read.values()) + command_line
 
     def _monitor(self, snes, it, norm):
         self.residuals.append(float(norm))
@@ -258,6 +287,7 @@ class _Newton:
         self.residuals = []
         self.krylov_iterations = []
         self._from_functions(self.x)
+        self._push_options()
         try:
             self.snes.solve(None, self.x)
         except PETSc.Error as err:
@@ -269,6 +299,8 @@ class _Newton:
             raise SceneError(f"PETSc stopped with error {err.ierr} while setting up the solve "
                              f"(its message is above); given options it had read: "
                              f"{', '.join(given)}") from None
+        finally:                       # nothing of this solver stays in the database
+            self._pop_options()
         self._to_functions(self.x)
         reason = self.snes.getConvergedReason()
         if reason > 0 and not np.isfinite(self.x.norm()):

@@ -11,8 +11,10 @@ import pytest
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from contactvisco import compat, expressions, geometry
+from contactvisco import solver as solver_module
 from contactvisco import problem as problem_module, scene as scene_module
 
 COMM = MPI.COMM_WORLD
@@ -358,6 +360,75 @@ def test_friction_counts_as_a_tangential_restraint():
         assert np.allclose(u, [p["u"] for p in single["probes"]], rtol=1e-7, atol=1e-12)
 
 
+# ---- PETSc options of a scene: present in every solve, reported when no solver read them ----
+
+def direct_solver(petsc_options: str):
+    """The MUMPS solver of a small paper scene with these solver.petsc_options, its problem
+    and its problem (to be loaded: at t = 0 Newton has nothing to solve)."""
+    problem = build("paper", ["geometry.cells=[4, 4]", "time.steps=1", "output.probes=[]",
+                              "solver.linear_solver='direct'",
+                              f"solver.petsc_options={petsc_options}"])
+    return problem, solver_module.create(problem, COMM)
+
+
+def scene_unused() -> set[str]:
+    return {name.split()[0] for name in solver_module.unused_options([])}
+
+
+def test_options_read_while_solving_act():
+    """MUMPS reads ICNTL(14) (workspace increase, %) when it first factors, inside the solve:
+    a scene's value reaches the factor (the default is not 55), is in PETSc's database
+    during every solve and nowhere else, and is not reported unused; misspelled options are."""
+    before = PETSc.Options().getAll()
+    problem, default = direct_solver("{}")
+    try:
+        problem.set_time(1.0)
+        assert default.solve() >= 1
+        icntl_default = default.snes.getKSP().getPC().getFactorMatrix().getMumpsIcntl(14)
+    finally:
+        default.destroy()
+    assert icntl_default != 55
+    problem, newton = direct_solver("{mat_mumps_icntl_14=55, mat_mumps_icntl_14x=55, "
+                                    "snes_rtol_x=1.0}")
+    try:
+        assert PETSc.Options().getAll() == before                 # none between solves
+        assert {"-mat_mumps_icntl_14", "-mat_mumps_icntl_14x"} <= scene_unused()  # setup only
+        present = []                   # getAll does not mark options as read
+        newton.snes.setMonitor(lambda snes, it, norm: present.append(
+            PETSc.Options().getAll().get("mat_mumps_icntl_14")))
+        problem.set_time(1.0)
+        iterations = []
+        for _ in range(2):             # the second from the converged state: 0 iterations
+            iterations.append(newton.solve())
+            assert newton.residuals[-1] < 1e-8
+            assert PETSc.Options().getAll() == before
+        assert iterations[0] >= 1
+        assert present == ["55"] * (sum(iterations) + 2)      # a monitor call per iterate
+        assert newton.snes.getKSP().getPC().getFactorMatrix().getMumpsIcntl(14) == 55
+    finally:
+        newton.destroy()
+    assert PETSc.Options().getAll() == before
+    unused = scene_unused()
+    assert "-mat_mumps_icntl_14" not in unused
+    assert {"-mat_mumps_icntl_14x", "-snes_rtol_x"} <= unused
+
+
+def test_failing_solve_leaves_no_options():
+    """An option value PETSc checks only in the solve stops it with a message naming the
+    scene's option, and the solver's options leave PETSc's database all the same."""
+    before = PETSc.Options().getAll()
+    problem, newton = direct_solver("{pc_factor_mat_solver_type='nonsense'}")
+    try:
+        problem.set_time(1.0)
+        with pytest.raises(SceneError, match="while setting up the solve.*"
+                                             "-pc_factor_mat_solver_type nonsense"):
+            newton.solve()
+        assert PETSc.Options().getAll() == before
+    finally:
+        newton.destroy()
+    assert PETSc.Options().getAll() == before
+
+
 # ---- the command line: exit codes and messages (one rank; each starts its own process) ----
 
 def cli(*args, cwd=None):
@@ -393,6 +464,9 @@ SMALL = ["--set", "geometry.cells=[4, 4]", "--set", "time.steps=2", "--quiet"]
      "-pc_factor_mat_solver_type nonsense"),
     (["run", "paper", "--set", "solver.petsc_options.snes_rtol='abc'", *SMALL], 2,
      "solver.petsc_options.snes_rtol: PETSc rejected an option value"),
+    (["run", "paper", "--set", "solver.petsc_options.mat_mumps_icntl_14='abc'", *SMALL], 2,
+     "while setting up the solve (its message is above); given options it had read: "
+     "-mat_mumps_icntl_14 abc"),
     (["run", "paper", "-snes_monitr", "-snes_rtol", "1e-9", *SMALL], 0,
      "PETSc options no solver used: -snes_monitr (misspelled"),
 ])
