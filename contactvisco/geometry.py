@@ -208,10 +208,11 @@ def _gmsh(geo, d: int, comm) -> Geometry:
         try:
             _generate(geo, path, d)
         except SceneError as err:
-            error = str(err)
+            error = (str(err), err.key)
     error = comm.bcast(error, root=0)
     if error:
-        raise SceneError(error)
+        raise SceneError(*error)
+    source = "geometry.file" if geo["file"] is not None else "geometry.script"
     names = None
     if comm.rank == 0:
         names = _header_error(path)
@@ -227,11 +228,11 @@ def _gmsh(geo, d: int, comm) -> Geometry:
             gmsh.finalize()
     names = comm.bcast(names, root=0)
     if isinstance(names, str):
-        raise SceneError(names)
+        raise SceneError(names, key=source)
     mesh, facet_tags = compat.model_to_mesh(gmsh.model, comm, 0, gdim=d)
     if comm.rank == 0:
         gmsh.finalize()
     if not names:
         raise SceneError(f"{path}: the mesh has no named physical groups of dimension {d - 1} "
-                         "(the boundaries a scene refers to)")
+                         "(the boundaries a scene refers to)", key=source)
     return Geometry(mesh, facet_tags, names)

@@ -275,7 +275,8 @@ class Geometry(Table):
                   f"geometry.parameters must be a table, got {parameters!r}")
         unknown = sorted(set(parameters) - set(signature))
         if unknown:
-            self.fail("parameters", f"geometry.parameters.{unknown[0]}: meshes/{name}.py has "
+            self.fail(f"parameters.{unknown[0]}", f"geometry.parameters.{unknown[0]}: "
+                                                   f"meshes/{name}.py has "
                                     f"no parameter {', '.join(unknown)}; it has "
                                     f"{', '.join(signature)}")
         for key, value in parameters.items():
@@ -675,7 +676,7 @@ class Scene(Table):
     KEYS = {
         "name": Key("unnamed", plain_name,
                     "a plain folder name (1 to 100 printable characters, no '/' or '\\', not "
-                    "'.' or '..'): it is the default output folder results/<name>;"),
+                    "'.' or '..', as it is the default output folder results/<name>)"),
         "description": Key("", lambda x: isinstance(x, str), "a string"),
         "preset": Key(None),
     }
