@@ -114,7 +114,7 @@ class Problem:
     context: Context                          # x and t of the scene's expressions
     updates: list                             # callables run at each new time
     loads: object                             # the linear form of the external loads (UFL)
-    T: fem.FunctionSpace                      # the stress output's tensor space
+    tensor_space: fem.FunctionSpace           # the stress output's tensor space
     sigma_expression: fem.Expression
     length_scale: float
     memory: MemoryPart | None = None
@@ -282,7 +282,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         scene=scene, geometry=geometry, V=V, u=u, F=F, J=_block_jacobian(F, unknowns, spaces),
         bcs=bcs + multiplier_bcs, bcs_u=list(bcs), u_fixed=fixed_components,
         multiplier_free=multiplier_free, constants=constants, context=context,
-        updates=updates, loads=loads, T=tensor_space,
+        updates=updates, loads=loads, tensor_space=tensor_space,
         sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
         length_scale=_length_scale(mesh), memory=memory, contact=contact)
     rigid.check(problem)
