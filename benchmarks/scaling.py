@@ -59,7 +59,7 @@ def one(scene_name, size, solver, steps):
     mesh = V.mesh
     d = mesh.geometry.dim
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    lmbda, mu = problem.constants["lambda"], problem.constants["mu"]
+    lmbda, mu = problem.constants["lame_lambda"], problem.constants["lame_mu"]
     from contactvisco.material import elasticity, strain
     a = fem.form(ufl.inner(elasticity(strain(u), lmbda, mu), strain(v)) * ufl.dx)
     f = fem.Constant(mesh, PETSc.ScalarType((0.0,) * (d - 1) + (-1.0,)))

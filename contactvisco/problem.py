@@ -220,9 +220,9 @@ def _block_jacobian(F, unknowns, spaces):
     J = []
     for Fi in F:
         row = []
-        for w, space in zip(unknowns, spaces):
+        for unknown, space in zip(unknowns, spaces):
             a = ufl.algorithms.expand_derivatives(
-                ufl.derivative(Fi, w, ufl.TrialFunction(space)))
+                ufl.derivative(Fi, unknown, ufl.TrialFunction(space)))
             row.append(None if a.empty() else a)
         J.append(row)
     return J
@@ -235,22 +235,13 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     mesh = geometry.mesh
     d = mesh.geometry.dim
     degree = scene["discretization"]["degree"]
-    mat = scene["material"]
     context = Context(mesh)
     updates = []                               # run at each new time
 
     V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
-    lame_lambda, lame_mu = lame_constants(mat["model"], mat["E"], mat["nu"])
-    constants = {"lambda": _scalar(mesh, lame_lambda), "mu": _scalar(mesh, lame_mu),
-                 "t": context.t}
-    sigma = elasticity(strain(u), constants["lambda"], constants["mu"])
-    memory = _memory(scene, mesh, u)
-    if memory is not None:
-        sigma = sigma + memory.H
-        for constant, part in memory.implicit_terms:
-            sigma = sigma + constant * _strain_part(u, part, d)
-        constants.update(memory.constants)
+    sigma, constants, memory = _stress(scene, mesh, u)
+    constants["t"] = context.t
 
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
     loads = _loads(scene, geometry, context, v, ds)
@@ -287,6 +278,24 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         length_scale=_length_scale(mesh), memory=memory, contact=contact)
     rigid.check(problem)
     return problem
+
+
+def _stress(scene, mesh, u):
+    """sigma(u) = A eps(u) + H + sum_part w_part P_part eps(u) (eq 19: the elastic stress,
+    the history stress of the memory part and its implicit weights, none without memory).
+    Returns sigma, the Constants it uses by name (the Lame constants lame_lambda, lame_mu
+    and the memory part's) and the MemoryPart (None without memory)."""
+    mat = scene["material"]
+    lame_lambda, lame_mu = lame_constants(mat["model"], mat["E"], mat["nu"])
+    constants = {"lame_lambda": _scalar(mesh, lame_lambda), "lame_mu": _scalar(mesh, lame_mu)}
+    sigma = elasticity(strain(u), constants["lame_lambda"], constants["lame_mu"])
+    memory = _memory(scene, mesh, u)
+    if memory is not None:
+        sigma = sigma + memory.H
+        for constant, part in memory.implicit_terms:
+            sigma = sigma + constant * _strain_part(u, part, mesh.geometry.dim)
+        constants.update(memory.constants)
+    return sigma, constants, memory
 
 
 def _strain_part(u, part, d):
@@ -361,21 +370,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     n = _contact_normal(mesh, Q, W, dsc, nodes)
     gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
 
-    g = contact["g"]
-    constants = {"r": _scalar(mesh, contact["augmentation"]),
-                 "g": _scalar(mesh, g) if math.isfinite(g) else None}
-    if contact["stiffness"] > 0 and g > 0:
-        constants["stiffness"] = _scalar(mesh, contact["stiffness"])
-    lambda_nu = fem.Function(Q, name="lambda_nu") if math.isfinite(g) else None
-    has_pressure = ("stiffness" in constants
-                    or (contact["friction"] == "coulomb" and lambda_nu is not None))
-    lambda_tau = u_previous = None
-    if contact["mu"] > 0 and has_pressure:
-        constants["friction"] = _scalar(mesh, contact["mu"])
-        lambda_tau = fem.Function(W, name="lambda_tau")
-        if contact["slip"] == "increment":
-            # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
-            u_previous = fem.Function(u.function_space, name="u_previous")
+    constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
     terms = law.law_terms(law.UFL, u, n, gap_value, lambda_nu, lambda_tau, u_previous,
                           constants, coulomb=contact["friction"] == "coulomb")
     F_u = None
@@ -401,6 +396,31 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     return part, F_u, pairs
 
 
+def _contact_unknowns(contact: dict, u, Q, W):
+    """What the law of the [contact] table needs: its Constants by name (r, g when finite,
+    stiffness when the compliance term acts, friction = mu when friction acts), the
+    multiplier lambda_nu in Q (a finite bound g only), lambda_tau in W (mu > 0 and a pressure
+    to bound it: compliance, or Coulomb with a bound) and u(t_{n-1}) for slip = "increment"
+    (None where absent)."""
+    mesh = Q.mesh
+    g = contact["g"]
+    constants = {"r": _scalar(mesh, contact["augmentation"]),
+                 "g": _scalar(mesh, g) if math.isfinite(g) else None}
+    if contact["stiffness"] > 0 and g > 0:
+        constants["stiffness"] = _scalar(mesh, contact["stiffness"])
+    lambda_nu = fem.Function(Q, name="lambda_nu") if math.isfinite(g) else None
+    has_pressure = ("stiffness" in constants
+                    or (contact["friction"] == "coulomb" and lambda_nu is not None))
+    lambda_tau = u_previous = None
+    if contact["mu"] > 0 and has_pressure:
+        constants["friction"] = _scalar(mesh, contact["mu"])
+        lambda_tau = fem.Function(W, name="lambda_tau")
+        if contact["slip"] == "increment":
+            # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
+            u_previous = fem.Function(u.function_space, name="u_previous")
+    return constants, lambda_nu, lambda_tau, u_previous
+
+
 def _corner_forms(terms, u, n, Q, W, dsc):
     """Forms whose assembled vectors, divided by the node's weight, are the law's node values
     as the forms see them: with the vertex rule, node i gets sum_f w_f value_f(x_i) over its
@@ -410,13 +430,14 @@ def _corner_forms(terms, u, n, Q, W, dsc):
     slip, u_tau (vectors)."""
     d = Q.mesh.geometry.dim
     vertex = dsc.reconstruct(metadata=nodal_rule(d))
-    q, w = ufl.TestFunction(Q), ufl.TestFunction(W)
+    scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
     scalars = {"weight": 1.0, "u_nu": law.normal_part(u, n), "s_nu": terms["s_nu"],
                "p_nu": terms["p_nu"]}
     vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, n)}
-    forms = {key: fem.form(value * q * vertex) for key, value in scalars.items()
+    forms = {key: fem.form(value * scalar_test * vertex) for key, value in scalars.items()
              if value is not None}
-    forms.update({key: fem.form(ufl.dot(value, w) * vertex) for key, value in vectors.items()})
+    forms.update({key: fem.form(ufl.dot(value, vector_test) * vertex)
+                  for key, value in vectors.items()})
     return forms
 
 
@@ -570,10 +591,10 @@ def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:
     """Nodes of Gamma_C with their normals, found by assembly so that every rank knows every
     contact node it holds, ghosts included."""
     d = mesh.geometry.dim
-    q, w = ufl.TestFunction(Q), ufl.TestFunction(W)
+    scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
     n = ufl.FacetNormal(mesh)
-    weight = assemble_vector(fem.form(q * dsc))
-    normal = assemble_vector(fem.form(ufl.dot(n, w) * dsc))
+    weight = assemble_vector(fem.form(scalar_test * dsc))
+    normal = assemble_vector(fem.form(ufl.dot(n, vector_test) * dsc))
     for vec in (weight, normal):
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
@@ -601,9 +622,9 @@ def _contact_normal(mesh, Q, W, dsc, nodes, corner_angle=15.0):
     nodal = fem.Function(W, name="normal")
     nodal.x.array.reshape(-1, d)[nodes.nodes] = nodes.normals
     facet = ufl.FacetNormal(mesh)
-    q = ufl.TestFunction(Q)
-    deviation = assemble_vector(fem.form((1.0 - ufl.dot(facet, nodal)) * q * dsc))
-    weight = assemble_vector(fem.form(q * dsc))
+    scalar_test = ufl.TestFunction(Q)
+    deviation = assemble_vector(fem.form((1.0 - ufl.dot(facet, nodal)) * scalar_test * dsc))
+    weight = assemble_vector(fem.form(scalar_test * dsc))
     for vec in (deviation, weight):
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
