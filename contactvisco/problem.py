@@ -367,23 +367,23 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     if degree == 1 and not np.allclose(u.function_space.tabulate_dof_coordinates(),
                                        W.tabulate_dof_coordinates()):
         raise RuntimeError("displacement and multiplier node numberings differ")
-    n = _contact_normal(mesh, Q, W, dsc, nodes)
+    normal = _contact_normal(mesh, Q, W, dsc, nodes)
     gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
 
     constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
-    terms = law.law_terms(law.UFL, u, n, gap_value, lambda_nu, lambda_tau, u_previous,
+    terms = law.law_terms(law.UFL, u, normal, gap_value, lambda_nu, lambda_tau, u_previous,
                           constants, coulomb=contact["friction"] == "coulomb")
     F_u = None
     pairs = []
     if terms["normal_force"] is not None:
-        F_u = terms["normal_force"] * law.normal_part(v, n) * dsc
+        F_u = terms["normal_force"] * law.normal_part(v, normal) * dsc
     if lambda_nu is not None:
         r = constants["r"]
         pairs.append((lambda_nu, -1.0 / r * (lambda_nu + terms["R_nu"])
                       * ufl.TestFunction(Q) * dsc))
     if lambda_tau is not None:
         r, sigma_tau = constants["r"], terms["sigma_tau"]
-        friction = -ufl.dot(sigma_tau, law.tangential_part(v, n)) * dsc
+        friction = -ufl.dot(sigma_tau, law.tangential_part(v, normal)) * dsc
         F_u = friction if F_u is None else F_u + friction
         pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
                                                       ufl.TestFunction(W)) * dsc))
@@ -392,7 +392,8 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                        gap=gap_function, u_previous=u_previous,
                        Q_coordinates=Q.tabulate_dof_coordinates(),
                        u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
-                       corner_forms=_corner_forms(terms, u, n, Q, W, dsc) if corners else None)
+                       corner_forms=_corner_forms(terms, u, normal, Q, W, dsc) if corners
+                       else None)
     return part, F_u, pairs
 
 
@@ -421,7 +422,7 @@ def _contact_unknowns(contact: dict, u, Q, W):
     return constants, lambda_nu, lambda_tau, u_previous
 
 
-def _corner_forms(terms, u, n, Q, W, dsc):
+def _corner_forms(terms, u, normal, Q, W, dsc):
     """Forms whose assembled vectors, divided by the node's weight, are the law's node values
     as the forms see them: with the vertex rule, node i gets sum_f w_f value_f(x_i) over its
     facets f. Where the normal is one P1 field this is the value at the node; at a corner of
@@ -431,9 +432,9 @@ def _corner_forms(terms, u, n, Q, W, dsc):
     d = Q.mesh.geometry.dim
     vertex = dsc.reconstruct(metadata=nodal_rule(d))
     scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
-    scalars = {"weight": 1.0, "u_nu": law.normal_part(u, n), "s_nu": terms["s_nu"],
+    scalars = {"weight": 1.0, "u_nu": law.normal_part(u, normal), "s_nu": terms["s_nu"],
                "p_nu": terms["p_nu"]}
-    vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, n)}
+    vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, normal)}
     forms = {key: fem.form(value * scalar_test * vertex) for key, value in scalars.items()
              if value is not None}
     forms.update({key: fem.form(ufl.dot(value, vector_test) * vertex)
@@ -592,9 +593,9 @@ def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:
     contact node it holds, ghosts included."""
     d = mesh.geometry.dim
     scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
-    n = ufl.FacetNormal(mesh)
+    facet_normal = ufl.FacetNormal(mesh)
     weight = assemble_vector(fem.form(scalar_test * dsc))
-    normal = assemble_vector(fem.form(ufl.dot(n, vector_test) * dsc))
+    normal = assemble_vector(fem.form(ufl.dot(facet_normal, vector_test) * dsc))
     for vec in (weight, normal):
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
