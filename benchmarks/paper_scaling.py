@@ -20,8 +20,7 @@ from petsc4py import PETSc
 
 from contactvisco import compat, geometry, scene as scene_module
 from contactvisco.material import elasticity, lame_constants, strain
-from contactvisco.run import simulate
-from common import RESULTS, assemble_linear, write_markdown
+from common import RESULTS, assemble_linear, timed_run, write_markdown
 
 HERE = pathlib.Path(__file__).parent
 
@@ -80,14 +79,7 @@ def measure(n, repeat, comm):
     scene = scene_module.load("paper", [f"geometry.cells=[{n}, {n}]",
                                         "solver.linear_solver='direct'"])
     scene["output"]["probes"] = []
-    best = None
-    for _ in range(repeat):
-        tick = time.perf_counter()
-        result = simulate(scene, comm=comm, progress=False)
-        total = time.perf_counter() - tick
-        if best is None or total < best[0]:
-            best = (total, result)
-    total, result = best
+    total, result = timed_run(scene, comm, repeat)
     steps = result.steps
     iterations = [s["newton_iterations"] for s in steps]
     step_time = [s["wall_s"] for s in steps]
