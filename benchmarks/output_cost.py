@@ -40,7 +40,7 @@ def per_step(comm, folder: pathlib.Path) -> dict:
     from contactvisco.problem import build
     scene = scene_module.load("paper", ["geometry.cells=[16, 16]"])
     problem = build(scene, geometry_module.build(scene, comm))
-    sigma = fem.Function(problem.T, name="sigma")
+    sigma = fem.Function(problem.tensor_space, name="sigma")
     sigma.interpolate(problem.sigma_expression)
     fields = [problem.u, sigma]
     out = {}

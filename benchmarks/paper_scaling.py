@@ -20,8 +20,7 @@ from petsc4py import PETSc
 
 from contactvisco import compat, geometry, scene as scene_module
 from contactvisco.material import elasticity, lame_constants, strain
-from contactvisco.run import simulate
-from common import RESULTS, assemble_linear, write_markdown
+from common import RESULTS, assemble_linear, timed_run, write_markdown
 
 HERE = pathlib.Path(__file__).parent
 
@@ -65,56 +64,61 @@ def main():
     comm = MPI.COMM_WORLD
     rows = []
     for n in args.sizes:
-        # MUMPS throughout: the same linear solver as the elastic reference (and as before).
-        scene = scene_module.load("paper", [f"geometry.cells=[{n}, {n}]",
-                                            "solver.linear_solver='direct'"])
-        scene["output"]["probes"] = []
-        best = None
-        for _ in range(args.repeat):
-            tick = time.perf_counter()
-            result = simulate(scene, comm=comm, progress=False)
-            total = time.perf_counter() - tick
-            if best is None or total < best[0]:
-                best = (total, result)
-        total, result = best
-        steps = result.steps
-        iterations = [s["newton_iterations"] for s in steps]
-        step_time = [s["wall_s"] for s in steps]
-        per_iteration = sum(step_time) / sum(iterations)
-        linear = linear_elastic_solve(scene, args.repeat)
-        row = {"cells_per_side": n, "ranks": comm.size,
-               # unknowns of the Newton linear system (u alone when condensed)
-               "unknowns": (result.problem.count_unknowns()["u"]
-                            if result.linear_system != "coupled"
-                            else sum(result.problem.count_unknowns().values())),
-               "linear_system": result.linear_system, "linear_solver": result.linear_solver,
-               "newton_per_step": iterations,
-               "mean_newton": statistics.mean(iterations),
-               "wall_per_step_s": statistics.mean(step_time),
-               "wall_per_newton_s": per_iteration,
-               "linear_elastic_solve_s": linear,
-               "newton_over_linear": per_iteration / linear,
-               "run_s": total,
-               "final_status": steps[-1]["status_counts"]}
+        row = measure(n, args.repeat, comm)
         rows.append(row)
         if comm.rank == 0:
             print(json.dumps(row), flush=True)
     if comm.rank == 0:
-        name = f"paper_scaling_np{comm.size}"
-        (RESULTS / f"{name}.json").write_text(json.dumps(rows, indent=1))
-        lines = ["| cells/side | system, solver | unknowns | Newton per step (t_0..t_10) | s/step | "
-                 "s/Newton it. | s/linear solve (MUMPS) | ratio | run s | final status "
-                 "(sep/compl/bound) |",
-                 "|---|---|---|---|---|---|---|---|---|---|"]
-        for r in rows:
-            st = r["final_status"]
-            lines.append(f"| {r['cells_per_side']} | {r['linear_system']}, {r['linear_solver']} | "
-                         f"{r['unknowns']} | "
-                         f"{' '.join(map(str, r['newton_per_step']))} | "
-                         f"{r['wall_per_step_s']:.3f} | {r['wall_per_newton_s']:.4f} | "
-                         f"{r['linear_elastic_solve_s']:.4f} | {r['newton_over_linear']:.2f} | "
-                         f"{r['run_s']:.2f} | {st['separated']}/{st['compliance']}/{st['bound']} |")
-        write_markdown(name, lines)
+        write(rows, comm.size)
+
+
+def measure(n, repeat, comm):
+    """The row of n x n cells: the fastest of `repeat` runs of the paper scene (MUMPS), its
+    Newton iterations and times, and the linear-elastic floor on the same mesh."""
+    # MUMPS throughout: the same linear solver as the elastic reference (and as before).
+    scene = scene_module.load("paper", [f"geometry.cells=[{n}, {n}]",
+                                        "solver.linear_solver='direct'"])
+    scene["output"]["probes"] = []
+    total, result = timed_run(scene, comm, repeat)
+    steps = result.steps
+    iterations = [s["newton_iterations"] for s in steps]
+    step_time = [s["wall_s"] for s in steps]
+    per_iteration = sum(step_time) / sum(iterations)
+    linear = linear_elastic_solve(scene, repeat)
+    return {"cells_per_side": n, "ranks": comm.size,
+            # unknowns of the Newton linear system (u alone when condensed)
+            "unknowns": (result.problem.count_unknowns()["u"]
+                         if result.linear_system != "coupled"
+                         else sum(result.problem.count_unknowns().values())),
+            "linear_system": result.linear_system, "linear_solver": result.linear_solver,
+            "newton_per_step": iterations,
+            "mean_newton": statistics.mean(iterations),
+            "wall_per_step_s": statistics.mean(step_time),
+            "wall_per_newton_s": per_iteration,
+            "linear_elastic_solve_s": linear,
+            "newton_over_linear": per_iteration / linear,
+            "run_s": total,
+            "final_status": steps[-1]["status_counts"]}
+
+
+def write(rows, ranks):
+    """results/paper_scaling_np<ranks>.json and .md (rank 0)."""
+    name = f"paper_scaling_np{ranks}"
+    (RESULTS / f"{name}.json").write_text(json.dumps(rows, indent=1))
+    lines = ["| cells/side | system, solver | unknowns | Newton per step (t_0..t_10) | s/step | "
+             "s/Newton it. | s/linear solve (MUMPS) | ratio | run s | final status "
+             "(sep/compl/bound) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        st = r["final_status"]
+        lines.append(f"| {r['cells_per_side']} | {r['linear_system']}, {r['linear_solver']} | "
+                     f"{r['unknowns']} | "
+                     f"{' '.join(map(str, r['newton_per_step']))} | "
+                     f"{r['wall_per_step_s']:.3f} | {r['wall_per_newton_s']:.4f} | "
+                     f"{r['linear_elastic_solve_s']:.4f} | {r['newton_over_linear']:.2f} | "
+                     f"{r['run_s']:.2f} | {st['separated']}/{st['compliance']}/{st['bound']} |")
+    write_markdown(name, lines)
+
 
 if __name__ == "__main__":
     main()

@@ -83,23 +83,42 @@ def main():
         report(out)
         return
     out = {}
-    # 1. space
+    out["space"] = space_refinement()
+    save(out)
+    out["time"] = time_refinement()
+    save(out)
+    finest = paper(128, rule="trapezoid", steps=40)
+    out["paper_grid"] = paper_grid(finest)
+    save(out)
+    hertz_rows, failures = hertz_grid()
+    out["failures"], out["hertz_grid"] = failures, hertz_rows
+    out["presets"] = measure_presets(finest)
+    save(out)
+    if COMM.rank == 0:
+        report(out)
+
+
+def space_refinement():
+    """Part 1: 16..128 cells per side, both rules, each against the 128 run of its rule."""
     space = {}
     for rule in ("paper", "trapezoid"):
         runs = [paper(n, rule=rule) for n in (16, 32, 64, 128)]
         space[rule] = [dict(strip(r), **compare(r, runs[-1])) for r in runs]
-    out["space"] = space
-    save(out)
-    # 2. time
+    return space
+
+
+def time_refinement():
+    """Part 2: 10..1000 steps on 32 x 32, both rules, against 1000 trapezoid steps."""
     reference = paper(32, rule="trapezoid", steps=1000)
     time_rows = {}
     for rule in ("paper", "trapezoid"):
         runs = [paper(32, rule=rule, steps=n) for n in (10, 20, 40, 100, 1000)]
         time_rows[rule] = [dict(strip(r), **compare(r, reference)) for r in runs]
-    out["time"] = time_rows
-    save(out)
-    # 3. grid
-    finest = paper(128, rule="trapezoid", steps=40)
+    return time_rows
+
+
+def paper_grid(finest):
+    """Part 3, paper scene: (mesh, degree, rule, steps) against `finest`, Pareto marked."""
     grid = []
     for cells in (16, 32, 64):
         for rule in ("paper", "trapezoid"):
@@ -112,9 +131,13 @@ def main():
     front = pareto(grid)
     for r in grid:
         r["pareto"] = r in front
-    out["paper_grid"] = grid
+    return grid
+
+
+def hertz_grid():
+    """Part 3, Hertz scene: (contact mesh a/h, degree) against the closed form, Pareto
+    marked; returns the rows and the runs whose Newton solve failed (with residuals)."""
     a = math.sqrt(4 * 2 * 0.25 / (math.pi * 200 / 0.91))
-    save(out)
     hertz_rows, failures = [], []
     for degree in (1, 2):
         for f in (5, 10, 20, 40):
@@ -133,13 +156,7 @@ def main():
     front = pareto(hertz_rows)
     for r in hertz_rows:
         r["pareto"] = r in front
-    out["failures"] = failures
-    out["hertz_grid"] = hertz_rows
-    # 4. presets
-    out["presets"] = measure_presets(finest)
-    save(out)
-    if COMM.rank == 0:
-        report(out)
+    return hertz_rows, failures
 
 
 def measure_presets(finest):
@@ -163,6 +180,15 @@ def save(out):
 
 
 def report(out):
+    """results/tradeoff.md (printed too) and results/tradeoff.png."""
+    lines = report_lines(out)
+    (RESULTS / "tradeoff.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    report_figure(out)
+
+
+def report_lines(out):
+    """The markdown tables of every part."""
     lines = ["## Paper scene under refinement in space (k = 0.1; reference: 128 x 128, same rule)",
              "", "| rule | cells | unknowns | error | x_B | x_B error | Newton mean | s |",
              "|---|---|---|---|---|---|---|---|"]
@@ -196,9 +222,11 @@ def report(out):
               "|---|---|---|---|---|"]
     lines += [f"| {r['preset']} | {r['scene']} | {r['unknowns']} | {r['error']:.2e} | "
               f"{r['wall_s']:.2f} |" for r in out["presets"]]
-    (RESULTS / "tradeoff.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    return lines
 
+
+def report_figure(out):
+    """Error against wall time of both grids, Pareto fronts and presets marked."""
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, rows, title in ((axes[0], out["paper_grid"], "paper scene (vs P1 128, 40 steps)"),
                             (axes[1], out["hertz_grid"], "Hertz (vs closed form)")):

@@ -104,7 +104,7 @@ def _fields(problem):
     if problem.u_previous is not None:     # the origin of the slip (slip = "increment")
         out.append(("u_previous", problem.V, problem.u_previous.x.array))
     if problem.history is not None:
-        out += [(f"history_{key}", problem.T, value)
+        out += [(f"history_{key}", problem.tensor_space, value)
                 for key, value in problem.history.state().items()]
     return out
 
@@ -124,8 +124,8 @@ def _box(coordinates: np.ndarray):
 def save(folder, problem, comm, t: float, count: int, step: float | None):
     """Write the state after `count` accepted steps (collective: every rank calls it)."""
     root = pathlib.Path(folder) / "checkpoint"
-    name = f"state-{count:06d}"
-    here = root / name
+    folder_name = f"state-{count:06d}"
+    here = root / folder_name
     if comm.rank == 0:
         if here.exists():              # left by a run killed before its meta was written
             shutil.rmtree(here)
@@ -159,14 +159,15 @@ def save(folder, problem, comm, t: float, count: int, step: float | None):
     if comm.rank == 0:                 # every part is complete once rank 0 has every box
         meta = {"t": t, "count": count, "step": step, "ranks": comm.size,
                 "scene_values": cache["scene"], "fields": names,
-                "parts": [{"file": f"{name}/part-{r}.npz", "box": box, "sha256": digest,
-                           "bytes": size} for r, (box, digest, size) in enumerate(parts)]}
+                "parts": [{"file": f"{folder_name}/part-{rank}.npz", "box": box,
+                           "sha256": digest, "bytes": size}
+                          for rank, (box, digest, size) in enumerate(parts)]}
         meta["sha256"] = _meta_digest(meta)
         tmp = root / "meta.tmp.json"
         tmp.write_text(json.dumps(meta))
         os.replace(tmp, root / META)   # the checkpoint of step `count` is now the one
         for old in root.iterdir():
-            if old.name != name and old.name.startswith("state-") and old.is_dir():
+            if old.name != folder_name and old.name.startswith("state-") and old.is_dir():
                 shutil.rmtree(old, ignore_errors=True)
         (root / LEGACY).unlink(missing_ok=True)
     comm.barrier()
@@ -265,55 +266,83 @@ def _match(want: np.ndarray, have: np.ndarray) -> np.ndarray:
 
 
 def load(folder, problem, comm) -> dict:
-    """Restore the unknowns and the history; return the meta (t, count, step)."""
+    """Restore the unknowns and the history; return the meta (t, count, step). Collective:
+    a check that fails on one rank stops every rank with the same error."""
     root = pathlib.Path(folder) / "checkpoint"
     meta = _read_meta(root)
-    if "scene_values" in meta:
-        differ = scene_difference(meta["scene_values"], problem.scene)
-        if differ:
-            raise SceneError("--restart: the scene differs from the one of the checkpoint "
-                             "(only [output] may change): " + "; ".join(differ))
-    elif meta.get("scene") != scene_hash(problem.scene):
-        raise SceneError("--restart: the scene differs from the one of the checkpoint")
+    _check_scene(meta, problem.scene)
     scale = 1e-9 * problem.length_scale
-
-    def key(positions):
-        return np.round(positions / scale).astype(np.int64)
-
     # The unknowns, then the history arrays the checkpoint holds (a fresh history has none).
     fields = [(name, space, array) for name, space, array in _fields(problem)
               if name.startswith("unknown") or name == "u_previous"]
-    fields += [(name, problem.T, None) for name in meta["fields"]
+    fields += [(name, problem.tensor_space, None) for name in meta["fields"]
                if name.startswith("history_")]
     mine = {name: _keys(space) for name, space, _ in fields if not _global(name)}
-    # Only the parts whose box meets the box of this rank's positions can hold them.
+    parts = _parts_near(meta["parts"], mine, scale)
+    data, first = _read_parts(root, parts, meta, comm)
+    state = _restore(fields, mine, data, first, scale, comm)
+    if problem.history is not None:
+        problem.history.restore(state)
+    return meta
+
+
+def _check_scene(meta: dict, scene: dict):
+    """Refuse a restart whose scene differs from the checkpoint's outside [output], listing
+    the keys that differ (a checkpoint with only a scene hash: that the hashes differ)."""
+    if "scene_values" in meta:
+        differ = scene_difference(meta["scene_values"], scene)
+        if differ:
+            raise SceneError("--restart: the scene differs from the one of the checkpoint "
+                             "(only [output] may change): " + "; ".join(differ))
+    elif meta.get("scene") != scene_hash(scene):
+        raise SceneError("--restart: the scene differs from the one of the checkpoint")
+
+
+def _parts_near(entries: list[dict], mine: dict, scale: float) -> list[dict]:
+    """The entries of meta["parts"] whose box meets, within 2 `scale`, the box of this
+    rank's positions `mine`: only they can hold this rank's values."""
     box = _box(np.concatenate([k[:, :3] for k in mine.values()])) if mine else None
     tol = 2 * scale
-    parts = [p for p in meta["parts"] if p["box"] is None or (
+    return [p for p in entries if p["box"] is None or (
         box is not None and np.all(np.array(p["box"][0]) <= np.array(box[1]) + tol)
         and np.all(np.array(box[0]) <= np.array(p["box"][1]) + tol))]
-    # Each rank checks the parts it reads; a damaged one stops every rank.
-    error = None
+
+
+def _read_parts(root: pathlib.Path, parts: list[dict], meta: dict, comm):
+    """The arrays of the parts this rank reads, and of the first part (it holds the arrays
+    that are the same on every rank). Each rank checks the parts it reads; a damaged one
+    stops every rank (collective)."""
+    def read(entry):
+        return (_checked_part(root, entry, meta) if entry["file"] != LEGACY
+                else np.load(root / LEGACY))
+    error = data = first = None
     try:
-        data = [_checked_part(root, p, meta) if p["file"] != LEGACY else np.load(root / LEGACY)
-                for p in parts]
-        first = data[0] if parts and parts[0] is meta["parts"][0] else (
-            _checked_part(root, meta["parts"][0], meta)
-            if meta["parts"][0]["file"] != LEGACY else np.load(root / LEGACY))
+        data = [read(p) for p in parts]
+        first = data[0] if parts and parts[0] is meta["parts"][0] else read(meta["parts"][0])
     except Damaged as err:
         error = str(err)
     error = next((e for e in comm.allgather(error) if e is not None), None)
     if error is not None:
         raise Damaged(error)
+    return data, first
+
+
+def _restore(fields: list, mine: dict, data: list, first, scale: float, comm) -> dict:
+    """Copy into each field the values at its positions, matched to the positions of the
+    parts read rounded to `scale`; return the history state. A position no part holds stops
+    every rank (collective)."""
+    def integer_key(positions):
+        return np.round(positions / scale).astype(np.int64)
+
     state, missing = {}, None
     for name, space, array in fields:
         if _global(name):
             state[name[len("history_"):]] = first[name]
             continue
         want = mine[name]
-        have_keys = [d[name + ".keys"] for d in data] or [np.zeros((0, want.shape[1]))]
-        have_values = [d[name] for d in data] or [np.zeros(0)]
-        rows = _match(key(want), key(np.concatenate(have_keys)))
+        have_keys = [part[name + ".keys"] for part in data] or [np.zeros((0, want.shape[1]))]
+        have_values = [part[name] for part in data] or [np.zeros(0)]
+        rows = _match(integer_key(want), integer_key(np.concatenate(have_keys)))
         if np.any(rows < 0):
             missing = missing or (name, want[np.argmin(rows)][:3].tolist())
             continue
@@ -326,6 +355,4 @@ def load(folder, problem, comm) -> dict:
     if missing is not None:      # on every rank, so that none waits for the others
         raise SceneError(f"--restart: the checkpoint has no value of '{missing[0]}' at "
                          f"{missing[1]}: was it written for another mesh?")
-    if problem.history is not None:
-        problem.history.restore(state)
-    return meta
+    return state

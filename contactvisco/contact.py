@@ -55,14 +55,14 @@ def positive_part(s, ops=UFL):
     return ops.where_ge(s, 0.0, s, 0.0 * s)
 
 
-def normal_part(u, n, ops=UFL):
+def normal_part(u, nu, ops=UFL):
     """u_nu = u . nu."""
-    return ops.dot(u, n)
+    return ops.dot(u, nu)
 
 
-def tangential_part(u, n, ops=UFL):
+def tangential_part(u, nu, ops=UFL):
     """u_tau = u - u_nu nu."""
-    return u - ops.times(ops.dot(u, n), n)
+    return u - ops.times(ops.dot(u, nu), nu)
 
 
 def p_nu(u_nu, stiffness, g=None, ops=UFL):
@@ -97,31 +97,31 @@ def friction_radius(mu, p, R, coulomb):
     return None if pressure is None else mu * pressure
 
 
-def friction_force(lambda_tau, slip, n, radius, r, ops=UFL):
+def friction_force(lambda_tau, slip, nu, radius, r, ops=UFL):
     """sigma_tau = P_B(lambda_tau - r slip) with B the ball of the given radius (eq 20);
     slip is the tangential motion the law acts on (u_tau or its increment)."""
-    return project_ball(tangential_part(lambda_tau, n, ops) - r * slip, radius, ops)
+    return project_ball(tangential_part(lambda_tau, nu, ops) - r * slip, radius, ops)
 
 
-def law_terms(ops, u, n, gap, lambda_nu, lambda_tau, u_previous, constants, coulomb):
-    """The law's quantities at u with normal n (eqs 20-21): s_nu = u . nu - h (the
+def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, coulomb):
+    """The law's quantities at u with normal nu (eqs 20-21): s_nu = u . nu - h (the
     penetration past the initial gap h), p_nu, R_nu, the normal force p_nu + R_nu, the
     friction radius, the slip and sigma_tau; None where the scene has no such term.
 
     constants: r, g (None for no bound), stiffness (absent without compliance), friction
     (the coefficient mu, absent without friction); UFL Constants or numbers."""
-    s_nu = normal_part(u, n, ops) - gap
+    s_nu = normal_part(u, nu, ops) - gap
     g = constants.get("g")
     p = (p_nu(s_nu, constants["stiffness"], g, ops) if "stiffness" in constants else None)
     R = (unilateral_reaction(lambda_nu, s_nu, g, constants["r"], ops)
          if lambda_nu is not None else None)
     normal_force = p if R is None else (R if p is None else p + R)
     moved = u if u_previous is None else u - u_previous
-    slip = tangential_part(moved, n, ops)
+    slip = tangential_part(moved, nu, ops)
     radius = sigma_tau = None
     if "friction" in constants:
         radius = friction_radius(constants["friction"], p, R, coulomb)
         if lambda_tau is not None and radius is not None:
-            sigma_tau = friction_force(lambda_tau, slip, n, radius, constants["r"], ops)
+            sigma_tau = friction_force(lambda_tau, slip, nu, radius, constants["r"], ops)
     return {"s_nu": s_nu, "p_nu": p, "R_nu": R, "normal_force": normal_force,
             "radius": radius, "slip": slip, "sigma_tau": sigma_tau}

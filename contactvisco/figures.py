@@ -84,15 +84,15 @@ def contact_tables(path: pathlib.Path) -> dict:
     with open(path) as f:
         rows = list(csv.DictReader(f))
     by_step = {}
-    for r in rows:
-        by_step.setdefault(r["step"], []).append(r)
+    for row in rows:
+        by_step.setdefault(row["step"], []).append(row)
     out = {}
     for group in by_step.values():
         coords = [c for c in "xyz" if c in group[0]]
-        table = {"x": np.array([[float(r[c]) for c in coords] for r in group])}
+        table = {"x": np.array([[float(row[c]) for c in coords] for row in group])}
         for key in ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound"):
-            table[key] = np.array([float(r[key]) for r in group])
-        table["status"] = np.array([STATUSES.index(r["status"]) for r in group])
+            table[key] = np.array([float(row[key]) for row in group])
+        table["status"] = np.array([STATUSES.index(row["status"]) for row in group])
         out[float(group[0]["t"])] = table
     return out
 
@@ -133,7 +133,7 @@ def build_all(folder, times=None, edges: bool = False) -> list[tuple[str, Figure
             for i in (chosen if times else chosen[-1:]):
                 t = float(data["times"][i])
                 stem = "stress" if not times or len(times) == 1 else f"stress_t{t:g}"
-                table = tables[min(tables, key=lambda s: abs(s - t))] if tables else None
+                table = tables[min(tables, key=lambda time: abs(time - t))] if tables else None
                 fig = stress_map(data, i, units, table, edges)
                 if fig is not None:
                     out.append((stem, fig))
@@ -255,7 +255,7 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False):
                           COLUMN * 0.95 if panels == 1 else 3.2), layout="constrained")
     axes = fig.subplots(1, panels, squeeze=False)[0]
     outline = boundary_edges(cells)
-    for k, ax in enumerate(axes):
+    for panel, ax in enumerate(axes):
         mesh = ax.tripcolor(moved[:, 0], moved[:, 1], cells, facecolors=values, cmap="viridis",
                             vmin=lo, vmax=hi, edgecolors="0.25" if edges else "face",
                             linewidth=0.1 if edges else 0.0, antialiased=edges,
@@ -264,7 +264,7 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False):
         ax.set_aspect("equal")
         ax.set_xlabel(label("x", "length", units))
         ax.set_ylabel(label("y", "length", units))
-        if k == 1:
+        if panel == 1:
             ax.set_xlim(box[0][0], box[1][0])
             ax.set_ylim(box[0][1], box[1][1])
             ax.set_title("contact zone (red box)")
@@ -375,14 +375,14 @@ def contact_profiles(table, t: float, g: float, units: dict):
         if window is not None:
             ax.set_xlim(*window)
             visible = (s >= window[0]) & (s <= window[1])
-            keys_drawn = [k for k, _ in keys if np.any(table[k])]
+            keys_drawn = [key for key, _ in keys if np.any(table[key])]
             if keys_drawn:
-                y = np.concatenate([table[k][order][visible] for k in keys_drawn] + [[0.0]])
+                y = np.concatenate([table[key][order][visible] for key in keys_drawn] + [[0.0]])
                 pad = 0.08 * (np.ptp(y) or 1.0)
                 ax.set_ylim(y.min() - pad, y.max() + pad)
         counts = {st: int(np.sum(table["status"] == i)) for i, st in enumerate(STATUSES)}
         ax.set_title(f"{_time_text(t, units)}: "
-                     + ", ".join(f"{v} {k}" for k, v in counts.items())
+                     + ", ".join(f"{count} {st}" for st, count in counts.items())
                      + ("\n(axis cut to the contact zone)" if window is not None else ""))
         ax.set_xlabel(label("x along the contact boundary", "length", units))
         ax.set_ylabel(ylabel)
@@ -415,17 +415,17 @@ def contact_map(table, t: float, units: dict):
 
 def probe_histories(steps: list, units: dict):
     """Displacement components at each probe against time."""
-    t = [s["t"] for s in steps]
+    times = [record["t"] for record in steps]
     probes = steps[0]["probes"]
     d = len(probes[0]["x"])
     fig = Figure(figsize=(PAGE if d == 3 else PAGE * 0.75, 2.4), layout="constrained")
     axes = fig.subplots(1, d, squeeze=False)[0]
     for j, probe in enumerate(probes):
-        series = np.array([[math.nan] * d if s["probes"][j]["u"] is None else s["probes"][j]["u"]
-                           for s in steps], dtype=float)
+        series = np.array([[math.nan] * d if record["probes"][j]["u"] is None
+                            else record["probes"][j]["u"] for record in steps], dtype=float)
         text = "(" + ", ".join(f"{c:g}" for c in probe["x"]) + ")"
         for i in range(d):
-            axes[i].plot(t, series[:, i], "o-", ms=2, lw=0.9, label=text)
+            axes[i].plot(times, series[:, i], "o-", ms=2, lw=0.9, label=text)
     for i, ax in enumerate(axes):
         ax.set_xlabel(label("t", "time", units))
         ax.set_ylabel(label(f"$u_{'xyz'[i]}$", "length", units))

@@ -33,7 +33,7 @@ Anal. 5 (2002) 491-518)
     K(r) = sin(gamma pi)/pi  r^(gamma-1) / (r^(2 gamma) + 2 r^gamma cos(gamma pi) + 1),
 
 a positive integrand (no cancellation), integrated by the trapezoid rule in log r; the power
-series sum_k (-x)^k / Gamma(gamma k + 1) for x <= 1.
+series sum_j (-x)^j / Gamma(gamma j + 1) for x <= 1.
 """
 from __future__ import annotations
 
@@ -66,26 +66,26 @@ def _measure(weights, rates, beta, u, logu):
     return float(np.max(np.abs(approx * np.exp(beta * logu) - 1.0)))
 
 
-def _gauss_reduce(weights, rates, scale, n):
-    """n-point Gauss rule of the discrete measure sum_j w_j delta(s - s_j) (Lanczos on
-    diag(s / scale) from sqrt(w), with full re-orthogonalization, then the Jacobi matrix,
-    Golub & Welsch 1969): it keeps the moments sum_j w_j s_j^m, m < 2n, so for s u <= scale
-    the sum changes by O(scale^(2n) / (2n)!)."""
-    n = min(n, len(rates))
+def _gauss_reduce(weights, rates, scale, order):
+    """Gauss rule with `order` = n points of the discrete measure sum_j w_j delta(s - s_j)
+    (Lanczos on diag(s / scale) from sqrt(w), with full re-orthogonalization, then the Jacobi
+    matrix, Golub & Welsch 1969): it keeps the moments sum_j w_j s_j^m, m < 2n, so for
+    s u <= scale the sum changes by O(scale^(2n) / (2n)!)."""
+    order = min(order, len(rates))
     x = rates / scale
     total = weights.sum()
     q = np.sqrt(weights / total)
     Q, a, b = [q], [], []
-    for i in range(n):
-        r = x * Q[-1]
-        a.append(Q[-1] @ r)
+    for i in range(order):
+        residual = x * Q[-1]
+        a.append(Q[-1] @ residual)
         for old in Q:
-            r = r - (old @ r) * old
-        if i < n - 1:
-            b.append(np.linalg.norm(r))
+            residual = residual - (old @ residual) * old
+        if i < order - 1:
+            b.append(np.linalg.norm(residual))
             if b[-1] < 1e-14:
                 break
-            Q.append(r / b[-1])
+            Q.append(residual / b[-1])
     m = len(a)
     jacobi = np.diag(a) + np.diag(b[:m - 1], 1) + np.diag(b[:m - 1], -1)
     nodes, vectors = np.linalg.eigh(jacobi)

@@ -79,10 +79,10 @@ class History:
         if self.sums is None:
             self.sums = [np.zeros_like(eps) for _ in self.terms]
         else:
-            for s, (_, tau, part) in zip(self.sums, self.terms):
+            for total, (_, tau, part) in zip(self.sums, self.terms):
                 dec = math.exp(-k / tau)              # 1 if tau = inf
-                s *= dec
-                s += (0.5 * k * dec) * self.last[part] + (0.5 * k) * parts[part]
+                total *= dec
+                total += (0.5 * k * dec) * self.last[part] + (0.5 * k) * parts[part]
         self.last = parts
 
     def explicit(self, k: float) -> np.ndarray:
@@ -90,9 +90,9 @@ class History:
         from the committed state; nothing is changed, so a failed step can be retried."""
         c = 1.0 if self.rule == "paper" else 0.5
         out = np.zeros_like(self.sums[0])
-        for (a, tau, part), s in zip(self.terms, self.sums):
+        for (a, tau, part), total in zip(self.terms, self.sums):
             dec = math.exp(-k / tau)
-            out += (a * dec) * s + (a * c * k * dec) * self.last[part]
+            out += (a * dec) * total + (a * c * k * dec) * self.last[part]
         return out
 
     def advance(self, eps: np.ndarray) -> np.ndarray:
@@ -107,7 +107,7 @@ class History:
 
     def state(self) -> dict:
         """Arrays that restore() takes back (checkpoints)."""
-        out = {f"sum{i}": s for i, s in enumerate(self.sums or [])}
+        out = {f"sum{i}": total for i, total in enumerate(self.sums or [])}
         out.update({f"last_{part}": e for part, e in (self.last or {}).items()})
         return out
 
@@ -216,10 +216,10 @@ def _phi(z: np.ndarray):
     int_0^k e^(-s sigma) sigma/k dsigma = k phi2 (z = s k; series below 1e-3)."""
     small = z < 1e-3
     zs = np.where(small, 1.0, z)
-    e = np.exp(-zs)
+    decay = np.exp(-zs)
     phi1 = np.where(small, 1 - z / 2 + z**2 / 6 - z**3 / 24, -np.expm1(-zs) / zs)
     phi2 = np.where(small, 0.5 - z / 3 + z**2 / 8 - z**3 / 30,
-                    (-np.expm1(-zs) - zs * e) / zs**2)
+                    (-np.expm1(-zs) - zs * decay) / zs**2)
     return phi1, phi2
 
 
@@ -283,7 +283,8 @@ class FractionalHistory:
         return self.explicit(self.k)
 
     def state(self) -> dict:
-        out = {f"sum{i}": s for i, s in enumerate(self.sums if self.sums is not None else [])}
+        out = {f"sum{i}": total
+               for i, total in enumerate(self.sums if self.sums is not None else [])}
         if self.last is not None:
             out[f"last_{self.part}"] = self.last
         return out

@@ -49,58 +49,85 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     d = problem.geometry.mesh.geometry.dim
     own = nodes.nodes[nodes.owned]
     normals = nodes.normals[nodes.owned]
-    # Node values of u (P1: node i of the multiplier spaces is dof block i of V).
-    u = _nodal_displacement(problem)[own]
-    gap = problem.gap.x.array[own]
-    lam_nu = (problem.lambda_nu.x.array[own] if problem.lambda_nu is not None
-              else np.zeros(len(own)))
-    sig_tau = (problem.lambda_tau.x.array.reshape(-1, d)[own]
-               if problem.lambda_tau is not None else np.zeros_like(u))
-    u_prev = (problem.u_previous.x.array.reshape(-1, d)[own]
-              if problem.u_previous is not None else None)
-    # The law of the forms (contactvisco.contact), evaluated at the nodes.
-    constants = {key: float(c.value) for key, c in problem.constants.items()
-                 if key in ("r", "g", "stiffness", "friction") and c is not None}
-    terms = law.law_terms(law.NUMPY, u, normals, gap, None, None, u_prev, constants,
-                          coulomb=contact.get("friction") == "coulomb")
-    penetration = terms["s_nu"]
-    u_nu = law.normal_part(u, normals, law.NUMPY)
-    u_tau_vec = law.tangential_part(u, normals, law.NUMPY)
-    p_nu = terms["p_nu"] if terms["p_nu"] is not None else np.zeros_like(u_nu)
-    slip_vec = terms["slip"]
-    if problem.contact.corner_forms is not None:
-        # At corners of Gamma_C the forms use each facet's normal: the values there are the
-        # law's as the forms see them (the facets' weighted mean), not at the mean normal.
-        at = np.isin(own, nodes.corners)
-        corner = problem_module.corner_values(problem, own[at])
-        penetration, u_nu, slip_vec, u_tau_vec = (
-            penetration.copy(), u_nu.copy(), slip_vec.copy(), u_tau_vec.copy())
-        penetration[at], u_nu[at] = corner["s_nu"], corner["u_nu"]
-        slip_vec[at], u_tau_vec[at] = corner["slip"], corner["u_tau"]
-        if "p_nu" in corner:
-            p_nu = p_nu.copy()
-            p_nu[at] = corner["p_nu"]
-    if d == 2:
-        t = nodes.tangents[nodes.owned]
-        u_tau = np.einsum("ij,ij->i", u_tau_vec, t)
-        r_tau = np.einsum("ij,ij->i", sig_tau, t)
-    else:
-        u_tau = np.linalg.norm(u_tau_vec, axis=1)
-        r_tau = np.linalg.norm(law.tangential_part(sig_tau, normals, law.NUMPY), axis=1)
-    x = problem.Q_coordinates[own][:, :d]
+    fields = _node_fields(problem, own)
+    law_values = _law_at_nodes(problem, own, normals, fields)
+    u_tau, reaction_tau = _tangential_values(problem, law_values["u_tau_vector"],
+                                             fields["sigma_tau_vector"], normals)
     # The rigid part's reaction is the one the multiplier carries, R_nu = -lambda_nu (the
     # law's R_nu(lambda_nu, u_nu) at the converged state).
-    reaction_nu = p_nu - lam_nu
+    lam_nu, p_nu = fields["lambda_nu"], law_values["p_nu"]
     radius = law.friction_radius(contact["mu"], p_nu, -lam_nu,
                                  contact.get("friction") == "coulomb")
-    local = dict(x=x, normal=normals, u_nu=u_nu, gap=gap, penetration=penetration, u_tau=u_tau, lambda_nu=lam_nu, p_nu=p_nu,
-                 reaction_nu=reaction_nu, reaction_tau=r_tau, radius=radius,
-                 u_tau_vector=u_tau_vec, sigma_tau_vector=sig_tau, slip_vector=slip_vec,
-                 weight=nodes.weights[nodes.owned])
+    local = dict(x=problem.Q_coordinates[own][:, :d], normal=normals,
+                 u_nu=law_values["u_nu"], gap=fields["gap"],
+                 penetration=law_values["penetration"], u_tau=u_tau, lambda_nu=lam_nu,
+                 p_nu=p_nu, reaction_nu=p_nu - lam_nu, reaction_tau=reaction_tau,
+                 radius=radius, u_tau_vector=law_values["u_tau_vector"],
+                 sigma_tau_vector=fields["sigma_tau_vector"],
+                 slip_vector=law_values["slip_vector"], weight=nodes.weights[nodes.owned])
     table = _gather_sorted(local, comm, problem.length_scale)
     table["status"] = classify(table["penetration"], contact["g"], problem.length_scale)
     table["friction"] = friction_state(table)
     return table
+
+
+def _node_fields(problem, own: np.ndarray) -> dict[str, np.ndarray | None]:
+    """The fields at the owned contact nodes `own`: u (n, d), gap h, lambda_nu (zero without
+    a bound), sigma_tau_vector = lambda_tau (zero without friction) and u_previous (None
+    unless the slip is an increment). P1: node i of the multiplier spaces is dof block i of
+    V."""
+    d = problem.geometry.mesh.geometry.dim
+    u = _nodal_displacement(problem)[own]
+    return dict(
+        u=u, gap=problem.gap.x.array[own],
+        lambda_nu=(problem.lambda_nu.x.array[own] if problem.lambda_nu is not None
+                   else np.zeros(len(own))),
+        sigma_tau_vector=(problem.lambda_tau.x.array.reshape(-1, d)[own]
+                          if problem.lambda_tau is not None else np.zeros_like(u)),
+        u_previous=(problem.u_previous.x.array.reshape(-1, d)[own]
+                    if problem.u_previous is not None else None))
+
+
+def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -> dict:
+    """The law of the forms (contactvisco.contact) evaluated at the nodes: penetration
+    s_nu, u_nu, u_tau_vector, p_nu (zero without compliance) and slip_vector. At corners of
+    Gamma_C the forms use each facet's normal: the values there are the law's as the forms
+    see them (the facets' weighted mean), not at the mean normal."""
+    contact = problem.scene["contact"]
+    u = fields["u"]
+    constants = {key: float(c.value) for key, c in problem.constants.items()
+                 if key in ("r", "g", "stiffness", "friction") and c is not None}
+    terms = law.law_terms(law.NUMPY, u, normals, fields["gap"], None, None,
+                          fields["u_previous"], constants,
+                          coulomb=contact.get("friction") == "coulomb")
+    u_nu = law.normal_part(u, normals, law.NUMPY)
+    values = dict(penetration=terms["s_nu"], u_nu=u_nu,
+                  u_tau_vector=law.tangential_part(u, normals, law.NUMPY),
+                  p_nu=terms["p_nu"] if terms["p_nu"] is not None else np.zeros_like(u_nu),
+                  slip_vector=terms["slip"])
+    if problem.contact.corner_forms is not None:
+        at = np.isin(own, problem.nodes.corners)
+        corner = problem_module.corner_values(problem, own[at])
+        for key, corner_key in (("penetration", "s_nu"), ("u_nu", "u_nu"),
+                                ("slip_vector", "slip"), ("u_tau_vector", "u_tau"),
+                                ("p_nu", "p_nu")):
+            if corner_key in corner:
+                values[key] = values[key].copy()
+                values[key][at] = corner[corner_key]
+    return values
+
+
+def _tangential_values(problem, u_tau_vector: np.ndarray, sigma_tau_vector: np.ndarray,
+                       normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """u_tau and the tangential reaction as scalars: in 2D their components along the
+    tangent t = (-nu_y, nu_x), in 3D the norms |u_tau| and |sigma_tau - (sigma_tau.nu) nu|."""
+    nodes = problem.nodes
+    if problem.geometry.mesh.geometry.dim == 2:
+        tangents = nodes.tangents[nodes.owned]
+        return (np.einsum("ij,ij->i", u_tau_vector, tangents),
+                np.einsum("ij,ij->i", sigma_tau_vector, tangents))
+    return (np.linalg.norm(u_tau_vector, axis=1),
+            np.linalg.norm(law.tangential_part(sigma_tau_vector, normals, law.NUMPY), axis=1))
 
 
 def _gather_sorted(local: dict, comm, length: float) -> dict:
@@ -109,8 +136,8 @@ def _gather_sorted(local: dict, comm, length: float) -> dict:
     depending on the partition)."""
     gathered = comm.allgather(local)
     table = {key: np.concatenate([part[key] for part in gathered]) for key in local}
-    key = np.round(table["x"] / (1e-9 * length))
-    order = np.lexsort(key.T[::-1])
+    rounded = np.round(table["x"] / (1e-9 * length))
+    order = np.lexsort(rounded.T[::-1])
     return {key: value[order] for key, value in table.items()}
 
 
@@ -245,28 +272,12 @@ class Writer:
         if self.rank == 0:
             # Restart: the records are cut to the checkpoint once (O(N) once per restart).
             path = self.folder / STEPS_FILE
-            _rewrite(path, "".join(json.dumps(jsonable(r), allow_nan=False) + "\n"
-                                   for r in kept_steps))
+            _rewrite(path, "".join(json.dumps(jsonable(record), allow_nan=False) + "\n"
+                                   for record in kept_steps))
             self.steps_file = open(path, "a")
             self._write_summary()
         if self.rank == 0 and problem.nodes is not None:
-            d = problem.geometry.mesh.geometry.dim
-            header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
-                "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
-                "status", "friction"]
-            path = self.folder / "contact_nodes.csv"
-            kept = []
-            if restart_count is not None and path.exists():
-                with open(path, newline="") as f:
-                    kept = [row for row in list(csv.reader(f))[1:]
-                            if len(row) == len(header) and int(row[0]) < restart_count]
-            text = io_module.StringIO()
-            writer = csv.writer(text)
-            writer.writerow(header)
-            writer.writerows(kept)
-            _rewrite(path, text.getvalue())
-            self.csv_file = open(path, "a", newline="")
-            self.csv = csv.writer(self.csv_file)
+            self._start_csv(problem.geometry.mesh.geometry.dim, restart_count)
         self.xdmf = None
         if xdmf:
             self.xdmf = self.folder / SOLUTION_DIR
@@ -276,6 +287,26 @@ class Writer:
                                        restart_count or 0)
             comm.barrier()
         self._writable = {}                # P1/DG0 copies of higher-degree fields (xdmf_field)
+
+    def _start_csv(self, d: int, restart_count: int | None):
+        """Rank 0: contact_nodes.csv with its header and, on a restart, the rows of the
+        first restart_count steps (a row cut by a stop is dropped), opened for appending."""
+        header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
+            "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
+            "status", "friction"]
+        path = self.folder / "contact_nodes.csv"
+        kept = []
+        if restart_count is not None and path.exists():
+            with open(path, newline="") as f:
+                kept = [row for row in list(csv.reader(f))[1:]
+                        if len(row) == len(header) and int(row[0]) < restart_count]
+        text = io_module.StringIO()
+        writer = csv.writer(text)
+        writer.writerow(header)
+        writer.writerows(kept)
+        _rewrite(path, text.getvalue())
+        self.csv_file = open(path, "a", newline="")
+        self.csv = csv.writer(self.csv_file)
 
     def step(self, record: dict, table, fields=()):
         """Write step record["step"]: its fields, contact-node rows, then its record."""
@@ -501,8 +532,7 @@ def gather_mesh(problem, sigma, comm):
     n_cells = problem.geometry.mesh.topology.index_map(d).size_local
     cell_dofs = compat.cell_dofs(V.dofmap)[:n_cells, :d + 1]
     cells = imap.local_to_global(cell_dofs.ravel()).reshape(-1, d + 1)
-    T = sigma.function_space
-    stress_dofs = compat.cell_dofs(T.dofmap)[:n_cells]
+    stress_dofs = compat.cell_dofs(sigma.function_space.dofmap)[:n_cells]
     stress = sigma.x.array.reshape(-1, d, d)[stress_dofs].mean(axis=1)   # cell averages
     parts = comm.gather((global_index, x, u, cells, von_mises(stress)), root=0)
     if comm.rank != 0:

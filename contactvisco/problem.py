@@ -114,7 +114,7 @@ class Problem:
     context: Context                          # x and t of the scene's expressions
     updates: list                             # callables run at each new time
     loads: object                             # the linear form of the external loads (UFL)
-    T: fem.FunctionSpace                      # the stress output's tensor space
+    tensor_space: fem.FunctionSpace           # the stress output's tensor space
     sigma_expression: fem.Expression
     length_scale: float
     memory: MemoryPart | None = None
@@ -220,9 +220,9 @@ def _block_jacobian(F, unknowns, spaces):
     J = []
     for Fi in F:
         row = []
-        for w, space in zip(unknowns, spaces):
+        for unknown, space in zip(unknowns, spaces):
             a = ufl.algorithms.expand_derivatives(
-                ufl.derivative(Fi, w, ufl.TrialFunction(space)))
+                ufl.derivative(Fi, unknown, ufl.TrialFunction(space)))
             row.append(None if a.empty() else a)
         J.append(row)
     return J
@@ -235,22 +235,13 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     mesh = geometry.mesh
     d = mesh.geometry.dim
     degree = scene["discretization"]["degree"]
-    mat = scene["material"]
     context = Context(mesh)
     updates = []                               # run at each new time
 
     V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
-    lame_lambda, lame_mu = lame_constants(mat["model"], mat["E"], mat["nu"])
-    constants = {"lambda": _scalar(mesh, lame_lambda), "mu": _scalar(mesh, lame_mu),
-                 "t": context.t}
-    sigma = elasticity(strain(u), constants["lambda"], constants["mu"])
-    memory = _memory(scene, mesh, u)
-    if memory is not None:
-        sigma = sigma + memory.H
-        for constant, part in memory.implicit_terms:
-            sigma = sigma + constant * _strain_part(u, part, d)
-        constants.update(memory.constants)
+    sigma, constants, memory = _stress(scene, mesh, u)
+    constants["t"] = context.t
 
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
     loads = _loads(scene, geometry, context, v, ds)
@@ -282,11 +273,29 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         scene=scene, geometry=geometry, V=V, u=u, F=F, J=_block_jacobian(F, unknowns, spaces),
         bcs=bcs + multiplier_bcs, bcs_u=list(bcs), u_fixed=fixed_components,
         multiplier_free=multiplier_free, constants=constants, context=context,
-        updates=updates, loads=loads, T=tensor_space,
+        updates=updates, loads=loads, tensor_space=tensor_space,
         sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
         length_scale=_length_scale(mesh), memory=memory, contact=contact)
     rigid.check(problem)
     return problem
+
+
+def _stress(scene, mesh, u):
+    """sigma(u) = A eps(u) + H + sum_part w_part P_part eps(u) (eq 19: the elastic stress,
+    the history stress of the memory part and its implicit weights, none without memory).
+    Returns sigma, the Constants it uses by name (the Lame constants lame_lambda, lame_mu
+    and the memory part's) and the MemoryPart (None without memory)."""
+    mat = scene["material"]
+    lame_lambda, lame_mu = lame_constants(mat["model"], mat["E"], mat["nu"])
+    constants = {"lame_lambda": _scalar(mesh, lame_lambda), "lame_mu": _scalar(mesh, lame_mu)}
+    sigma = elasticity(strain(u), constants["lame_lambda"], constants["lame_mu"])
+    memory = _memory(scene, mesh, u)
+    if memory is not None:
+        sigma = sigma + memory.H
+        for constant, part in memory.implicit_terms:
+            sigma = sigma + constant * _strain_part(u, part, mesh.geometry.dim)
+        constants.update(memory.constants)
+    return sigma, constants, memory
 
 
 def _strain_part(u, part, d):
@@ -358,9 +367,43 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     if degree == 1 and not np.allclose(u.function_space.tabulate_dof_coordinates(),
                                        W.tabulate_dof_coordinates()):
         raise RuntimeError("displacement and multiplier node numberings differ")
-    n = _contact_normal(mesh, Q, W, dsc, nodes)
+    normal = _contact_normal(mesh, Q, W, dsc, nodes)
     gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
 
+    constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
+    terms = law.law_terms(law.UFL, u, normal, gap_value, lambda_nu, lambda_tau, u_previous,
+                          constants, coulomb=contact["friction"] == "coulomb")
+    F_u = None
+    pairs = []
+    if terms["normal_force"] is not None:
+        F_u = terms["normal_force"] * law.normal_part(v, normal) * dsc
+    if lambda_nu is not None:
+        r = constants["r"]
+        pairs.append((lambda_nu, -1.0 / r * (lambda_nu + terms["R_nu"])
+                      * ufl.TestFunction(Q) * dsc))
+    if lambda_tau is not None:
+        r, sigma_tau = constants["r"], terms["sigma_tau"]
+        friction = -ufl.dot(sigma_tau, law.tangential_part(v, normal)) * dsc
+        F_u = friction if F_u is None else F_u + friction
+        pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
+                                                      ufl.TestFunction(W)) * dsc))
+    corners = mesh.comm.allreduce(nodes.corners.size, MPI.SUM) > 0
+    part = ContactPart(nodes=nodes, lambda_nu=lambda_nu, lambda_tau=lambda_tau,
+                       gap=gap_function, u_previous=u_previous,
+                       Q_coordinates=Q.tabulate_dof_coordinates(),
+                       u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
+                       corner_forms=_corner_forms(terms, u, normal, Q, W, dsc) if corners
+                       else None)
+    return part, F_u, pairs
+
+
+def _contact_unknowns(contact: dict, u, Q, W):
+    """What the law of the [contact] table needs: its Constants by name (r, g when finite,
+    stiffness when the compliance term acts, friction = mu when friction acts), the
+    multiplier lambda_nu in Q (a finite bound g only), lambda_tau in W (mu > 0 and a pressure
+    to bound it: compliance, or Coulomb with a bound) and u(t_{n-1}) for slip = "increment"
+    (None where absent)."""
+    mesh = Q.mesh
     g = contact["g"]
     constants = {"r": _scalar(mesh, contact["augmentation"]),
                  "g": _scalar(mesh, g) if math.isfinite(g) else None}
@@ -376,32 +419,10 @@ def _contact(scene, geometry, u, v, ds, context, updates):
         if contact["slip"] == "increment":
             # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
             u_previous = fem.Function(u.function_space, name="u_previous")
-    terms = law.law_terms(law.UFL, u, n, gap_value, lambda_nu, lambda_tau, u_previous,
-                          constants, coulomb=contact["friction"] == "coulomb")
-    F_u = None
-    pairs = []
-    if terms["normal_force"] is not None:
-        F_u = terms["normal_force"] * law.normal_part(v, n) * dsc
-    if lambda_nu is not None:
-        r = constants["r"]
-        pairs.append((lambda_nu, -1.0 / r * (lambda_nu + terms["R_nu"])
-                      * ufl.TestFunction(Q) * dsc))
-    if lambda_tau is not None:
-        r, sigma_tau = constants["r"], terms["sigma_tau"]
-        friction = -ufl.dot(sigma_tau, law.tangential_part(v, n)) * dsc
-        F_u = friction if F_u is None else F_u + friction
-        pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
-                                                      ufl.TestFunction(W)) * dsc))
-    corners = mesh.comm.allreduce(nodes.corners.size, MPI.SUM) > 0
-    part = ContactPart(nodes=nodes, lambda_nu=lambda_nu, lambda_tau=lambda_tau,
-                       gap=gap_function, u_previous=u_previous,
-                       Q_coordinates=Q.tabulate_dof_coordinates(),
-                       u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
-                       corner_forms=_corner_forms(terms, u, n, Q, W, dsc) if corners else None)
-    return part, F_u, pairs
+    return constants, lambda_nu, lambda_tau, u_previous
 
 
-def _corner_forms(terms, u, n, Q, W, dsc):
+def _corner_forms(terms, u, normal, Q, W, dsc):
     """Forms whose assembled vectors, divided by the node's weight, are the law's node values
     as the forms see them: with the vertex rule, node i gets sum_f w_f value_f(x_i) over its
     facets f. Where the normal is one P1 field this is the value at the node; at a corner of
@@ -410,13 +431,14 @@ def _corner_forms(terms, u, n, Q, W, dsc):
     slip, u_tau (vectors)."""
     d = Q.mesh.geometry.dim
     vertex = dsc.reconstruct(metadata=nodal_rule(d))
-    q, w = ufl.TestFunction(Q), ufl.TestFunction(W)
-    scalars = {"weight": 1.0, "u_nu": law.normal_part(u, n), "s_nu": terms["s_nu"],
+    scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
+    scalars = {"weight": 1.0, "u_nu": law.normal_part(u, normal), "s_nu": terms["s_nu"],
                "p_nu": terms["p_nu"]}
-    vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, n)}
-    forms = {key: fem.form(value * q * vertex) for key, value in scalars.items()
+    vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, normal)}
+    forms = {key: fem.form(value * scalar_test * vertex) for key, value in scalars.items()
              if value is not None}
-    forms.update({key: fem.form(ufl.dot(value, w) * vertex) for key, value in vectors.items()})
+    forms.update({key: fem.form(ufl.dot(value, vector_test) * vertex)
+                  for key, value in vectors.items()})
     return forms
 
 
@@ -559,10 +581,10 @@ def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:
     """Nodes of Gamma_C with their normals, found by assembly so that every rank knows every
     contact node it holds, ghosts included."""
     d = mesh.geometry.dim
-    q, w = ufl.TestFunction(Q), ufl.TestFunction(W)
-    n = ufl.FacetNormal(mesh)
-    weight = assemble_vector(fem.form(q * dsc))
-    normal = assemble_vector(fem.form(ufl.dot(n, w) * dsc))
+    scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
+    facet_normal = ufl.FacetNormal(mesh)
+    weight = assemble_vector(fem.form(scalar_test * dsc))
+    normal = assemble_vector(fem.form(ufl.dot(facet_normal, vector_test) * dsc))
     for vec in (weight, normal):
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
@@ -590,9 +612,9 @@ def _contact_normal(mesh, Q, W, dsc, nodes, corner_angle=15.0):
     nodal = fem.Function(W, name="normal")
     nodal.x.array.reshape(-1, d)[nodes.nodes] = nodes.normals
     facet = ufl.FacetNormal(mesh)
-    q = ufl.TestFunction(Q)
-    deviation = assemble_vector(fem.form((1.0 - ufl.dot(facet, nodal)) * q * dsc))
-    weight = assemble_vector(fem.form(q * dsc))
+    scalar_test = ufl.TestFunction(Q)
+    deviation = assemble_vector(fem.form((1.0 - ufl.dot(facet, nodal)) * scalar_test * dsc))
+    weight = assemble_vector(fem.form(scalar_test * dsc))
     for vec in (deviation, weight):
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)

@@ -52,24 +52,28 @@ def _basis(X: np.ndarray, centre: np.ndarray, scale: float) -> tuple[np.ndarray,
     return np.array(modes).reshape(len(modes), n, d), names
 
 
-def free_motions(problem) -> list[str]:
-    """Names of the rigid motions that neither the Dirichlet conditions nor the contact law
-    of a built Problem restrain (empty when the body is held)."""
-    mesh = problem.V.mesh
+def _bounding_box(mesh) -> tuple[np.ndarray, float]:
+    """Centre and largest side of the mesh's bounding box over all ranks: the point and
+    length the basis motions are scaled by, so the Gram matrix is free of units."""
     comm = mesh.comm
     d = mesh.geometry.dim
     x = mesh.geometry.x[:, :d]
     lower, upper = np.empty(d), np.empty(d)
     comm.Allreduce(x.min(axis=0), lower, op=MPI.MIN)
     comm.Allreduce(x.max(axis=0), upper, op=MPI.MAX)
-    centre, scale = 0.5 * (lower + upper), float(np.max(upper - lower))
+    return 0.5 * (lower + upper), float(np.max(upper - lower))
 
+
+def _gram(problem, centre: np.ndarray, scale: float, modes: int) -> np.ndarray:
+    """G = sum_k mean_r c_r c_r^T over the constraint rows c_r of each kind k (Dirichlet,
+    normal, tangential), summed over ranks; each rank adds its owned nodes only."""
+    comm = problem.V.mesh.comm
+    d = problem.V.mesh.geometry.dim
     owned = problem.V.dofmap.index_map.size_local
     X = problem.V.tabulate_dof_coordinates()[:owned, :d]
-    names = _basis(np.zeros((0, d)), centre, scale)[1]
-    m = len(names)
-    kinds = {"dirichlet": [np.zeros((m, m)), 0], "normal": [np.zeros((m, m)), 0],
-             "tangential": [np.zeros((m, m)), 0]}
+    kinds = {"dirichlet": [np.zeros((modes, modes)), 0],
+             "normal": [np.zeros((modes, modes)), 0],
+             "tangential": [np.zeros((modes, modes)), 0]}
 
     def add(kind, rows):
         kinds[kind][0] += rows @ rows.T
@@ -90,24 +94,28 @@ def free_motions(problem) -> list[str]:
             tangential = motion - normal[:, :, None] * normals[None]
             for c in range(d):
                 add("tangential", tangential[:, :, c])
-    G = np.zeros((m, m))
+    G = np.zeros((modes, modes))
     for gram, count in kinds.values():
         gram, count = comm.allreduce(gram, op=MPI.SUM), comm.allreduce(count, op=MPI.SUM)
         if count:
             G += gram / count
-    w, vectors = np.linalg.eigh(G)
-    null = vectors[:, w <= RESTRAINT_TOLERANCE * max(w.max(), 1e-300)]
-    if null.shape[1] == 0:
-        return []
-    # Basis motions lying (nearly) in the null space are named as they are; the rest of the
-    # null space is named from its orthonormal basis (2D: a rotation about some point).
+    return G
+
+
+def _describe(null: np.ndarray, names: list[str], centre: np.ndarray,
+              scale: float) -> list[str]:
+    """Names of the motions spanning the null space `null` (modes, k) of G: basis motions
+    lying (nearly) in it are named as they are; the rest of it is named from its orthonormal
+    basis (2D: a rotation about some point, else a translation or a combination)."""
+    modes = len(names)
+    d = len(centre)
     projection = null @ null.T
-    pure = [k for k in range(m) if projection[k, k] > 0.999]
+    pure = [k for k in range(modes) if projection[k, k] > 0.999]
     free = [names[k] for k in pure]
-    rest = null - np.eye(m)[:, pure] @ (np.eye(m)[:, pure].T @ null)
-    u, sv, _ = np.linalg.svd(rest, full_matrices=False)
+    rest = null - np.eye(modes)[:, pure] @ (np.eye(modes)[:, pure].T @ null)
+    directions, singular_values, _ = np.linalg.svd(rest, full_matrices=False)
     described = []
-    for v in u[:, sv > 1e-3].T:
+    for v in directions[:, singular_values > 1e-3].T:
         v = v / v[np.argmax(np.abs(v))]
         if d == 2 and abs(v[2]) > 1e-8:
             # a Tx + b Ty + c R about the centre = c (rotation about the point p)
@@ -122,6 +130,21 @@ def free_motions(problem) -> list[str]:
             described.append("the combination " + " + ".join(
                 f"{coef:.3g} ({name})" for coef, name in zip(v, names) if abs(coef) > 1e-8))
     return free + described
+
+
+def free_motions(problem) -> list[str]:
+    """Names of the rigid motions that neither the Dirichlet conditions nor the contact law
+    of a built Problem restrain (empty when the body is held): the null space of the
+    constraint Gram matrix G, eigenvalues below RESTRAINT_TOLERANCE times the largest."""
+    mesh = problem.V.mesh
+    centre, scale = _bounding_box(mesh)
+    names = _basis(np.zeros((0, mesh.geometry.dim)), centre, scale)[1]
+    G = _gram(problem, centre, scale, len(names))
+    w, vectors = np.linalg.eigh(G)
+    null = vectors[:, w <= RESTRAINT_TOLERANCE * max(w.max(), 1e-300)]
+    if null.shape[1] == 0:
+        return []
+    return _describe(null, names, centre, scale)
 
 
 def check(problem) -> None:

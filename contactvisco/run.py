@@ -212,7 +212,7 @@ class Run:
         if self.writer is None:
             return []
         opts = self.scene["output"]
-        sigma = fem.Function(self.problem.T, name="sigma")
+        sigma = fem.Function(self.problem.tensor_space, name="sigma")
         writer = FieldWriter(self.writer, self.problem, sigma, opts["fields"])
         snapshots = Snapshots(self.out, self.problem, sigma, self.comm, opts, k,
                               self.scene["time"]["steps"], self.writer, self.say, self.resumed)

@@ -80,7 +80,7 @@ def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[st
 def rungs(scene: dict, levels: int, coarsest: float, degrees=(1, 2)) -> list[dict]:
     """The ladder in the order it is climbed: level by level, cheapest first."""
     if scene["geometry"]["type"] != "box" and not any(
-            scene_module.is_mesh_size(k) for k in scene["geometry"]["parameters"]):
+            scene_module.is_mesh_size(key) for key in scene["geometry"]["parameters"]):
         raise TradeoffError("geometry: the mesh cannot be refined (a .msh file, or a gmsh "
                             "script without mesh size parameters h or h_*); give a box or a gmsh "
                             "script with them")
@@ -177,21 +177,21 @@ def difference(run_a: dict, reference: dict, measure: str) -> float:
         raise TradeoffError("the two runs share no time level")
     top, scale = 0.0, 0.0
     for key in common:
-        a, r = run_a["samples"][key], reference["samples"][key]
+        other, ref = run_a["samples"][key], reference["samples"][key]
         if measure == "probe":
-            ua, ur = np.array(a["probes"], float), np.array(r["probes"], float)
+            ua, ur = np.array(other["probes"], float), np.array(ref["probes"], float)
             top = max(top, float(np.max(np.abs(ua - ur))))
             scale = max(scale, float(np.max(np.abs(ur))))
             continue
         fields = ("u_nu", "u_tau") if measure == "contact_displacement" else ("pressure",)
-        x = r["x"]
+        x = ref["x"]
         if x.shape[1] == 2:
             s = x[:, int(np.argmax(np.ptp(x, axis=0)))]
             w = _boundary_weights(s) if np.all(np.diff(s) >= 0) else np.ones(len(s))
         else:
             w = np.ones(len(x))
-        diff2 = sum(np.sum(w * (_onto(a["x"], a[f], x) - r[f]) ** 2) for f in fields)
-        norm2 = sum(np.sum(w * r[f] ** 2) for f in fields)
+        diff2 = sum(np.sum(w * (_onto(other["x"], other[f], x) - ref[f]) ** 2) for f in fields)
+        norm2 = sum(np.sum(w * ref[f] ** 2) for f in fields)
         top = max(top, math.sqrt(diff2))
         scale = max(scale, math.sqrt(norm2))
     if scale == 0.0:
@@ -280,62 +280,85 @@ def _estimate(done: list, target: float, measure: str, scene: dict, source: str,
     front and the recommendation."""
     ok = [r for r in done if "failed" not in r]
     base_degree = scene["discretization"]["degree"]
-    p1 = [r for r in ok if r["degree"] == base_degree]
-    if len({r["level"] for r in p1}) < 2:
+    reference, self_error, summary = _reference_error(
+        [r for r in ok if r["degree"] == base_degree], measure)
+    ladder = _ladder_rows(done, reference, self_error, measure)
+    result = {"scene": scene["name"], "source": str(source), "overrides": overrides,
+              "measure": measure, "measure_description": MEASURES[measure],
+              "target": target, "error_estimate": ESTIMATE,
+              "reference": summary, "ladder": ladder}
+    result.update(_recommend([r for r in ladder if "failed" not in r], target, overrides))
+    return result
+
+
+def _reference_error(base_runs: list, measure: str) -> tuple[dict, float, dict]:
+    """The reference (top level, most steps, the scene's degree) among `base_runs` and its
+    own error by Richardson extrapolation, d_h / (2^p_h - 1) + d_k / (2^p_k - 1): d_h the
+    difference of the two top mesh levels at the reference's steps, d_k of the two largest
+    step counts on the top level, p the observed orders (1 from two levels). Returns the
+    reference, its error and the summary stored under "reference"."""
+    if len({r["level"] for r in base_runs}) < 2:
         raise TradeoffError("fewer than two mesh levels ran (raise --budget or lower "
                             "--coarsest): no error estimate")
-    top = max(r["level"] for r in p1)
-    n_max = max(r["steps"] for r in p1 if r["level"] == top)
-    reference = next(r for r in p1 if r["level"] == top and r["steps"] == n_max)
+    top = max(r["level"] for r in base_runs)
+    n_max = max(r["steps"] for r in base_runs if r["level"] == top)
+    reference = next(r for r in base_runs if r["level"] == top and r["steps"] == n_max)
     # Space: the mesh levels at the reference's steps.
-    column = sorted((r for r in p1 if r["steps"] == n_max), key=lambda r: r["level"])
-    d_h = [difference(a, b, measure) for a, b in zip(column[:-1], column[1:])]
+    mesh_column = sorted((r for r in base_runs if r["steps"] == n_max),
+                         key=lambda r: r["level"])
+    d_h = [difference(a, b, measure) for a, b in zip(mesh_column[:-1], mesh_column[1:])]
     p_h = _order(d_h[-2], d_h[-1]) if len(d_h) >= 2 else 1.0
     # Time: the step counts on the top level.
-    row = sorted((r for r in p1 if r["level"] == top), key=lambda r: r["steps"])
-    d_k = [difference(a, b, measure) for a, b in zip(row[:-1], row[1:])]
+    time_row = sorted((r for r in base_runs if r["level"] == top), key=lambda r: r["steps"])
+    d_k = [difference(a, b, measure) for a, b in zip(time_row[:-1], time_row[1:])]
     p_k = _order(d_k[-2], d_k[-1]) if len(d_k) >= 2 else 1.0
     self_error = d_h[-1] / (2 ** p_h - 1) + (d_k[-1] / (2 ** p_k - 1) if d_k else 0.0)
+    summary = {"set": reference["set"], "self_error": self_error,
+               "order_space": p_h, "order_time": p_k if d_k else None,
+               "difference_space": d_h[-1], "difference_time": d_k[-1] if d_k else None}
+    return reference, self_error, summary
+
+
+def _ladder_rows(done: list, reference: dict, self_error: float, measure: str) -> list:
+    """A row per run: its settings and times, and (if it ran) its difference to the
+    reference, its estimated error (difference + the reference's own error) and whether it
+    is on the Pareto front of (estimated error, wall time)."""
     ladder = []
     for r in done:
-        row_out = {k: r[k] for k in ("level", "mesh", "steps", "degree", "set", "wall_s")}
-        row_out["predicted_s"] = r.get("predicted_s")
+        row = {key: r[key] for key in ("level", "mesh", "steps", "degree", "set", "wall_s")}
+        row["predicted_s"] = r.get("predicted_s")
         if "failed" in r:
-            row_out.update(failed=r["failed"], pareto=False)
+            row.update(failed=r["failed"], pareto=False)
         else:
             diff = 0.0 if r is reference else difference(r, reference, measure)
-            row_out.update(unknowns=r["unknowns"], steps_s=r["steps_s"],
-                           newton_mean=r["newton_mean"], difference=diff,
-                           estimated_error=diff + self_error, reference=r is reference)
-        ladder.append(row_out)
+            row.update(unknowns=r["unknowns"], steps_s=r["steps_s"],
+                       newton_mean=r["newton_mean"], difference=diff,
+                       estimated_error=diff + self_error, reference=r is reference)
+        ladder.append(row)
     good = [r for r in ladder if "failed" not in r]
     for r in good:
         r["pareto"] = not any(o is not r and o["estimated_error"] <= r["estimated_error"]
                               and o["wall_s"] <= r["wall_s"] and
                               (o["estimated_error"] < r["estimated_error"]
                                or o["wall_s"] < r["wall_s"]) for o in good)
+    return ladder
+
+
+def _recommend(good: list, target: float, overrides: list) -> dict:
+    """{"recommended": the fastest run of `good` whose estimated error is <= target}, or
+    {"recommended": None, "not_reached": why}."""
     reaching = [r for r in good if r["estimated_error"] <= target]
-    result = {"scene": scene["name"], "source": str(source), "overrides": overrides,
-              "measure": measure, "measure_description": MEASURES[measure],
-              "target": target, "error_estimate": ESTIMATE,
-              "reference": {"set": reference["set"], "self_error": self_error,
-                            "order_space": p_h, "order_time": p_k if d_k else None,
-                            "difference_space": d_h[-1],
-                            "difference_time": d_k[-1] if d_k else None},
-              "ladder": ladder}
     if reaching:
         best = min(reaching, key=lambda r: r["wall_s"])
-        result["recommended"] = {"set": overrides + best["set"],
-                                 "estimated_error": best["estimated_error"],
-                                 "wall_s": best["wall_s"], "mesh": best["mesh"],
-                                 "steps": best["steps"], "degree": best["degree"]}
-    else:
-        smallest = min(good, key=lambda r: r["estimated_error"])
-        result["recommended"] = None
-        result["not_reached"] = (f"no run reached {target:g}: the smallest estimated error is "
-                                 f"{smallest['estimated_error']:.3g} (mesh "
-                                 f"x{smallest['mesh']:g}); add levels (--levels) or budget")
-    return result
+        return {"recommended": {"set": overrides + best["set"],
+                                "estimated_error": best["estimated_error"],
+                                "wall_s": best["wall_s"], "mesh": best["mesh"],
+                                "steps": best["steps"], "degree": best["degree"]}}
+    smallest = min(good, key=lambda r: r["estimated_error"])
+    return {"recommended": None,
+            "not_reached": (f"no run reached {target:g}: the smallest estimated error is "
+                            f"{smallest['estimated_error']:.3g} (mesh "
+                            f"x{smallest['mesh']:g}); add levels (--levels) or budget")}
 
 
 # --- files --------------------------------------------------------------------------------
@@ -390,7 +413,7 @@ def _toml_value(value) -> str:
     if isinstance(value, str):
         return json.dumps(value)         # a JSON string is a TOML basic string
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()
+        return "{" + ", ".join(f"{_toml_key(name)} = {_toml_value(v)}" for name, v in value.items()
                                if v is not None) + "}"
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
@@ -415,7 +438,7 @@ def dumps_toml(document: dict) -> str:
         for entry in ([value] if isinstance(value, dict) else value):
             lines += ["", f"[{_toml_key(key)}]" if isinstance(value, dict)
                       else f"[[{_toml_key(key)}]]"]
-            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in entry.items()
+            lines += [f"{_toml_key(name)} = {_toml_value(v)}" for name, v in entry.items()
                       if v is not None]
     return "\n".join(lines) + "\n"
 

@@ -93,8 +93,8 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
 
 def orders(errors: list[float], sizes: list[float]) -> list[float]:
     """Observed orders log(e_i / e_{i+1}) / log(h_i / h_{i+1})."""
-    return [math.log(a / b) / math.log(h / k)
-            for a, b, h, k in zip(errors, errors[1:], sizes, sizes[1:])]
+    return [math.log(coarse / fine) / math.log(h_coarse / h_fine)
+            for coarse, fine, h_coarse, h_fine in zip(errors, errors[1:], sizes, sizes[1:])]
 
 
 def hertz(overrides=(), comm=MPI.COMM_WORLD, scene=None) -> dict:

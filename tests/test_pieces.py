@@ -251,7 +251,7 @@ def _homogeneous_run(displacement, part):
                          for side in ("left", "right", "bottom", "top")],
            "time": {"T": 2.0, "steps": 4}, "output": {"probes": []}}
     problem = simulate(scene_module.resolve(raw), comm=MPI.COMM_WORLD, progress=False).problem
-    sigma = fem.Function(problem.T)
+    sigma = fem.Function(problem.tensor_space)
     sigma.interpolate(problem.sigma_expression)
     values = sigma.x.array.reshape(-1, 4)
     comm = problem.V.mesh.comm
