@@ -30,6 +30,12 @@ active nodes), built in place: only the rows of contact nodes change. After the 
 b_i = R_i^-1 Q_i^T (-F_u,i - (J du)_i - B_i a_i), a_i = D_i^+ (-G_i - C_i du_i). Newton's
 iterates are the coupled method's to round-off (the same converged answer and iteration count),
 while the linear algebra pays for the contact boundary only.
+
+The pieces: the node blocks are read from the assembled coupling blocks of the Jacobian
+(dF_u/dlambda, dG/du, dG/dlambda: matrices whose pattern holds the integrals over Gamma_C only)
+by node_blocks, which refuses a contact row with an entry outside its node's own columns;
+eliminate and recover are the formulas above, batched over nodes; replace_rows writes the
+condensed rows into J and refuses a pattern without the node's own columns.
 """
 from __future__ import annotations
 
@@ -155,10 +161,7 @@ def node_blocks(block, rows, columns):
     of `block` as one small matrix (all columns), whose local CSR arrays are read at once."""
     n, r = rows.shape
     width = columns.shape[1]
-    comm = block.getComm()
-    wanted = PETSc.IS().createGeneral(rows.ravel().astype(PETSc.IntType), comm=comm)
-    first, last = block.getOwnershipRangeColumn()
-    every = PETSc.IS().createStride(last - first, first=first, step=1, comm=comm)
+    wanted, every = row_selection(block, rows)
     part = block.createSubMatrix(wanted, every)
     indptr, indices, values = part.getValuesCSR()     # row k of part: rows.ravel()[k]
     for obj in (part, wanted, every):
@@ -178,6 +181,16 @@ def node_blocks(block, rows, columns):
     out = np.zeros((n * r, width))
     out[row[found], match[found].argmax(axis=1)] = values[found]
     return out.reshape(n, r, width)
+
+
+def row_selection(A, rows):
+    """Index sets that take the rows `rows` (owned, global indices) of A with all columns
+    out of A as a submatrix (A.createSubMatrix(*row_selection(A, rows))), whose local row k
+    is rows.ravel()[k] and whose columns keep A's global numbering."""
+    comm = A.getComm()
+    wanted = PETSc.IS().createGeneral(np.asarray(rows, dtype=PETSc.IntType).ravel(), comm=comm)
+    first, last = A.getOwnershipRangeColumn()
+    return wanted, PETSc.IS().createStride(last - first, first=first, step=1, comm=comm)
 
 
 def node_indices(space, nodes):
@@ -248,10 +261,7 @@ class NodalCondensation:
         self.A = create_matrix(self.J_uu)
         self._assemble_J()
         self.scale = diagonal_scale(self.A, self.own, d)
-        comm = self.A.getComm()
-        self._contact_rows = PETSc.IS().createGeneral(self.rows.ravel(), comm=comm)
-        cstart, cend = self.A.getOwnershipRangeColumn()
-        self._columns = PETSc.IS().createStride(cend - cstart, first=cstart, step=1, comm=comm)
+        self._contact_rows, self._columns = row_selection(self.A, self.rows)
         self.J_contact = self.A.createSubMatrix(self._contact_rows, self._columns)
         self._Jdu = self.J_contact.createVecLeft()
         self.J_red = self.A
