@@ -6,9 +6,19 @@ timed REPEAT times (after one warm-up evaluation) and the median and quartiles a
 with the Newton counts per step of the shipped paper scene (32 x 32, 10 steps).
 
     python benchmarks/condensation_cost.py [--label NAME] [--repeat N] [--cells N]
+    python benchmarks/condensation_cost.py --compare OTHER_CHECKOUT [--rounds R]
+
+--compare times another checkout of the package (the folder holding its `contactvisco`)
+against this one on 1 rank, in alternating fresh processes (R rounds each), so that a change in
+the machine's load affects both alike; it writes results/condensation_cost_compare.md.
 """
 import argparse
+import json
+import os
+import pathlib
 import statistics
+import subprocess
+import sys
 import time
 
 from mpi4py import MPI
@@ -49,20 +59,57 @@ def newton_counts(comm) -> list[int]:
     return [s["newton_iterations"] for s in simulate(scene, comm=comm, progress=False).steps]
 
 
+def measure(cells: int, repeat: int, comm) -> dict:
+    times = evaluation_times(cells, repeat, comm)
+    quartiles = statistics.quantiles(times, n=4)
+    return {"cells": cells, "ranks": comm.size, "repeat": repeat,
+            "median_s": statistics.median(times), "q1_s": quartiles[0], "q3_s": quartiles[2],
+            "newton_per_step": newton_counts(comm)}
+
+
+def compare(other: str, rounds: int, cells: int, repeat: int):
+    """Alternating runs of `other`'s package (before) and this checkout's (after)."""
+    here = str(pathlib.Path(__file__).resolve().parents[1])
+    rows = {"before": [], "after": []}
+    for _ in range(rounds):
+        for label, path in (("before", other), ("after", here)):
+            env = dict(os.environ, PYTHONPATH=path)
+            proc = subprocess.run([sys.executable, __file__, "--json", "--cells", str(cells),
+                                   "--repeat", str(repeat)], env=env, capture_output=True,
+                                  text=True, check=True, timeout=600)
+            rows[label].append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    lines = ["| code | medians per round (ms) | median of rounds (ms) | paper Newton counts |",
+             "|---|---|---|---|"]
+    for label, runs in rows.items():
+        medians = [1e3 * r["median_s"] for r in runs]
+        lines.append(f"| {label} | {' '.join(f'{m:.1f}' for m in medians)} | "
+                     f"{statistics.median(medians):.1f} | "
+                     f"{' '.join(map(str, runs[-1]['newton_per_step']))} |")
+    load = os.getloadavg()
+    lines.append(f"\n{cells}^2 cells, 1 rank, {repeat} evaluations per round; load average "
+                 f"after the runs {load[0]:.1f} (1 min), {load[1]:.1f} (5 min).")
+    write_results("condensation_cost_compare", rows, lines)
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--label", default="condensation_cost")
     parser.add_argument("--repeat", type=int, default=20)
     parser.add_argument("--cells", type=int, default=128)
+    parser.add_argument("--compare", default=None)
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    times = evaluation_times(args.cells, args.repeat, comm)
-    counts = newton_counts(comm)
-    quartiles = statistics.quantiles(times, n=4)
-    row = {"cells": args.cells, "ranks": comm.size, "repeat": args.repeat,
-           "median_s": statistics.median(times), "q1_s": quartiles[0], "q3_s": quartiles[2],
-           "newton_per_step": counts}
-    if comm.rank == 0:
+    if args.compare:
+        compare(args.compare, args.rounds, args.cells, args.repeat)
+        return
+    row = measure(args.cells, args.repeat, comm)
+    counts = row["newton_per_step"]
+    if args.json:
+        if comm.rank == 0:
+            print(json.dumps(row))
+    elif comm.rank == 0:
         write_results(args.label, [row], [
             "| cells | ranks | residual + Jacobian, median (s) | quartiles (s) | "
             "paper Newton counts |",
