@@ -149,16 +149,17 @@ def _node_rows(A, rows):
     return columns.astype(PETSc.IntType), values
 
 
-def node_blocks(block, rows, columns):
+def node_blocks(block, rows, columns, name="a contact block"):
     """The node blocks of an assembled matrix: out[i] = block[rows[i], columns[i]], (n, r, c).
 
     rows (n, r): global indices of the node's rows, owned by this rank; columns (n, c): global
     indices of the node's columns. The node-wise elimination holds only if each of these rows
     couples the node's own unknowns alone (the vertex rule on Gamma_C): a non-zero entry of
-    rows[i] in a column outside columns[i] raises ValueError naming the row and the column,
-    rather than being dropped. Entries stored in the pattern with the value zero (a facet
-    integral's pattern holds the whole cell) are allowed. Collective: the rows are taken out
-    of `block` as one small matrix (all columns), whose local CSR arrays are read at once."""
+    rows[i] in a column outside columns[i] raises ValueError on every rank, naming the block
+    (`name`), the row and the column, rather than being dropped. Entries stored in the pattern
+    with the value zero (a facet integral's pattern holds the whole cell) are allowed.
+    Collective: the rows are taken out of `block` as one small matrix (all columns), whose
+    local CSR arrays are read at once."""
     n, r = rows.shape
     width = columns.shape[1]
     wanted, every = row_selection(block, rows)
@@ -166,18 +167,23 @@ def node_blocks(block, rows, columns):
     indptr, indices, values = part.getValuesCSR()     # row k of part: rows.ravel()[k]
     for obj in (part, wanted, every):
         obj.destroy()
-    counts = np.diff(indptr)
-    row = np.repeat(np.arange(n * r), counts)           # flat (node, row of the node)
+    row = np.repeat(np.arange(n * r), np.diff(indptr))  # flat (node, row of the node)
     match = indices[:, None] == columns[row // r]
     found = match.any(axis=1)
     stray = np.flatnonzero(~found & (values != 0))
+    problem = None
     if stray.size:
         k = stray[0]
-        raise ValueError(
-            f"row {int(rows.ravel()[row[k]])} of a contact node holds {values[k]:.3g} in column "
-            f"{int(indices[k])}, outside the node's own columns {columns[row[k] // r].tolist()}: "
-            "the node-wise elimination needs contact rows that couple each node's own unknowns "
-            "only (the vertex rule: discretization.contact_quadrature = 'nodal', degree 1)")
+        problem = (
+            f"{name}: row {int(rows.ravel()[row[k]])} of a contact node holds {values[k]:.3g} "
+            f"in column {int(indices[k])}, outside the node's own columns "
+            f"{columns[row[k] // r].tolist()}; the node-wise elimination needs contact rows "
+            "that couple each node's own unknowns only (the vertex rule: "
+            "discretization.contact_quadrature = 'nodal', degree 1)")
+    # Every rank raises, so that no rank waits in the next collective call.
+    problems = [p for p in block.getComm().tompi4py().allgather(problem) if p]
+    if problems:
+        raise ValueError(problems[0])
     out = np.zeros((n * r, width))
     out[row[found], match[found].argmax(axis=1)] = values[found]
     return out.reshape(n, r, width)
@@ -292,12 +298,14 @@ class NodalCondensation:
         n, d = len(self.own), self.d
         start = np.concatenate([[0], d + self.offsets]).astype(int)    # of u, lambda_a
         K = np.zeros((n, d + self.m, d + self.m))      # [[., B], [C, D]] of each node
+        names = [self.problem.u.name] + [f.name for f in self.fields]
         for (i, j), (form, matrix) in self.couplings.items():
             matrix.zeroEntries()
             compat.assemble_matrix(matrix, form, [], diagonal=1.0)
             matrix.assemble()
             K[:, start[i]:start[i + 1], start[j]:start[j + 1]] = node_blocks(
-                matrix, self.indices[i], self.indices[j])
+                matrix, self.indices[i], self.indices[j],
+                f"the Jacobian block (rows of {names[i]}, columns of {names[j]})")
         B, C, D = K[:, :d, d:].copy(), K[:, d:, :d].copy(), K[:, d:, d:].copy()
         # Dirichlet rows of u carry no multiplier; fixed multipliers are decoupled (dl = 0).
         B[self.fixed_u] = 0.0

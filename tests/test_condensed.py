@@ -161,19 +161,18 @@ def test_node_blocks_are_the_coupled_jacobian(label):
 def _synthetic(comm, stray):
     """An MPI matrix with 4 rows per rank: two nodes of 2 rows each, whose columns are the
     first 4 columns of the next rank (so global, off-rank columns are read). Node 0's rows
-    also store an explicit zero in node 1's columns (allowed); with `stray`, the last row
-    gets a non-zero in node 0's columns. Returns (matrix, rows, columns, expected blocks)."""
+    also store an explicit zero in node 1's columns (allowed); with `stray`, rank 0's last
+    row gets a non-zero in its node 0's columns. Returns (matrix, rows, columns, blocks)."""
     size = 4 * comm.size
-    first = 4 * comm.rank
     base = 4 * ((comm.rank + 1) % comm.size)
     A = PETSc.Mat().createAIJ(((4, size), (4, size)), nnz=(4, 4), comm=comm)
-    rows = first + np.arange(4, dtype=PETSc.IntType).reshape(2, 2)
+    rows = 4 * comm.rank + np.arange(4, dtype=PETSc.IntType).reshape(2, 2)
     columns = base + np.arange(4, dtype=PETSc.IntType).reshape(2, 2)
     expected = 10.0 * comm.rank + 1.0 + np.arange(8.0).reshape(2, 2, 2)
     for i in range(2):
         A.setValues(rows[i], columns[i], expected[i])
     A.setValues(rows[0], columns[1], np.zeros((2, 2)))
-    if stray:
+    if stray and comm.rank == 0:
         A.setValues([rows[1, 1]], [columns[0, 0]], [3.5])
     A.assemble()
     return A, rows, columns, expected
@@ -181,17 +180,29 @@ def _synthetic(comm, stray):
 
 def test_node_blocks_refuse_a_row_outside_the_vertex_rule():
     """node_blocks reads each node's block (columns on another rank included) and ignores
-    stored zeros; a non-zero entry of a node's row in another node's column raises, naming
-    that row and column."""
+    stored zeros; a non-zero entry of a node's row in another node's column (on rank 0 only)
+    raises on every rank, naming the block, that row and that column."""
     comm = MPI.COMM_WORLD
     A, rows, columns, expected = _synthetic(comm, stray=False)
     assert np.array_equal(node_blocks(A, rows, columns), expected)
     A.destroy()
     A, rows, columns, _ = _synthetic(comm, stray=True)
-    with pytest.raises(ValueError, match=rf"row {rows[1, 1]} of a contact node holds 3.5 in "
-                                         rf"column {columns[0, 0]}, outside"):
-        node_blocks(A, rows, columns)
+    row, column = comm.bcast((int(rows[1, 1]), int(columns[0, 0])), root=0)
+    with pytest.raises(ValueError, match=rf"^B block: row {row} of a contact node holds 3.5 "
+                                         rf"in column {column}, outside"):
+        node_blocks(A, rows, columns, "B block")
     A.destroy()
+
+
+def test_gauss_contact_rows_are_refused():
+    """With Gauss quadrature on Gamma_C a contact row couples the neighbouring nodes: reading
+    the node blocks of that real scene raises on every rank, naming a Jacobian block."""
+    scene = scene_module.load("paper", ["geometry.cells=[4, 4]",
+                                        "discretization.contact_quadrature='gauss'"])
+    problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
+    with pytest.raises(ValueError, match=r"^the Jacobian block \(rows of .*, columns of .*\): "
+                                         r"row \d+ of a contact node holds .* outside"):
+        NodalCondensation(problem).local_blocks()
 
 
 SCENES = {
