@@ -86,7 +86,8 @@ def compare(other: str, rounds: int, cells: int, repeat: int):
                      f"{statistics.median(medians):.1f} | "
                      f"{' '.join(map(str, runs[-1]['newton_per_step']))} |")
     load = os.getloadavg()
-    lines.append(f"\n{cells}^2 cells, 1 rank, {repeat} evaluations per round; load average "
+    lines.append(f"\nbefore: the package given with --compare; after: this checkout. "
+                 f"{cells}^2 cells, 1 rank, {repeat} evaluations per round; load average "
                  f"after the runs {load[0]:.1f} (1 min), {load[1]:.1f} (5 min).")
     write_results("condensation_cost_compare", rows, lines)
 
