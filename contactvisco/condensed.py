@@ -171,19 +171,19 @@ def node_blocks(block, rows, columns, name="a contact block"):
     match = indices[:, None] == columns[row // r]
     found = match.any(axis=1)
     stray = np.flatnonzero(~found & (values != 0))
-    problem = None
+    message = None
     if stray.size:
         k = stray[0]
-        problem = (
+        message = (
             f"{name}: row {int(rows.ravel()[row[k]])} of a contact node holds {values[k]:.3g} "
             f"in column {int(indices[k])}, outside the node's own columns "
             f"{columns[row[k] // r].tolist()}; the node-wise elimination needs contact rows "
             "that couple each node's own unknowns only (the vertex rule: "
             "discretization.contact_quadrature = 'nodal', degree 1)")
     # Every rank raises, so that no rank waits in the next collective call.
-    problems = [p for p in block.getComm().tompi4py().allgather(problem) if p]
-    if problems:
-        raise ValueError(problems[0])
+    messages = [m for m in block.getComm().tompi4py().allgather(message) if m]
+    if messages:
+        raise ValueError(messages[0])
     out = np.zeros((n * r, width))
     out[row[found], match[found].argmax(axis=1)] = values[found]
     return out.reshape(n, r, width)
