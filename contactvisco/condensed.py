@@ -30,11 +30,16 @@ active nodes), built in place: only the rows of contact nodes change. After the 
 b_i = R_i^-1 Q_i^T (-F_u,i - (J du)_i - B_i a_i), a_i = D_i^+ (-G_i - C_i du_i). Newton's
 iterates are the coupled method's to round-off (the same converged answer and iteration count),
 while the linear algebra pays for the contact boundary only.
+
+The pieces: the node blocks are read from the assembled coupling blocks of the Jacobian
+(dF_u/dlambda, dG/du, dG/dlambda: matrices whose pattern holds the integrals over Gamma_C only)
+by node_blocks, which refuses a contact row with an entry outside its node's own columns;
+eliminate and recover are the formulas above, batched over nodes; replace_rows writes the
+condensed rows into J and refuses a pattern without the node's own columns.
 """
 from __future__ import annotations
 
 import numpy as np
-import ufl
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector, create_matrix
 from mpi4py import MPI
@@ -144,24 +149,83 @@ def _node_rows(A, rows):
     return columns.astype(PETSc.IntType), values
 
 
-def block_actions(J, e_u, e):
-    """The forms whose assembled vectors, read at contact node i, give the node blocks for
-    the unit fields e_u (of u) and e[a] (of multiplier a):
+def node_blocks(block, rows, columns, name="a contact block"):
+    """The node blocks of an assembled matrix: out[i] = block[rows[i], columns[i]], (n, r, c).
 
-        B form:        sum_a J[0][1 + a] e[a]                     (rows of u),
-        row form b:    J[1 + b][0] e_u + sum_a J[1 + b][1 + a] e[a]  (rows of multiplier b).
+    rows (n, r): global indices of the node's rows, owned by this rank; columns (n, c): global
+    indices of the node's columns. The node-wise elimination holds only if each of these rows
+    couples the node's own unknowns alone (the vertex rule on Gamma_C): a non-zero entry of
+    rows[i] in a column outside columns[i] raises ValueError on every rank, naming the block
+    (`name`), the row and the column, rather than being dropped. Entries stored in the pattern
+    with the value zero (a facet integral's pattern holds the whole cell) are allowed.
+    Collective: the rows are taken out of `block` as one small matrix (all columns), whose
+    local CSR arrays are read at once."""
+    n, r = rows.shape
+    width = columns.shape[1]
+    wanted, every = row_selection(block, rows)
+    part = block.createSubMatrix(wanted, every)
+    indptr, indices, values = part.getValuesCSR()     # row k of part: rows.ravel()[k]
+    for obj in (part, wanted, every):
+        obj.destroy()
+    row = np.repeat(np.arange(n * r), np.diff(indptr))  # flat (node, row of the node)
+    match = indices[:, None] == columns[row // r]
+    found = match.any(axis=1)
+    stray = np.flatnonzero(~found & (values != 0))
+    message = None
+    if stray.size:
+        k = stray[0]
+        message = (
+            f"{name}: row {int(rows.ravel()[row[k]])} of a contact node holds {values[k]:.3g} "
+            f"in column {int(indices[k])}, outside the node's own columns "
+            f"{columns[row[k] // r].tolist()}; the node-wise elimination needs contact rows "
+            "that couple each node's own unknowns only (the vertex rule: "
+            "discretization.contact_quadrature = 'nodal', degree 1)")
+    # Every rank raises, so that no rank waits in the next collective call.
+    messages = [m for m in block.getComm().tompi4py().allgather(message) if m]
+    if messages:
+        raise ValueError(messages[0])
+    out = np.zeros((n * r, width))
+    out[row[found], match[found].argmax(axis=1)] = values[found]
+    return out.reshape(n, r, width)
 
-    J is the block Jacobian (None for empty blocks). Returns (B form or None, [row forms])."""
-    count = len(e)
-    terms = [ufl.action(J[0][1 + a], e[a]) for a in range(count) if J[0][1 + a] is not None]
-    B_form = fem.form(sum(terms[1:], terms[0])) if terms else None
-    row_forms = []
-    for b in range(count):
-        terms = [ufl.action(J[1 + b][0], e_u)] if J[1 + b][0] is not None else []
-        terms += [ufl.action(J[1 + b][1 + a], e[a]) for a in range(count)
-                  if J[1 + b][1 + a] is not None]
-        row_forms.append(fem.form(sum(terms[1:], terms[0])))
-    return B_form, row_forms
+
+def row_selection(A, rows):
+    """Index sets that take the rows `rows` (owned, global indices) of A with all columns
+    out of A as a submatrix (A.createSubMatrix(*row_selection(A, rows))), whose local row k
+    is rows.ravel()[k] and whose columns keep A's global numbering."""
+    comm = A.getComm()
+    wanted = PETSc.IS().createGeneral(np.asarray(rows, dtype=PETSc.IntType).ravel(), comm=comm)
+    first, last = A.getOwnershipRangeColumn()
+    return wanted, PETSc.IS().createStride(last - first, first=first, step=1, comm=comm)
+
+
+def node_indices(space, nodes):
+    """Global indices (n, bs) of the components of the local nodes `nodes` of a P1 space."""
+    bs = space.dofmap.index_map_bs
+    start = space.dofmap.index_map.local_range[0]
+    return ((start + nodes[:, None]) * bs + np.arange(bs)).astype(PETSc.IntType)
+
+
+def coupling_blocks(J):
+    """The blocks of the block Jacobian J (J[i][j] = dF_i/dw_j, w = (u, multipliers...))
+    that the node blocks come from: every (i, j) but (0, 0) with a form, as
+    {(i, j): (form, matrix)}; each matrix's pattern holds the integrals over Gamma_C only."""
+    blocks = {}
+    for i, row in enumerate(J):
+        for j, a in enumerate(row):
+            if (i, j) != (0, 0) and a is not None:
+                form = fem.form(a)
+                blocks[(i, j)] = (form, create_matrix(form))
+    return blocks
+
+
+def diagonal_scale(A, nodes, d):
+    """s_i: the mean |diagonal| of A on the d rows of each local node in `nodes`; where it
+    is zero, the mean over all nodes of all ranks (or 1). Collective."""
+    scale = np.abs(A.getDiagonal().array.reshape(-1, d)).mean(axis=1)
+    comm = A.getComm().tompi4py()
+    typical = comm.allreduce(float(scale.mean()) if scale.size else 0.0, MPI.SUM) / comm.size
+    return np.where(scale[nodes] > 0, scale[nodes], typical or 1.0)
 
 
 class NodalCondensation:
@@ -170,8 +234,7 @@ class NodalCondensation:
 
     def __init__(self, problem):
         self.problem = problem
-        V = problem.V
-        self.V = V
+        self.V = V = problem.V
         self.d = d = V.dofmap.index_map_bs
         self.fields = [f for f in (problem.lambda_nu, problem.lambda_tau) if f is not None]
         self.bs = [f.function_space.dofmap.index_map_bs for f in self.fields]
@@ -186,39 +249,25 @@ class NodalCondensation:
         self.F_u = fem.form(problem.F[0])
         self.J_uu = fem.form(problem.J[0][0])
         self.G = [fem.form(problem.F[1 + a]) for a in range(len(self.fields))]
-
-        # Unit fields: the action of a Jacobian block on a unit field, read at node i, is
-        # column j of that block's node-i part (every other node's entry is zero in the
-        # vertex rule).
-        self.e_u = fem.Function(V)
-        self.e = [fem.Function(f.function_space) for f in self.fields]
-        self.B_form, self.row_forms = block_actions(problem.J, self.e_u, self.e)
-        self.B_vec = compat.form_vector(self.B_form) if self.B_form is not None else None
-        self.row_vecs = [compat.form_vector(f) for f in self.row_forms]
         self.G_vecs = [compat.form_vector(f) for f in self.G]
+        # The blocks coupling u_i and lambda_i, read node by node (node_blocks); per unknown
+        # (u, then each multiplier) the global indices of the owned contact nodes' components.
+        self.couplings = coupling_blocks(problem.J)
+        self.indices = [node_indices(space, self.own)
+                        for space in [V] + [f.function_space for f in self.fields]]
+        self.rows = self.indices[0]
 
         self.free = np.concatenate([mask[self.own] for mask in problem.multiplier_free], axis=1)
         self.fixed_u = problem.u_fixed[self.own] > 0
         self.d_scale = nodes.weights[nodes.owned] / problem.constants["r"].value
-
-        # Global row indices of u_i for the owned contact nodes.
-        start = V.dofmap.index_map.local_range[0] * d
-        self.rows = (start + self.own[:, None] * d + np.arange(d)).astype(PETSc.IntType)
 
         # One matrix of u's size: J is assembled into it and its contact rows are then
         # overwritten by the condensed ones (J_red); the original contact rows are kept in the
         # small matrix self.J_contact for the multiplier update.
         self.A = create_matrix(self.J_uu)
         self._assemble_J()
-        diagonal = self.A.getDiagonal()
-        scale = np.abs(diagonal.array.reshape(-1, d)).mean(axis=1)
-        typical = V.mesh.comm.allreduce(float(scale.mean()) if scale.size else 0.0,
-                                        MPI.SUM) / V.mesh.comm.size
-        self.scale = np.where(scale[self.own] > 0, scale[self.own], typical or 1.0)
-        comm = self.A.getComm()
-        self._contact_rows = PETSc.IS().createGeneral(self.rows.ravel(), comm=comm)
-        cstart, cend = self.A.getOwnershipRangeColumn()
-        self._columns = PETSc.IS().createStride(cend - cstart, first=cstart, step=1, comm=comm)
+        self.scale = diagonal_scale(self.A, self.own, d)
+        self._contact_rows, self._columns = row_selection(self.A, self.rows)
         self.J_contact = self.A.createSubMatrix(self._contact_rows, self._columns)
         self._Jdu = self.J_contact.createVecLeft()
         self.J_red = self.A
@@ -242,31 +291,22 @@ class NodalCondensation:
     def local_blocks(self):
         """The node blocks at the current iterate (the Functions of the Problem):
         B (n, d, m) = dF_u,i/dlambda_i, C (n, m, d) = dG_i/du_i, D (n, m, m) = dG_i/dlambda_i
-        at the n owned contact nodes, m multiplier components per node (lambda_nu first).
-        Column j of a block at node i is the block's action on the unit field of component j,
-        read at node i: the vertex rule couples u_i and lambda_i only, so one assembly per
-        component gives every node's column at once (d + m assemblies). Rows and columns of
-        prescribed components are decoupled: B, C zero there and D the identity (dl = 0)."""
-        n, d, m = len(self.own), self.d, self.m
-        B, C, D = np.zeros((n, d, m)), np.zeros((n, m, d)), np.zeros((n, m, m))
-        directions = [(None, c) for c in range(d)] + \
-            [(a, j) for a in range(len(self.fields)) for j in range(self.bs[a])]
-        for field, j in directions:
-            for e in [self.e_u] + self.e:
-                e.x.array[:] = 0.0
-            unit = self.e_u if field is None else self.e[field]
-            unit.x.array.reshape(-1, unit.function_space.dofmap.index_map_bs)[:, j] = 1.0
-            for b, (form, vec) in enumerate(zip(self.row_forms, self.row_vecs)):
-                self._assemble_vector(vec, form)
-                rows = slice(self.offsets[b], self.offsets[b + 1])
-                values = self._node_values(vec, self.bs[b])
-                if field is None:
-                    C[:, rows, j] = values
-                else:
-                    D[:, rows, self.offsets[field] + j] = values
-            if field is not None and self.B_form is not None:
-                self._assemble_vector(self.B_vec, self.B_form)
-                B[:, :, self.offsets[field] + j] = self._node_values(self.B_vec, d)
+        at the n owned contact nodes, m multiplier components per node (lambda_nu first),
+        read from the assembled coupling blocks of J (node_blocks, which checks that no row
+        couples other unknowns). Rows and columns of prescribed components are decoupled:
+        B, C zero there and D the identity (dl = 0)."""
+        n, d = len(self.own), self.d
+        start = np.concatenate([[0], d + self.offsets]).astype(int)    # of u, lambda_a
+        K = np.zeros((n, d + self.m, d + self.m))      # [[., B], [C, D]] of each node
+        names = [self.problem.u.name] + [f.name for f in self.fields]
+        for (i, j), (form, matrix) in self.couplings.items():
+            matrix.zeroEntries()
+            compat.assemble_matrix(matrix, form, [], diagonal=1.0)
+            matrix.assemble()
+            K[:, start[i]:start[i + 1], start[j]:start[j + 1]] = node_blocks(
+                matrix, self.indices[i], self.indices[j],
+                f"the Jacobian block (rows of {names[i]}, columns of {names[j]})")
+        B, C, D = K[:, :d, d:].copy(), K[:, d:, :d].copy(), K[:, d:, d:].copy()
         # Dirichlet rows of u carry no multiplier; fixed multipliers are decoupled (dl = 0).
         B[self.fixed_u] = 0.0
         B *= self.free[:, None, :]

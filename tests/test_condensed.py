@@ -3,15 +3,19 @@
 The node-wise elimination of the multipliers must be exact: the same linear-system solution as
 the coupled saddle point, hence the same Newton iterates, iteration counts and converged answer
 to round-off, on 1 and 2 ranks; and the iterative solver must reach the direct solver's answer
-with a Krylov count that does not grow with the mesh.
+with a Krylov count that does not grow with the mesh. The node blocks the elimination starts
+from are the entries of the assembled coupled Jacobian, and reading them refuses a contact row
+that couples unknowns of other nodes.
 """
 import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import geometry, problem as problem_module, scene as scene_module
+from petsc4py import PETSc
+
+from contactvisco import compat, geometry, problem as problem_module, scene as scene_module
 from contactvisco import solver as solver_module
-from contactvisco.condensed import eliminate, recover
+from contactvisco.condensed import NodalCondensation, eliminate, node_blocks, recover
 from contactvisco.run import simulate
 
 
@@ -84,6 +88,121 @@ def test_constraint_rows_have_positive_diagonal():
     assert parts["nullity"][0] == 2
     assert np.allclose(parts["L"][0], np.diag([7.0, 7.0, 0.0]), atol=1e-12)
     assert np.allclose(parts["P"][0], np.diag([0.0, 0.0, 1.0]), atol=1e-12)
+
+
+def _coupled_node_blocks(system, bcs):
+    """Per owned contact node, the (d + m) x (d + m) block of the coupled Jacobian [[J, B],
+    [C, D]] on the node's own unknowns, assembled with the coupled system's Dirichlet rows
+    and columns (diagonal 1), as the coupled Newton method solves it; from the forms the
+    system compiled (J_uu and the coupling blocks), so no form is compiled twice."""
+    count = 1 + len(system.fields)
+    forms = [[None] * count for _ in range(count)]
+    forms[0][0] = system.J_uu
+    for (i, j), (form, _) in system.couplings.items():
+        forms[i][j] = form
+    A = compat.block_matrix(forms)
+    # Multiplier dofs off Gamma_C have no diagonal in the ds blocks' pattern: their Dirichlet
+    # rows get one here (the coupled solver adds a zero dx mass term for it).
+    A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    A.zeroEntries()
+    compat.assemble_block_matrix(A, forms, bcs, diagonal=1.0)
+    A.assemble()
+    # Blocked layout: on each rank the owned dofs of u, then of each multiplier.
+    spaces = [system.V] + [f.function_space for f in system.fields]
+    sizes = [V.dofmap.index_map.size_local * V.dofmap.index_map_bs for V in spaces]
+    start = A.getOwnershipRange()[0] + np.concatenate([[0], np.cumsum(sizes)])
+    index = np.concatenate([start[k] + (system.own[:, None] * V.dofmap.index_map_bs
+                                        + np.arange(V.dofmap.index_map_bs))
+                            for k, V in enumerate(spaces)], axis=1).astype(PETSc.IntType)
+    n, size = index.shape
+    dense = A.getValues(index.ravel(), index.ravel()).reshape(n, size, n, size)
+    A.destroy()
+    return np.einsum("iaib->iab", dense)
+
+
+NODE_BLOCK_SCENES = {     # states with bound, sticking and prescribed contact nodes
+    "paper bound + stick": ("paper", ["geometry.cells=[16, 16]", "time.T=0.2", "time.steps=2",
+                                      "contact.mu=3.0"], {1, 2}),
+    "3D bound + stick": ("block3d", ["geometry.parameters.h=0.25", "time.T=0.4",
+                                     "time.steps=2"], {1, 3}),
+}
+
+
+@pytest.mark.parametrize("label", list(NODE_BLOCK_SCENES))
+def test_node_blocks_are_the_coupled_jacobian(label):
+    """B_i, C_i, D_i read from the assembled coupling blocks equal the entries of the coupled
+    Jacobian on node i's unknowns, with its Dirichlet rows and columns: B zero on prescribed
+    u rows and multiplier columns, D the identity on prescribed multipliers. C keeps its
+    columns of prescribed u components (the coupled matrix zeroes them; du is zero there),
+    so those are left out. The named null-space sizes must occur (the blocks are not
+    trivially zero)."""
+    name, sets, nullities = NODE_BLOCK_SCENES[label]
+    comm = MPI.COMM_WORLD
+    scene = scene_module.load(name, sets)
+    scene["output"]["probes"] = []
+    problem = simulate(scene, comm=comm, progress=False).problem
+    system = NodalCondensation(problem)
+    x = compat.petsc_vector(problem.u).copy()
+    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    system.residual(x, x.duplicate())
+    B, C, D = system.local_blocks()
+    K = _coupled_node_blocks(system, problem.bcs)
+    d = system.d
+    free_u = ~system.fixed_u[:, None, :]
+    scale = comm.allreduce(np.max(np.abs(K[:, d:, :]), initial=0.0), MPI.MAX)
+    for got, expected in ((B, K[:, :d, d:]), (C * free_u, K[:, d:, :d] * free_u),
+                          (D, K[:, d:, d:])):
+        error = comm.allreduce(np.max(np.abs(got - expected), initial=0.0), MPI.MAX)
+        assert error <= 1e-12 * scale, (error, scale)
+    seen = set().union(*comm.allgather(set(system.parts["nullity"].tolist())))
+    assert nullities <= seen, seen
+
+
+def _synthetic(comm, stray):
+    """An MPI matrix with 4 rows per rank: two nodes of 2 rows each, whose columns are the
+    first 4 columns of the next rank (so global, off-rank columns are read). Node 0's rows
+    also store an explicit zero in node 1's columns (allowed); with `stray`, rank 0's last
+    row gets a non-zero in its node 0's columns. Returns (matrix, rows, columns, blocks)."""
+    size = 4 * comm.size
+    base = 4 * ((comm.rank + 1) % comm.size)
+    A = PETSc.Mat().createAIJ(((4, size), (4, size)), nnz=(4, 4), comm=comm)
+    rows = 4 * comm.rank + np.arange(4, dtype=PETSc.IntType).reshape(2, 2)
+    columns = base + np.arange(4, dtype=PETSc.IntType).reshape(2, 2)
+    expected = 10.0 * comm.rank + 1.0 + np.arange(8.0).reshape(2, 2, 2)
+    for i in range(2):
+        A.setValues(rows[i], columns[i], expected[i])
+    A.setValues(rows[0], columns[1], np.zeros((2, 2)))
+    if stray and comm.rank == 0:
+        A.setValues([rows[1, 1]], [columns[0, 0]], [3.5])
+    A.assemble()
+    return A, rows, columns, expected
+
+
+def test_node_blocks_refuse_a_row_outside_the_vertex_rule():
+    """node_blocks reads each node's block (columns on another rank included) and ignores
+    stored zeros; a non-zero entry of a node's row in another node's column (on rank 0 only)
+    raises on every rank, naming the block, that row and that column."""
+    comm = MPI.COMM_WORLD
+    A, rows, columns, expected = _synthetic(comm, stray=False)
+    assert np.array_equal(node_blocks(A, rows, columns), expected)
+    A.destroy()
+    A, rows, columns, _ = _synthetic(comm, stray=True)
+    row, column = comm.bcast((int(rows[1, 1]), int(columns[0, 0])), root=0)
+    with pytest.raises(ValueError, match=rf"^B block: row {row} of a contact node holds 3.5 "
+                                         rf"in column {column}, outside"):
+        node_blocks(A, rows, columns, "B block")
+    A.destroy()
+
+
+def test_gauss_contact_rows_are_refused():
+    """With Gauss quadrature on Gamma_C a contact row couples the neighbouring nodes: reading
+    the node blocks of that real scene raises on every rank, naming a Jacobian block."""
+    scene = scene_module.load("paper", ["geometry.cells=[4, 4]",
+                                        "discretization.contact_quadrature='gauss'"])
+    problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
+    with pytest.raises(ValueError, match=r"^the Jacobian block \(rows of .*, columns of .*\): "
+                                         r"row \d+ of a contact node holds .* outside"):
+        NodalCondensation(problem).local_blocks()
 
 
 SCENES = {
