@@ -80,6 +80,31 @@ def cell_dofs(dofmap) -> np.ndarray:
     return layout.array.reshape(-1, dofmap.dof_layout.num_dofs)
 
 
+# ------------------------------------------------------------------ coordinate element
+
+def settle_coordinate_element(mesh) -> None:
+    """Give the mesh's UFL coordinate element the point variant FFCx would give it.
+
+    FFCx 0.5 sets the variant of a mesh's Lagrange coordinate element to "equispaced" the
+    first time it compiles a form on that mesh (ffcx/analysis.py), in place. That changes the
+    repr, hence the hash, of every Argument made afterwards: a form that holds a test function
+    made before the first compilation and one made after fails UFL's check ("Found different
+    Arguments with same number and part"), but only when FFCx compiles it, i.e. when the JIT
+    cache misses. Setting the variant before any form is made keeps every Argument alike.
+    Meshes whose coordinate element has a variant already (gmsh meshes, basix elements of
+    later versions) are left as they are.
+    """
+    domain = mesh.ufl_domain()
+    element = getattr(domain, "_ufl_coordinate_element", None)
+    sub = getattr(element, "_sub_element", None)
+    if sub is None or getattr(sub, "_variant", "set") is not None:
+        return
+    import ufl
+    scalar = ufl.FiniteElement(element.family(), element.cell(), element.degree(),
+                               element.quadrature_scheme(), variant="equispaced")
+    domain._ufl_coordinate_element = ufl.VectorElement(scalar)
+
+
 # ------------------------------------------------------------------ UFL traversal caches
 
 def release_dispatch_caches():

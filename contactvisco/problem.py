@@ -233,6 +233,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     memory part (eq 19), the external loads, the Dirichlet conditions, and the contact part
     (eqs 20-21) with its multipliers, residual blocks F and Jacobian blocks J."""
     mesh = geometry.mesh
+    compat.settle_coordinate_element(mesh)
     d = mesh.geometry.dim
     degree = scene["discretization"]["degree"]
     context = Context(mesh)
