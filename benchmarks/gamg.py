@@ -160,7 +160,38 @@ def main():
             rows.append(row)
             RESULTS.mkdir(exist_ok=True)
             path.write_text(json.dumps(rows, indent=1))
-    write_results(args.out, rows, table(rows))
+    write_results(args.out, rows, summary(rows) + [""] + table(rows))
+
+
+def _name(variant):
+    return {"direct": "MUMPS", "default": "former GAMG_OPTIONS (threshold 0.01)",
+            "current": "GAMG_OPTIONS"}.get(variant) or ", ".join(
+                f"{k} {v}" for k, v in VARIANTS.get(variant, {}).items())
+
+
+def summary(rows):
+    """Markdown lines: one row per option set, the sizes side by side."""
+    rows = [r for r in rows if "failed" not in r]
+    sizes = sorted({r["size"] for r in rows})
+    reference = {r["size"]: r for r in rows if r["variant"] == "direct"}
+    order = ["direct", "default", "current"] + list(VARIANTS)
+    lines = ["| options | Krylov per Newton, mean/max: " + " / ".join(f"{s}^2" for s in sizes)
+             + f" | Newton per step at {sizes[-1]}^2 | contact states as MUMPS | "
+             "CPU s/Newton: " + " / ".join(f"{s}^2" for s in sizes) + " |",
+             "|---|---|---|---|---|"]
+    for variant in sorted({r["variant"] for r in rows}, key=order.index):
+        by_size = {r["size"]: r for r in rows if r["variant"] == variant}
+        cell = lambda f: " / ".join(f(by_size[s]) if s in by_size else "" for s in sizes)
+        krylov = "-" if variant == "direct" else cell(
+            lambda r: f"{r['krylov_per_newton_mean']:.1f}/{r['krylov_per_newton_max']}")
+        last = by_size.get(sizes[-1])
+        same = all(r["status_counts"] == reference[s]["status_counts"]
+                   for s, r in by_size.items() if s in reference)
+        lines.append(f"| {_name(variant)} | {krylov} | "
+                     f"{' '.join(map(str, last['newton_per_step'])) if last else ''} | "
+                     f"{'yes' if same else 'NO'} | "
+                     f"{cell(lambda r: format(r.get('cpu_s_per_newton', float('nan')), '.3f'))} |")
+    return lines
 
 
 def table(rows):
@@ -171,9 +202,7 @@ def table(rows):
              "|---|---|---|---|---|---|---|"]
     order = ["direct", "default", "current"] + list(VARIANTS)
     for variant in sorted({r["variant"] for r in rows}, key=order.index):
-        name = {"direct": "MUMPS", "default": "former GAMG_OPTIONS (threshold 0.01)",
-                "current": "GAMG_OPTIONS"}.get(variant) or ", ".join(
-                    f"{k} {v}" for k, v in VARIANTS.get(variant, {}).items())
+        name = _name(variant)
         for r in sorted((r for r in rows if r["variant"] == variant), key=lambda r: r["size"]):
             if "failed" in r:
                 lines.append(f"| {name} | {r['size']} | failed | | | | |")
