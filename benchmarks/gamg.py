@@ -4,10 +4,12 @@ Runs the paper scene (first steps, no output files) with MUMPS and with GMRES + 
 several option sets, each configuration in its own process, and records per configuration the
 Newton iterations per step, the Krylov iterations per Newton iteration (mean/max), the contact
 status counts of the last step (to compare with MUMPS's), s/Newton and the block size of the
-condensed matrix (GAMG's near-nullspace needs block size d). Writes
+condensed matrix (GAMG's near-nullspace needs block size d). Wall times are per Newton
+iteration of the steps after t_0; the CPU time of the whole run per Newton iteration is also
+kept, as it depends less on other jobs on a shared machine. Writes
 benchmarks/results/<out>.{json,md}.
 
-    python benchmarks/gamg.py --sizes 64 128 256 --variants default sor ...
+    python benchmarks/gamg.py --sizes 64 128 256 --variants direct default current sor ...
     python benchmarks/gamg.py --one sor 128        # one configuration, in this process
 """
 import argparse
@@ -86,10 +88,9 @@ def one(variant, size, steps):
 
     comm = MPI.COMM_WORLD
     direct = VARIANTS[variant] is None
-    if not direct:
+    if not direct:                      # GAMG even where PETSc has hypre
         chosen = options(variant)
-        solver_module.GAMG_OPTIONS.clear()
-        solver_module.GAMG_OPTIONS.update(chosen)
+        solver_module.iterative_options = lambda: chosen
     block = []
     init = solver_module.CondensedSNES.__init__
 
