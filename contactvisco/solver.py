@@ -64,7 +64,13 @@ ITERATIVE_OPTIONS = {
 }
 
 #: Where PETSc has no hypre: GMRES preconditioned by PETSc's smoothed-aggregation AMG (GAMG),
-#: with the rigid motions as near-nullspace like BoomerAMG.
+#: with the rigid motions as near-nullspace like BoomerAMG. By default GAMG keeps the
+#: prolongation built for the first matrix and only recomputes the Galerkin coarse operators;
+#: here each Jacobian has other constraint rows (other active contact nodes) than the first
+#: one (t_0's first Newton iteration), and with that stale prolongation the Krylov count grew
+#: with the mesh. So it is rebuilt for every Jacobian, as BoomerAMG's set-up is. Graph edges
+#: weaker than 0.02 of the diagonal are dropped from the aggregation: the flattest count among
+#: the thresholds tried (docs/scaling.md, benchmarks/gamg.py).
 GAMG_OPTIONS = {
     "ksp_type": "gmres",
     "ksp_gmres_restart": 100,
@@ -73,14 +79,26 @@ GAMG_OPTIONS = {
     "ksp_max_it": 1000,
     "pc_type": "gamg",
     "pc_gamg_type": "agg",
-    "pc_gamg_threshold": 0.01,
+    "pc_gamg_reuse_interpolation": False,
+    "pc_gamg_threshold": 0.02,
     "mg_levels_ksp_type": "chebyshev",
     "mg_levels_pc_type": "jacobi",
 }
 
 #: linear_solver = "auto" takes the iterative solver from this many displacement unknowns
-#: on (by dimension), where it was measured to beat MUMPS (benchmarks/scaling.py).
+#: on (by dimension), where it was measured to beat MUMPS (benchmarks/scaling.py), with
+#: BoomerAMG.
 AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
+
+#: The same where PETSc has no hypre (GAMG). In 2D MUMPS stayed faster per Newton iteration up
+#: to the largest size measured (benchmarks/gamg.py, docs/scaling.md), so auto keeps it up to
+#: there; 3D was not measured with GAMG and keeps BoomerAMG's threshold.
+AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 5_000}
+
+
+def auto_iterative_size(d: int) -> int:
+    """The number of displacement unknowns from which linear_solver = "auto" is iterative."""
+    return (AUTO_ITERATIVE if compat.has_hypre() else AUTO_ITERATIVE_GAMG)[d]
 
 #: Scene options (solver.petsc_options) -> the solvers (by number) that were given the option
 #: and have not read it, neither at setup nor in any solve so far.
@@ -550,7 +568,8 @@ def create(problem, comm, scene_options=None) -> _Newton:
     size = problem.count_unknowns()["u"]
     kind = solver["linear_solver"]
     if kind == "auto":
-        kind = "iterative" if system != "coupled" and size >= AUTO_ITERATIVE[d] else "direct"
+        kind = ("iterative" if system != "coupled" and size >= auto_iterative_size(d)
+                else "direct")
     if kind == "iterative" and system == "coupled":
         raise SceneError("solver.linear_solver = 'iterative' needs the displacement-only "
                          "system: solver.linear_system = 'condensed' (nodal contact "

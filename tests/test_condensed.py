@@ -265,13 +265,16 @@ def test_auto_choice():
     problem = problem_module.build(scene, geo)
     newton = solver_module.create(problem, MPI.COMM_WORLD)
     assert (newton.system_kind, newton.linear_solver()) == ("condensed", "preonly/lu")
-    saved = dict(solver_module.AUTO_ITERATIVE)
+    thresholds = (solver_module.AUTO_ITERATIVE, solver_module.AUTO_ITERATIVE_GAMG)
+    saved = [dict(t) for t in thresholds]
     try:
-        solver_module.AUTO_ITERATIVE[2] = 10
+        for t in thresholds:
+            t[2] = 10
         newton = solver_module.create(problem, MPI.COMM_WORLD)
         assert newton.linear_solver() == AMG
     finally:
-        solver_module.AUTO_ITERATIVE.update(saved)
+        for t, old in zip(thresholds, saved):
+            t.update(old)
     scene = scene_module.load("paper", ["geometry.cells=[4, 4]",
                                         "discretization.contact_quadrature='gauss'"])
     problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
