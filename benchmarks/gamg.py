@@ -11,6 +11,9 @@ benchmarks/results/<out>.{json,md}.
 
     python benchmarks/gamg.py --sizes 64 128 256 --variants direct default current sor ...
     python benchmarks/gamg.py --one sor 128        # one configuration, in this process
+    python benchmarks/gamg.py --scene block3d --sizes 0.04 0.025 --variants direct current
+
+--scene block3d runs the 3D block instead; its sizes are gmsh mesh sizes h (box3d).
 """
 import argparse
 import json
@@ -74,7 +77,14 @@ def options(variant):
     return chosen
 
 
-def one(variant, size, steps):
+def overrides(scene, size, steps):
+    """--set overrides: paper: size cells per side; block3d: gmsh mesh size h."""
+    mesh = ([f"geometry.cells=[{size}, {size}]"] if scene == "paper"
+            else [f"geometry.parameters.h={size}"])
+    return mesh + [f"time.T={0.1 * steps}", f"time.steps={steps}"]
+
+
+def one(variant, size, steps, scene_name="paper"):
     """Run one configuration in this process and print a JSON line."""
     from contactvisco import compat, scene as scene_module, solver as solver_module
     from contactvisco.run import simulate
@@ -92,8 +102,7 @@ def one(variant, size, steps):
         init(self, *args, **kwargs)
         block.append(self.system.J_red.getBlockSize())
     solver_module.CondensedSNES.__init__ = record_block_size
-    scene = scene_module.load("paper", [
-        f"geometry.cells=[{size}, {size}]", f"time.T={0.1 * steps}", f"time.steps={steps}",
+    scene = scene_module.load(scene_name, overrides(scene_name, size, steps) + [
         f"solver.linear_solver='{'direct' if direct else 'iterative'}'"])
     scene["output"]["probes"] = []
     tick, cpu = time.perf_counter(), time.process_time()
@@ -103,7 +112,8 @@ def one(variant, size, steps):
     krylov = [k for s in result.steps for k in s["krylov_iterations"]]
     wall = sum(s["wall_s"] for s in steps_)
     its = sum(s["newton_iterations"] for s in steps_)
-    row = {"variant": variant, "size": size, "ranks": comm.size,
+    row = {"variant": variant, "scene": scene_name, "size": size, "ranks": comm.size,
+           "unknowns_u": result.problem.count_unknowns()["u"],
            "hypre": compat.has_hypre(), "ksp_pc": result.linear_solver,
            "block_size": block[0] if block else None,
            "options": {} if direct else VARIANTS[variant],
@@ -112,7 +122,8 @@ def one(variant, size, steps):
            "krylov_per_newton_max": max(krylov) if krylov else 0,
            "krylov": [s["krylov_iterations"] for s in result.steps],
            "status_counts": result.steps[-1]["status_counts"],
-           "s_per_newton": wall / max(1, its), "run_s": run_s,
+           "s_per_newton": wall / max(1, its), "s_per_step": wall / max(1, len(steps_)),
+           "run_s": run_s,
            # CPU time of the whole run (set-up and t_0 included) per Newton iteration: less
            # sensitive than wall time to other jobs on a shared machine
            "cpu_s_per_newton": cpu_s / sum(s["newton_iterations"] for s in result.steps)}
@@ -124,7 +135,9 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--one", nargs=2, metavar=("VARIANT", "SIZE"))
     parser.add_argument("--steps", type=int, default=3)
-    parser.add_argument("--sizes", type=int, nargs="+", default=[64, 128, 256])
+    parser.add_argument("--scene", choices=["paper", "block3d"], default="paper")
+    parser.add_argument("--sizes", type=float, nargs="+",
+                        help="paper: cells per side (64 128 256); block3d: mesh size h")
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS))
     parser.add_argument("--out", default="gamg_pip")
     args = parser.parse_args()
@@ -132,19 +145,22 @@ def main():
                if v not in VARIANTS]
     if unknown:
         parser.error(f"unknown variants {unknown}; known: {', '.join(VARIANTS)}")
+    size_type = int if args.scene == "paper" else float
     if args.one:
-        one(args.one[0], int(args.one[1]), args.steps)
+        one(args.one[0], size_type(args.one[1]), args.steps, args.scene)
         return
+    sizes = [size_type(s) for s in (args.sizes or [64, 128, 256])]
     from common import RESULTS
     path = RESULTS / f"{args.out}.json"
     rows = json.loads(path.read_text()) if path.exists() else []
     for variant in args.variants:
-        for size in args.sizes:
+        for size in sizes:
             if any((r["variant"], r["size"]) == (variant, size) for r in rows):
                 continue
             print("running", variant, size, flush=True)
             proc = subprocess.run([sys.executable, __file__, "--one", variant, str(size),
-                                   "--steps", str(args.steps)], capture_output=True, text=True)
+                                   "--steps", str(args.steps), "--scene", args.scene],
+                                  capture_output=True, text=True)
             lines = [l for l in proc.stdout.splitlines() if l.startswith("ROW ")]
             if proc.returncode or not lines:
                 print(proc.stdout[-2000:], proc.stderr[-3000:], flush=True)
@@ -164,15 +180,20 @@ def _name(variant):
                 f"{k} {v}" for k, v in VARIANTS.get(variant, {}).items())
 
 
+def _size(size):
+    """A size as the tables print it: cells per side (paper) or mesh size h (block3d)."""
+    return f"{size}^2" if isinstance(size, int) else f"h={size}"
+
+
 def summary(rows):
     """Markdown lines: one row per option set, the sizes side by side."""
     rows = [r for r in rows if "failed" not in r]
     sizes = sorted({r["size"] for r in rows})
     reference = {r["size"]: r for r in rows if r["variant"] == "direct"}
     order = ["direct", "default", "current"] + list(VARIANTS)
-    lines = ["| options | Krylov per Newton, mean/max: " + " / ".join(f"{s}^2" for s in sizes)
-             + f" | Newton per step at {sizes[-1]}^2 | contact states as MUMPS | "
-             "CPU s/Newton: " + " / ".join(f"{s}^2" for s in sizes) + " |",
+    lines = ["| options | Krylov per Newton, mean/max: " + " / ".join(map(_size, sizes))
+             + f" | Newton per step at {_size(sizes[-1])} | contact states as MUMPS | "
+             "CPU s/Newton: " + " / ".join(map(_size, sizes)) + " |",
              "|---|---|---|---|---|"]
     for variant in sorted({r["variant"] for r in rows}, key=order.index):
         by_size = {r["size"]: r for r in rows if r["variant"] == variant}
@@ -192,22 +213,23 @@ def summary(rows):
 def table(rows):
     """Markdown lines: one row per option set and size."""
     reference = {r["size"]: r for r in rows if r["variant"] == "direct" and "failed" not in r}
-    lines = ["| options | size | Krylov per Newton (mean/max) | Newton per step | same contact "
-             "states as MUMPS | s/Newton (wall) | CPU s/Newton (whole run) |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| options | size | unknowns (u) | Krylov per Newton (mean/max) | Newton per step "
+             "| same contact states as MUMPS | s/Newton (wall) | CPU s/Newton (whole run) |",
+             "|---|---|---|---|---|---|---|---|"]
     order = ["direct", "default", "current"] + list(VARIANTS)
     for variant in sorted({r["variant"] for r in rows}, key=order.index):
         name = _name(variant)
         for r in sorted((r for r in rows if r["variant"] == variant), key=lambda r: r["size"]):
             if "failed" in r:
-                lines.append(f"| {name} | {r['size']} | failed | | | | |")
+                lines.append(f"| {name} | {_size(r['size'])} | | failed | | | | |")
                 continue
             same = (r["status_counts"] == reference[r["size"]]["status_counts"]
                     if r["size"] in reference else None)
             krylov = ("-" if variant == "direct" else
                       f"{r['krylov_per_newton_mean']:.1f}/{r['krylov_per_newton_max']}")
             cpu = r.get("cpu_s_per_newton")
-            lines.append(f"| {name} | {r['size']} | {krylov} | "
+            lines.append(f"| {name} | {_size(r['size'])} | {r.get('unknowns_u', '')} | "
+                         f"{krylov} | "
                          f"{' '.join(map(str, r['newton_per_step']))} | "
                          f"{'-' if same is None else 'yes' if same else 'NO'} | "
                          f"{r['s_per_newton']:.3f} | {'' if cpu is None else f'{cpu:.3f}'} |")
