@@ -92,8 +92,9 @@ AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
 
 #: The same where PETSc has no hypre (GAMG). In 2D MUMPS stayed faster per Newton iteration up
 #: to the largest size measured (benchmarks/gamg.py, docs/scaling.md), so auto keeps it up to
-#: there; 3D was not measured with GAMG and keeps BoomerAMG's threshold.
-AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 5_000}
+#: there. In 3D (block3d) GAMG was faster per Newton iteration from the smallest measured size
+#: above this threshold on, and MUMPS at the measured sizes below it.
+AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 22_000}
 
 
 def auto_iterative_size(d: int) -> int:
