@@ -43,10 +43,11 @@ def write(name, rows, header, line):
     print("\n".join(lines))
 
 
-def write_results(name, rows, lines):
-    """results/<name>.json (the rows) and results/<name>.md (table lines); also printed."""
+def write_results(name, rows, lines, default=None):
+    """results/<name>.json (the rows; `default` as in json.dumps, for values JSON has no type
+    for) and results/<name>.md (table lines); also printed."""
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{name}.json").write_text(json.dumps(rows, indent=1))
+    (RESULTS / f"{name}.json").write_text(json.dumps(rows, indent=1, default=default))
     write_markdown(name, lines)
 
 

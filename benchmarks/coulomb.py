@@ -11,12 +11,11 @@
 
 Writes benchmarks/results/coulomb.{json,md}.
 """
-import json
 import math
 import time
 
 import numpy as np
-from common import RESULTS
+from common import write_results
 from mpi4py import MPI
 
 from contactvisco import scene as scene_module
@@ -146,10 +145,7 @@ def main():
         out[key], section_lines = section()
         lines += section_lines
     if MPI.COMM_WORLD.rank == 0:
-        RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "coulomb.json").write_text(json.dumps(out, indent=1, default=str))
-        (RESULTS / "coulomb.md").write_text("\n".join(lines) + "\n")
-        print("\n".join(lines))
+        write_results("coulomb", out, lines, default=str)
 
 
 if __name__ == "__main__":

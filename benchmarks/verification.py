@@ -5,10 +5,9 @@ Space: the manufactured solution (contactvisco.verification.manufactured), P1 an
 both kernels, 10..160 steps. Contact: Hertz at a/R = 0.024 with contact mesh sizes a/5..a/40.
 Writes benchmarks/results/verification.{json,md}.
 """
-import json
 import math
 
-from common import RESULTS
+from common import write_results
 from mpi4py import MPI
 
 from contactvisco.verification import hertz, manufactured, orders, uniaxial, uniaxial_exact
@@ -48,10 +47,7 @@ def main():
         lines.append(f"| {f} | {r['unknowns']} | {r['a_error']:.2e} | {r['p0_error']:.2e} | "
                      f"{r['wall_s']:.2f} |")
     if MPI.COMM_WORLD.rank == 0:
-        RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "verification.json").write_text(json.dumps(out, indent=1, default=float))
-        (RESULTS / "verification.md").write_text("\n".join(lines) + "\n")
-        print("\n".join(lines))
+        write_results("verification", out, lines, default=float)
 
 
 if __name__ == "__main__":
