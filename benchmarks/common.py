@@ -4,7 +4,7 @@ import pathlib
 import statistics
 import time
 
-from contactvisco.run import simulate
+from contactvisco.solver.time_loop import simulate
 
 RESULTS = pathlib.Path(__file__).parent / "results"
 

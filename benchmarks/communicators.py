@@ -11,10 +11,10 @@ import sys
 
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco import solver as solver_module
-from contactvisco.geometry import build as build_geometry
-from contactvisco.problem import build
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver import newton as solver_module
+from contactvisco.fem.geometry import build as build_geometry
+from contactvisco.fem.problem import build
 
 
 def small() -> dict:

@@ -26,10 +26,10 @@ from petsc4py import PETSc
 
 from common import write_results
 
-from contactvisco import compat
-from contactvisco import scene as scene_module
-from contactvisco.condensed import NodalCondensation
-from contactvisco.run import simulate
+from contactvisco.fem import compat
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.condensed import NodalCondensation
+from contactvisco.solver.time_loop import simulate
 
 
 def evaluation_times(cells: int, repeat: int, comm) -> list[float]:

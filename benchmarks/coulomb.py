@@ -1,6 +1,6 @@
 """Coulomb friction measured (run by hand: python benchmarks/coulomb.py; about 3 minutes).
 
-1. Cattaneo-Mindlin under refinement (contactvisco.coulomb.cattaneo_mindlin): the cylinder
+1. Cattaneo-Mindlin under refinement (contactvisco.studies.coulomb.cattaneo_mindlin): the cylinder
    at nu = 0.49 with contact mesh sizes a/5.6 .. a/44: errors of the stick-zone half-width c,
    of the transmitted force and of the nodal tractions, observed orders.
 2. The effect of the normal-tangential coupling (Dundurs' beta = (1 - 2 nu) / (2 (1 - nu))
@@ -18,10 +18,10 @@ import numpy as np
 from common import write_results
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.coulomb import cattaneo_mindlin, cattaneo_scene
-from contactvisco.run import simulate
-from contactvisco.verification import orders
+from contactvisco.scene import loader as scene_module
+from contactvisco.studies.coulomb import cattaneo_mindlin, cattaneo_scene
+from contactvisco.solver.time_loop import simulate
+from contactvisco.studies.verification import orders
 
 KEYS = ("h", "a", "a_over_h", "nu", "load_ratio", "c", "c_h", "c_error", "stick_centre", "q_error",
         "q_error_l2", "F_error", "p_error", "newton", "unknowns")

@@ -11,9 +11,11 @@ import time
 from common import write_results
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.run import simulate
-from contactvisco.solver import NewtonFailure
+from contactvisco.model.stability import stability_number
+from contactvisco.errors import SceneError
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
+from contactvisco.solver.newton import NewtonFailure
 
 # The study runs the paper's rule past its stability limit on purpose (marked in the table).
 BASE = ["geometry.cells=[16, 16]", "output.probes=[[1.0, 1.0], [1.0, 0.0]]",
@@ -50,9 +52,9 @@ def run(label, overrides, comm):
                                                   f"material.nu={overrides[1]}", "time.steps=3"])
         else:
             scene = scene_module.load("paper", BASE + overrides)
-        b = scene_module.stability_number(scene) if scene["time"]["rule"] == "paper" else 0.0
+        b = stability_number(scene) if scene["time"]["rule"] == "paper" else 0.0
         result = simulate(scene, comm=comm, progress=False)
-    except scene_module.SceneError as err:
+    except SceneError as err:
         return dict(label=label, outcome="refused", message=str(err), seconds=0.0)
     except NewtonFailure as err:
         return dict(label=label, outcome="stopped", message=str(err).split("; residual")[0],

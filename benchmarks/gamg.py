@@ -23,7 +23,7 @@ import time
 
 from common import write_results
 
-from contactvisco.solver import GAMG_OPTIONS
+from contactvisco.solver.newton import GAMG_OPTIONS
 
 #: The GAMG options the variants change: the former solver.GAMG_OPTIONS (threshold 0.01, the
 #: interpolation reused, PETSc's default).
@@ -65,7 +65,7 @@ VARIANTS.update({f"noreuse_{name}": {"pc_gamg_reuse_interpolation": False, **cha
 
 
 def options(variant):
-    from contactvisco import solver as solver_module
+    from contactvisco.solver import newton as solver_module
     if variant == "current":
         return dict(solver_module.GAMG_OPTIONS)
     chosen = dict(BASE)
@@ -86,8 +86,10 @@ def overrides(scene, size, steps):
 
 def one(variant, size, steps, scene_name="paper"):
     """Run one configuration in this process and print a JSON line."""
-    from contactvisco import compat, scene as scene_module, solver as solver_module
-    from contactvisco.run import simulate
+    from contactvisco.fem import compat
+    from contactvisco.scene import loader as scene_module
+    from contactvisco.solver import newton as solver_module
+    from contactvisco.solver.time_loop import simulate
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD

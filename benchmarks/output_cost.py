@@ -4,7 +4,7 @@
    - "one open file": one DOLFINx XDMFFile kept open for the run (the earlier layout; its
      HDF5 file is unreadable after a kill -9);
    - "file per step": solution/step-n.xdmf/.h5 written and closed, mesh included, and the
-     step appended to solution.xdmf (what contactvisco.output.Writer does);
+     step appended to solution.xdmf (what contactvisco.io.output.Writer does);
    - the step record appended to steps.jsonl with flush, and with flush + fsync.
 2. End to end: `contactvisco run paper --set geometry.cells=[16, 16]` with default outputs
    at N = 2000 and N = 4000 steps (same T): wall time of the command and the ratio
@@ -34,10 +34,10 @@ RUNS = (2000, 4000)
 def per_step(comm, folder: pathlib.Path) -> dict:
     from dolfinx import fem, io
 
-    from contactvisco import geometry as geometry_module
-    from contactvisco import output
-    from contactvisco import scene as scene_module
-    from contactvisco.problem import build
+    from contactvisco.fem import geometry as geometry_module
+    from contactvisco.io import output
+    from contactvisco.scene import loader as scene_module
+    from contactvisco.fem.problem import build
     scene = scene_module.load("paper", ["geometry.cells=[16, 16]"])
     problem = build(scene, geometry_module.build(scene, comm))
     sigma = fem.Function(problem.tensor_space, name="sigma")

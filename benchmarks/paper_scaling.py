@@ -18,8 +18,9 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contactvisco import compat, geometry, scene as scene_module
-from contactvisco.material import elasticity, lame_constants, strain
+from contactvisco.fem import compat, geometry
+from contactvisco.scene import loader as scene_module
+from contactvisco.model.material import elasticity, lame_constants, strain
 from common import RESULTS, assemble_linear, timed_run, write_markdown
 
 HERE = pathlib.Path(__file__).parent

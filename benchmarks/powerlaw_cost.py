@@ -24,10 +24,10 @@ import time
 from mpi4py import MPI
 
 from common import RESULTS
-from contactvisco import kernels
-from contactvisco import scene as scene_module
-from contactvisco.problem import Problem
-from contactvisco.run import simulate
+from contactvisco.model import kernels
+from contactvisco.scene import loader as scene_module
+from contactvisco.fem.problem import Problem
+from contactvisco.solver.time_loop import simulate
 
 K = 0.01
 KERNELS = {"power": ["memory.kernel='power'", "memory.alpha=100.0", "memory.tau=0.1",

@@ -8,7 +8,7 @@ import argparse
 from mpi4py import MPI
 
 from common import step_statistics, timed_run, write
-from contactvisco import scene as scene_module
+from contactvisco.scene import loader as scene_module
 
 VARIANTS = [
     ("full model (lambda_nu, lambda_tau, history)", []),

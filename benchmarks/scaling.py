@@ -39,8 +39,8 @@ def elastic_floor(problem, scene, solver, comm):
     from dolfinx import fem
     from petsc4py import PETSc
 
-    from contactvisco import solver as solver_module
-    from contactvisco.material import elasticity, strain
+    from contactvisco.solver import newton as solver_module
+    from contactvisco.model.material import elasticity, strain
 
     V = problem.V
     mesh = V.mesh
@@ -84,8 +84,8 @@ def one(scene_name, size, solver, steps):
     """Run one configuration in this (MPI) process and print a JSON line on rank 0."""
     from mpi4py import MPI
 
-    from contactvisco import scene as scene_module
-    from contactvisco.run import simulate
+    from contactvisco.scene import loader as scene_module
+    from contactvisco.solver.time_loop import simulate
 
     comm = MPI.COMM_WORLD
     scene = scene_module.load(scene_name, overrides(scene_name, size, steps)
@@ -146,7 +146,7 @@ def main():
         scene, size, solver = args.one
         one(scene, float(size) if scene == "block3d" else int(size), solver, args.steps)
         return
-    from contactvisco import compat
+    from contactvisco.fem import compat
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     rows = []
     path = RESULTS / f"{args.out}.json"

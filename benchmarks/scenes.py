@@ -7,7 +7,7 @@ started with (python for 1, mpirun -n 2 for 2).
 from mpi4py import MPI
 
 from common import step_statistics, timed_run, write
-from contactvisco import scene as scene_module
+from contactvisco.scene import loader as scene_module
 
 
 def main():

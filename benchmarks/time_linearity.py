@@ -23,9 +23,9 @@ import time
 from mpi4py import MPI
 
 from common import RESULTS
-from contactvisco import scene as scene_module
-from contactvisco.problem import Problem
-from contactvisco.run import simulate
+from contactvisco.scene import loader as scene_module
+from contactvisco.fem.problem import Problem
+from contactvisco.solver.time_loop import simulate
 
 STEPS = (100, 1000)
 ALPHA, TAU = 100.0, 0.2

@@ -17,7 +17,7 @@ import time
 from common import RESULTS
 from mpi4py import MPI
 
-from contactvisco import tradeoff
+from contactvisco.studies import tradeoff
 
 COMM = MPI.COMM_WORLD
 USER = str(pathlib.Path(__file__).parent / "scenes" / "strip_punch.toml")

@@ -27,10 +27,10 @@ import numpy as np  # noqa: E402
 from common import RESULTS  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 
-from contactvisco import scene as scene_module  # noqa: E402
-from contactvisco.run import simulate  # noqa: E402
-from contactvisco.solver import NewtonFailure  # noqa: E402
-from contactvisco.verification import hertz  # noqa: E402
+from contactvisco.scene import loader as scene_module  # noqa: E402
+from contactvisco.solver.time_loop import simulate  # noqa: E402
+from contactvisco.solver.newton import NewtonFailure  # noqa: E402
+from contactvisco.studies.verification import hertz  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 

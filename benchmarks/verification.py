@@ -1,6 +1,6 @@
 """Measured convergence orders (run by hand: python benchmarks/verification.py).
 
-Space: the manufactured solution (contactvisco.verification.manufactured), P1 and P2 on
+Space: the manufactured solution (contactvisco.studies.verification.manufactured), P1 and P2 on
 4..64 cells per side, L2 and H1 errors at T. Time: the uniaxial closed form, both rules and
 both kernels, 10..160 steps. Contact: Hertz at a/R = 0.024 with contact mesh sizes a/5..a/40.
 Writes benchmarks/results/verification.{json,md}.
@@ -10,7 +10,7 @@ import math
 from common import write_results
 from mpi4py import MPI
 
-from contactvisco.verification import hertz, manufactured, orders, uniaxial, uniaxial_exact
+from contactvisco.studies.verification import hertz, manufactured, orders, uniaxial, uniaxial_exact
 
 
 def main():

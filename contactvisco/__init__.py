@@ -5,9 +5,17 @@ The public interface (docs/api.md): load_scene, solve, Result, read_results, bui
 pyvista_grid, SceneError, NewtonFailure, the module tradeoff; for the demos also hertz,
 cattaneo_mindlin, cattaneo_traction, quick, show_images.
 
-Modules: api (the interface), scene (parameters), material (A), memory (eq 19), contact
-(eqs 11-12, 20-21 in UFL), geometry (meshes), problem (forms), solver (SNES), run (time
-loop), output, figures, cli.
+Layers, each importing only those below it (docs/architecture.md):
+
+- errors: the errors a user meets;
+- model: the constitutive pieces (A, the memory kernel and eq (19), the contact law of
+  eqs 11-12 and 20-21 in UFL, the stability of the time rule);
+- scene: a scene's parameters, read and checked;
+- fem: the discrete problem on a mesh (geometry, forms, the DOLFINx differences);
+- io: output, checkpoints, the output folder's lock, MPI agreement;
+- solver: Newton (SNES), the condensed linear system, the time loop; post: figures, rendering;
+- studies: the speed-accuracy trade, verification, Coulomb closed forms;
+- api and cli on top.
 PETSc-dependent modules are imported on use, so that the command line can hand its options to
 PETSc first.
 """
@@ -31,19 +39,21 @@ _logging.getLogger().addFilter(
 _PUBLIC = {
     "load_scene": "api", "solve": "api", "read_results": "api", "builtin_scenes": "api",
     "pyvista_grid": "api",
-    "Result": "run", "SceneError": "scene", "NewtonFailure": "solver",
-    "hertz": "verification", "cattaneo_mindlin": "coulomb", "cattaneo_traction": "coulomb",
-    "quick": "notebook", "show_images": "notebook",
+    "Result": "solver.time_loop", "SceneError": "errors", "NewtonFailure": "solver.newton",
+    "hertz": "studies.verification", "cattaneo_mindlin": "studies.coulomb",
+    "cattaneo_traction": "studies.coulomb",
+    "quick": "post.notebook", "show_images": "post.notebook",
 }
-#: Public modules: the speed-accuracy trade of a scene (contactvisco tradeoff).
-_MODULES = ("tradeoff",)
+#: Public modules, by the name they are reached under: the speed-accuracy trade of a scene
+#: (contactvisco tradeoff).
+_MODULES = {"tradeoff": "studies.tradeoff"}
 __all__ = ["__version__", *_PUBLIC, *_MODULES]
 
 
 def __getattr__(name):
     if name in _MODULES:
         import importlib
-        return importlib.import_module(f".{name}", __name__)
+        return importlib.import_module(f".{_MODULES[name]}", __name__)
     if name in _PUBLIC:
         import importlib
         value = getattr(importlib.import_module(f".{_PUBLIC[name]}", __name__), name)

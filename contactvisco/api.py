@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numbers
 
-from . import scene as scene_module
-from .scene import SceneError
+from contactvisco.model.material import dimension
+from contactvisco.scene import loader as scene_module
+from contactvisco.errors import SceneError
 
 #: Scene tables whose keys are free (a nested dict is one value, not more overrides).
 _FREE_FORM = {("geometry", "parameters"), ("solver", "petsc_options")}
@@ -85,20 +86,20 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
         runs that write them to `out` anyway).
 
     Raises SceneError (bad scene or mesh), NewtonFailure (a step that does not converge even
-    when cut), contactvisco.parallel.Stopped (SIGINT/SIGTERM, after a completed step).
+    when cut), contactvisco.io.parallel.Stopped (SIGINT/SIGTERM, after a completed step).
     """
     from mpi4py import MPI
 
-    from .run import simulate
+    from contactvisco.solver.time_loop import simulate
     if comm is None:
         comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
     try:
         geometry = None
         if mesh is not None or facet_tags is not None or boundaries is not None:
             geometry = user_geometry(scene, mesh, facet_tags, boundaries)
-        return simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
-                        restart=restart, overwrite=overwrite, geometry=geometry,
-                        on_step=on_step)
+        result = simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
+                          restart=restart, overwrite=overwrite, geometry=geometry,
+                          on_step=on_step)
     except SceneError as err:          # errors found while building name their origin too
         if not hasattr(scene, "locate"):
             raise
@@ -106,6 +107,24 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
         if located is err:
             raise
         raise located from None
+    if out is not None and comm.rank == 0 and scene["output"]["figures"]:
+        _draw_figures(out)
+    return result
+
+
+def _draw_figures(out) -> None:
+    """The figures of a finished run's folder; a failing figure only warns, since the results
+    are already written."""
+    import pathlib
+    import sys
+
+    from contactvisco.post import figures
+    try:
+        figures.draw_all(pathlib.Path(out))
+    except Exception as err:
+        print(f"contactvisco: warning: figures failed ({type(err).__name__}: {err}); the "
+              f"results in {out} are complete; retry with 'contactvisco plot {out}'",
+              file=sys.stderr, flush=True)
 
 
 def scene_boundaries(scene: dict) -> dict[str, str]:
@@ -128,11 +147,11 @@ def user_geometry(scene: dict, mesh, facet_tags, boundaries):
     on some rank, probes inside the mesh."""
     from mpi4py import MPI
 
-    from . import geometry as geometry_module
+    from contactvisco.fem import geometry as geometry_module
     if mesh is None or facet_tags is None or boundaries is None:
         raise SceneError("solve: a mesh needs all three of mesh, facet_tags and boundaries "
                          "(a dict {boundary name: facet tag value})")
-    d = scene_module.dimension(scene)
+    d = dimension(scene)
     if mesh.geometry.dim != d or mesh.topology.dim != d:
         raise SceneError(f"solve: material.model = '{scene['material']['model']}' needs a "
                          f"{d}D mesh; this mesh has topological dimension "
@@ -170,7 +189,7 @@ def pyvista_grid(u):
     import numpy as np
     import pyvista
 
-    from . import compat
+    from contactvisco.fem import compat
     grid = pyvista.UnstructuredGrid(*compat.vtk_mesh(u.function_space))
     d = u.function_space.mesh.geometry.dim
     values = np.zeros((grid.n_points, 3))
@@ -182,5 +201,5 @@ def pyvista_grid(u):
 
 def read_results(folder) -> dict:
     """The summary.json of a run's output folder with "steps": the step records."""
-    from .output import read_summary
+    from contactvisco.io.output import read_summary
     return read_summary(folder)

@@ -16,6 +16,8 @@ import argparse
 import json
 import sys
 
+from contactvisco.errors import SceneError
+
 
 def _parser():
     parser = argparse.ArgumentParser(prog="contactvisco", description=__doc__.split("\n")[0])
@@ -90,8 +92,8 @@ def main(argv=None):
     import petsc4py
     petsc4py.init([sys.argv[0]] + petsc_args)
 
-    from . import api
-    from . import scene as scene_module
+    from contactvisco import api
+    from contactvisco.scene import loader as scene_module
     if args.command == "plot":
         return _plot(args)
     if args.command == "tradeoff":
@@ -105,10 +107,10 @@ def main(argv=None):
                 print(f"{name:12s} {description}")
             return 0
         scene = api.load_scene(args.scene, sets=preset + args.set)
-        from .output import jsonable
+        from contactvisco.io.output import jsonable
         print(json.dumps(jsonable(scene), indent=2))
         return 0
-    except scene_module.SceneError as err:
+    except SceneError as err:
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
 
@@ -122,7 +124,8 @@ def versions() -> str:
     from mpi4py import MPI
     from petsc4py import PETSc
 
-    from . import __version__, compat
+    from contactvisco import __version__
+    from contactvisco.fem import compat
     petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
     library = MPI.Get_library_version().strip().splitlines()[0]
     try:
@@ -142,11 +145,12 @@ def versions() -> str:
 
 def _run(args, petsc_args, scene_module):
     """`contactvisco run`: every error, on any rank, ends every rank with one message
-    (contactvisco.parallel): exit 2 for a scene or folder error, 3 for a Newton failure,
+    (contactvisco.io.parallel): exit 2 for a scene or folder error, 3 for a Newton failure,
     128 + signal for SIGINT/SIGTERM, 1 for anything else."""
     from mpi4py import MPI
-    from . import api, parallel
-    from .solver import NewtonFailure
+    from contactvisco import api
+    from contactvisco.io import parallel
+    from contactvisco.solver.newton import NewtonFailure
     comm = MPI.COMM_WORLD
     parallel.prepare(comm)
     out = args.out
@@ -157,9 +161,9 @@ def _run(args, petsc_args, scene_module):
         _check_writable(out)
         api.solve(scene, out, comm=comm, progress=not args.quiet, restart=args.restart,
                   overwrite=args.overwrite, keep_contact=False)
-    except scene_module.SceneError as err:
-        from .checkpoint import Damaged
-        from .lock import FolderError
+    except SceneError as err:
+        from contactvisco.io.checkpoint import Damaged
+        from contactvisco.io.lock import FolderError
         kind = "error" if isinstance(err, (Damaged, FolderError)) else "scene error"
         return parallel.fail_together(comm, 2, f"contactvisco: {kind}: {err}", err)
     except NewtonFailure as err:
@@ -173,7 +177,7 @@ def _run(args, petsc_args, scene_module):
         return parallel.fail_together(
             comm, 1, f"contactvisco: error: {_describe(err, out)} (run again with "
             "--traceback for the details)", err)
-    from .solver import unused_options
+    from contactvisco.solver.newton import unused_options
     unused = unused_options(petsc_args)
     if unused and comm.rank == 0:
         print(f"contactvisco: warning: PETSc options no solver used: {', '.join(unused)} "
@@ -193,7 +197,6 @@ def _check_writable(folder):
     """Fail before any work if the output folder cannot be written."""
     import pathlib
     import tempfile
-    from .scene import SceneError
     path = pathlib.Path(folder)
     try:
         path.mkdir(parents=True, exist_ok=True)
@@ -214,7 +217,7 @@ def _plot(args):
         print(f"contactvisco: --dpi must be a positive integer, got {args.dpi}", file=sys.stderr)
         return 2
     import zipfile
-    from .figures import draw_all
+    from contactvisco.post.figures import draw_all
     try:
         paths = draw_all(folder, fmt=args.format, dpi=args.dpi, times=args.times,
                          edges=args.edges)
@@ -229,8 +232,8 @@ def _plot(args):
 
 
 def _tradeoff(args):
-    from . import scene as scene_module
-    from . import tradeoff
+    from contactvisco.scene import loader as scene_module
+    from contactvisco.studies import tradeoff
     try:
         degrees = tuple(int(p) for p in args.degrees.split(","))
         if not degrees or min(degrees) < 1 or max(degrees) > 2:
@@ -246,7 +249,7 @@ def _tradeoff(args):
         result = tradeoff.tradeoff(args.scene, args.target, args.set, measure=args.measure,
                                    levels=args.levels, coarsest=args.coarsest, degrees=degrees,
                                    budget=args.budget, out=out)
-    except (scene_module.SceneError, tradeoff.TradeoffError) as err:
+    except (SceneError, tradeoff.TradeoffError) as err:
         print(f"contactvisco: tradeoff: {err}", file=sys.stderr)
         return 2
     from mpi4py import MPI

@@ -1,5 +1,5 @@
 """Redraw the figures of README.md and docs/ (`make figures`), each with its signature
-(docs/figures/<name>.json: texts and data, see contactvisco.figures.signature), which
+(docs/figures/<name>.json: texts and data, see contactvisco.post.figures.signature), which
 tests/test_figures.py compares with what the program draws now.
 
     python docs/make_figures.py [--only paper]
@@ -29,8 +29,9 @@ DPI = 200
 
 def run_figures(name: str) -> list[tuple[str, object]]:
     """Run a built-in scene into build/figures/<name>; its figures as (stem, Figure)."""
-    from contactvisco import figures, scene as scene_module
-    from contactvisco.run import simulate
+    from contactvisco.post import figures
+    from contactvisco.scene import loader as scene_module
+    from contactvisco.solver.time_loop import simulate
     scene = scene_module.load(name)
     scene["output"].update(xdmf=False, checkpoint=False)
     out = BUILD / name
@@ -42,7 +43,7 @@ def run_figures(name: str) -> list[tuple[str, object]]:
 
 
 def tradeoff_figure():
-    from contactvisco import tradeoff
+    from contactvisco.studies import tradeoff
     from matplotlib.figure import Figure
     path = HERE.parent / "benchmarks" / "results" / "tradeoff_paper.json"
     if not path.exists():
@@ -54,7 +55,7 @@ def tradeoff_figure():
 
 
 def save(items):
-    from contactvisco.figures import STYLE, signature
+    from contactvisco.post.figures import STYLE, signature
     with matplotlib.rc_context(STYLE):
         for stem, fig in items:
             fig.savefig(FIGURES / f"{stem}.png", dpi=DPI)

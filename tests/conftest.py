@@ -1,8 +1,8 @@
 import pytest
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.run import simulate
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
 
 
 @pytest.fixture(scope="session")

@@ -12,9 +12,9 @@ import subprocess
 import sys
 import time
 
-from contactvisco import compat
-from contactvisco.h5read import check_xdmf
-from contactvisco.output import read_summary
+from contactvisco.fem import compat
+from contactvisco.io.h5read import check_xdmf
+from contactvisco.io.output import read_summary
 
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1",
@@ -48,7 +48,7 @@ def rank_pids(out, proc, ranks, timeout=120) -> list[int]:
     deadline = time.time() + timeout
     while time.time() < deadline and proc.poll() is None:
         try:
-            pids = json.loads((pathlib.Path(out) / "contactvisco.lock").read_text())["pids"]
+            pids = json.loads((pathlib.Path(out) / "contactvisco.io.lock").read_text())["pids"]
             if len(pids) == ranks:
                 return pids
         except (OSError, ValueError, KeyError):

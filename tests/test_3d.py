@@ -4,8 +4,8 @@ import numpy as np
 from contact_checks import assert_contact_conditions
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.run import simulate
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
 
 
 def test_block3d_conditions():

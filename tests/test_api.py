@@ -13,7 +13,7 @@ from mpi4py import MPI
 
 import contactvisco
 from contactvisco import SceneError, load_scene, solve
-from contactvisco import scene as scene_module
+from contactvisco.scene import loader as scene_module
 
 COMM = MPI.COMM_WORLD
 DEMOS = sorted((pathlib.Path(__file__).parents[1] / "demos").glob("*.py"))

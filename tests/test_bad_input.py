@@ -6,9 +6,11 @@ import sys
 import pytest
 from mpi4py import MPI
 
-from contactvisco import geometry, problem as problem_module, scene as scene_module
-from contactvisco.run import simulate
-from contactvisco.solver import NewtonFailure
+from contactvisco.errors import SceneError
+from contactvisco.fem import geometry, problem as problem_module
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
+from contactvisco.solver.newton import NewtonFailure
 
 COMM = MPI.COMM_WORLD
 
@@ -60,7 +62,7 @@ SCENE_ERRORS = [
 @pytest.mark.parametrize("overrides, words", SCENE_ERRORS,
                          ids=[" ".join(o) for o, _ in SCENE_ERRORS])
 def test_scene_errors(overrides, words):
-    with pytest.raises(scene_module.SceneError) as err:
+    with pytest.raises(SceneError) as err:
         scene_module.load("paper", overrides)
     assert words in str(err.value)
 
@@ -68,14 +70,14 @@ def test_scene_errors(overrides, words):
 def test_error_names_the_scene_file_line(tmp_path):
     path = tmp_path / "mine.toml"
     path.write_text('[material]\nmodel = "plane_strain"\nE = 100.0\nnu = 0.6\n')
-    with pytest.raises(scene_module.SceneError, match=r"mine.toml, line 4: nu = 0.6"):
+    with pytest.raises(SceneError, match=r"mine.toml, line 4: nu = 0.6"):
         scene_module.load(str(path))
 
 
 def test_unreadable_scene_file(tmp_path):
     path = tmp_path / "broken.toml"
     path.write_text("[material\nE = 1")
-    with pytest.raises(scene_module.SceneError, match="broken.toml"):
+    with pytest.raises(SceneError, match="broken.toml"):
         scene_module.load(str(path))
 
 
@@ -88,14 +90,14 @@ BUILD_ERRORS = [
 @pytest.mark.parametrize("overrides, words", BUILD_ERRORS, ids=[o[0] for o, _ in BUILD_ERRORS])
 def test_build_errors(overrides, words):
     scene = scene_module.load("paper", ["geometry.cells=[4, 4]"] + overrides)
-    with pytest.raises(scene_module.SceneError) as err:
+    with pytest.raises(SceneError) as err:
         problem_module.build(scene, geometry.build(scene, COMM))
     assert words in str(err.value)
 
 
 def test_missing_and_unreadable_mesh_files(tmp_path):
     missing = scene_module.resolve({"geometry": {"type": "gmsh", "file": str(tmp_path / "no.msh")}})
-    with pytest.raises(scene_module.SceneError, match="no mesh file"):
+    with pytest.raises(SceneError, match="no mesh file"):
         geometry.build(missing, COMM)
     bad = tmp_path / "bad.msh"
     if COMM.rank == 0:
@@ -103,7 +105,7 @@ def test_missing_and_unreadable_mesh_files(tmp_path):
     path = COMM.bcast(str(bad), root=0)
     broken = scene_module.resolve({"geometry": {"type": "gmsh", "file": path}})
     if COMM.size == 1:     # tmp_path differs per rank; one rank suffices for reading a file
-        with pytest.raises(scene_module.SceneError, match="cannot read mesh file"):
+        with pytest.raises(SceneError, match="cannot read mesh file"):
             geometry.build(broken, COMM)
 
 
@@ -126,7 +128,7 @@ def test_contact_boundary_inside_the_body(tmp_path):
     gmsh.finalize()
     scene = scene_module.resolve({"geometry": {"type": "gmsh", "file": str(tmp_path / "inner.msh")},
                                   "contact": {"boundary": "inner", "stiffness": 1.0}})
-    with pytest.raises(scene_module.SceneError, match="facets inside the body"):
+    with pytest.raises(SceneError, match="facets inside the body"):
         problem_module.build(scene, geometry.build(scene, COMM))
 
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.material import lame_constants
-from contactvisco.run import simulate
+from contactvisco.scene import loader as scene_module
+from contactvisco.model.material import lame_constants
+from contactvisco.solver.time_loop import simulate
 
 
 def block_scene(q, stiffness, g, model="plane_strain", cells=(6, 5)):

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import checkpoint
-from contactvisco import scene as scene_module
-from contactvisco.geometry import build as build_geometry
-from contactvisco.problem import build
-from contactvisco.run import simulate
-from contactvisco.scene import SceneError
+from contactvisco.io import checkpoint
+from contactvisco.scene import loader as scene_module
+from contactvisco.fem.geometry import build as build_geometry
+from contactvisco.fem.problem import build
+from contactvisco.solver.time_loop import simulate
+from contactvisco.errors import SceneError
 
 SELF = MPI.COMM_SELF
 OVERRIDES = ["geometry.cells=[4, 4]", "time.steps=3", "output.figures=false",

@@ -8,7 +8,7 @@ import sys
 import pytest
 from mpi4py import MPI
 
-from contactvisco.output import read_summary
+from contactvisco.io.output import read_summary
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own processes; run on one rank")

@@ -13,10 +13,12 @@ from mpi4py import MPI
 
 from petsc4py import PETSc
 
-from contactvisco import compat, geometry, problem as problem_module, scene as scene_module
-from contactvisco import solver as solver_module
-from contactvisco.condensed import NodalCondensation, eliminate, node_blocks, recover
-from contactvisco.run import simulate
+from contactvisco.errors import SceneError
+from contactvisco.fem import compat, geometry, problem as problem_module
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver import newton as solver_module
+from contactvisco.solver.condensed import NodalCondensation, eliminate, node_blocks, recover
+from contactvisco.solver.time_loop import simulate
 
 
 def _dense_and_condensed(rng, n, d, m, kinds):
@@ -288,7 +290,7 @@ def test_auto_choice():
      "needs discretization.contact_quadrature = 'nodal'"),
 ])
 def test_bad_solver_keys(sets, message):
-    with pytest.raises(scene_module.SceneError, match=message):
+    with pytest.raises(SceneError, match=message):
         scene_module.load("paper", sets)
 
 
@@ -296,5 +298,5 @@ def test_iterative_needs_condensed():
     scene = scene_module.load("paper", ["geometry.cells=[4, 4]", "solver.linear_system='coupled'",
                                         "solver.linear_solver='iterative'"])
     problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
-    with pytest.raises(scene_module.SceneError, match="needs the displacement-only system"):
+    with pytest.raises(SceneError, match="needs the displacement-only system"):
         solver_module.create(problem, MPI.COMM_WORLD)

@@ -10,14 +10,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mpi4py import MPI
 
-from contactvisco import checkpoint, geometry, problem as problem_module
-from contactvisco import scene as scene_module
-from contactvisco import solver as solver_module
-from contactvisco.condensed import eliminate, recover
-from contactvisco.coulomb import block_scene, cattaneo_mindlin, cattaneo_scene
-from contactvisco.run import simulate
-from contactvisco.scene import SceneError
-from contactvisco.solver import NewtonFailure
+from contactvisco.io import checkpoint
+from contactvisco.fem import geometry, problem as problem_module
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver import newton as solver_module
+from contactvisco.solver.condensed import eliminate, recover
+from contactvisco.studies.coulomb import block_scene, cattaneo_mindlin, cattaneo_scene
+from contactvisco.solver.time_loop import simulate
+from contactvisco.errors import SceneError
+from contactvisco.solver.newton import NewtonFailure
 
 from contact_checks import assert_contact_conditions
 

@@ -6,9 +6,9 @@ import pytest
 from contact_checks import assert_contact_conditions
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.run import simulate
-from contactvisco.solver import NewtonFailure
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
+from contactvisco.solver.newton import NewtonFailure
 
 BASE = ["geometry.cells=[8, 8]", "output.probes=[]", "time.steps=3"]
 LIFT = ["traction.0.value=[0.0, 'conditional(x[0] > 0.5, 24.0, -20.0)']"]

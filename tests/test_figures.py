@@ -10,9 +10,11 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from mpi4py import MPI
 
-from contactvisco import figures, scene as scene_module, tradeoff
+from contactvisco.post import figures
+from contactvisco.scene import loader as scene_module
+from contactvisco.studies import tradeoff
 from contactvisco.cli import main
-from contactvisco.run import simulate
+from contactvisco.solver.time_loop import simulate
 
 COMM = MPI.COMM_WORLD
 DOCS = pathlib.Path(__file__).parents[1] / "docs" / "figures"
@@ -144,7 +146,7 @@ def test_pyvista_rendering_shows_the_colour_range():
     pytest.importorskip("pyvista")
     from matplotlib import colormaps
 
-    from contactvisco import render
+    from contactvisco.post import render
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], float)
     cells = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
     images = render.images(points, cells, np.zeros_like(points), np.array([0.0, 1.0]),

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import compat
-from contactvisco.h5read import check_xdmf
-from contactvisco.output import read_summary
+from contactvisco.fem import compat
+from contactvisco.io.h5read import check_xdmf
+from contactvisco.io.output import read_summary
 
 pytestmark = [
     pytest.mark.skipif(MPI.COMM_WORLD.size > 1,

@@ -13,12 +13,16 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contactvisco import compat, expressions, geometry
-from contactvisco import solver as solver_module
-from contactvisco import problem as problem_module, scene as scene_module
+from contactvisco.model.stability import stability_number
+from contactvisco.errors import SceneError
+from contactvisco.fem import compat, geometry
+from contactvisco.scene import expressions
+from contactvisco.solver import newton as solver_module
+from contactvisco.fem import problem as problem_module
+from contactvisco.scene import loader as scene_module
 
 COMM = MPI.COMM_WORLD
-SceneError = scene_module.SceneError
+SceneError = SceneError
 
 
 def attacks(marker: pathlib.Path) -> list[str]:
@@ -249,7 +253,7 @@ def test_unstable_paper_rule_needs_allow_unstable():
     """b = k alpha (1 + nu) / E: 2.6 at 5 steps over T = 10 is refused with the fix named;
     time.allow_unstable = true lets it run; a single step amplifies only from b = 2 on."""
     unstable = ["time.T=10", "time.steps=5"]
-    assert scene_module.stability_number(scene_module.load(
+    assert stability_number(scene_module.load(
         "paper", unstable + ["time.rule='trapezoid'"])) == pytest.approx(2.6)
     with pytest.raises(SceneError) as err:
         scene_module.load("paper", unstable)
@@ -336,7 +340,7 @@ def test_builtin_scenes_are_held(name):
               "creep": ["geometry.parameters.h=0.2", "geometry.parameters.h_bottom=0.2"],
               "hertz": []}[name]
     problem = build(name, coarse)
-    from contactvisco.rigid import free_motions
+    from contactvisco.fem.rigid import free_motions
     assert free_motions(problem) == []
 
 
@@ -347,7 +351,7 @@ def test_friction_counts_as_a_tangential_restraint():
     that line, and 1 and 2 ranks agree."""
     with pytest.raises(SceneError, match="translation along x"):
         build("paper", ["geometry.cells=[4, 4]", "dirichlet=[]", "contact.mu=0"])
-    from contactvisco.run import simulate
+    from contactvisco.solver.time_loop import simulate
     scene = scene_module.load("paper", ["geometry.cells=[8, 8]", "dirichlet=[]",
                                         "time.steps=3", "geometry.diagonal='crossed'",
                                         "output.probes=[[0.5, 0.0], [0.5, 1.0], [1.0, 0.0]]"])

@@ -11,13 +11,13 @@ import pytest
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contactvisco import scene as scene_module
-from contactvisco import solver as solver_module
-from contactvisco.geometry import build as build_geometry
-from contactvisco.problem import build
-from contactvisco.run import simulate
-from contactvisco.scene import SceneError
-from contactvisco.solver import NewtonFailure
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver import newton as solver_module
+from contactvisco.fem.geometry import build as build_geometry
+from contactvisco.fem.problem import build
+from contactvisco.solver.time_loop import simulate
+from contactvisco.errors import SceneError
+from contactvisco.solver.newton import NewtonFailure
 
 COMM = MPI.COMM_WORLD
 RUNS = 300
@@ -60,7 +60,7 @@ def test_many_runs_leak_no_options_and_no_problems():
     for i in range(RUNS):
         if i % CONTACT_EVERY == 7:            # 10 runs that fail
             failing = rejected if i % 2 else diverging
-            with pytest.raises((PETSc.Error, scene_module.SceneError, NewtonFailure)):
+            with pytest.raises((PETSc.Error, SceneError, NewtonFailure)):
                 simulate(failing, comm=COMM, progress=False)
             assert our_options() == before
             continue
@@ -86,7 +86,7 @@ def test_rejected_option_leaves_the_database_clean():
     scene = small(True)
     problem = build(scene, build_geometry(scene, COMM))
     before = our_options()
-    with pytest.raises(scene_module.SceneError, match="PETSc rejected"):
+    with pytest.raises(SceneError, match="PETSc rejected"):
         solver_module.create(problem, COMM, {"snes_type": "no_such_method"})
     assert our_options() == before
     # A solver made afterwards works with the defaults.

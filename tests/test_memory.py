@@ -5,9 +5,11 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import geometry, problem as problem_module, scene as scene_module
-from contactvisco.memory import DirectHistory, History, direct_sum, prony
-from contactvisco.solver import BlockSNES
+from contactvisco.model.memory_kernel import memory_terms
+from contactvisco.fem import geometry, problem as problem_module
+from contactvisco.scene import loader as scene_module
+from contactvisco.model.memory import DirectHistory, History, direct_sum, prony
+from contactvisco.solver.newton import BlockSNES
 
 KERNELS = {
     "constant": [(100.0, math.inf, "full")],
@@ -53,7 +55,7 @@ def test_history_function_in_a_run():
     geo = geometry.build(scene, MPI.COMM_WORLD)
     problem = problem_module.build(scene, geo)
     snes = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, MPI.COMM_WORLD)
-    terms = scene_module.memory_terms(scene)
+    terms = memory_terms(scene)
     k = scene["time"]["T"] / scene["time"]["steps"]
     strains = []
     for n in range(scene["time"]["steps"] + 1):

@@ -4,7 +4,7 @@ import numpy as np
 from dolfinx import fem
 from contact_checks import assert_contact_conditions
 
-from contactvisco import compat
+from contactvisco.fem import compat
 
 TOL = 1e-10   # Newton stops at |F| < 1e-10: conditions hold to that order
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco.run import simulate
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="needs mpirun -n 2 or more")
 

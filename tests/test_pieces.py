@@ -15,10 +15,10 @@ import pytest
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contactvisco import scene as scene_module
-from contactvisco.condensed import replace_rows
-from contactvisco.run import simulate
-from contactvisco.scene import SceneError
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.condensed import replace_rows
+from contactvisco.solver.time_loop import simulate
+from contactvisco.errors import SceneError
 
 SMALL = ["geometry.cells=[8, 8]", "time.T=0.2", "time.steps=2"]
 
@@ -45,7 +45,7 @@ def test_step_away_from_newton_is_caught(monkeypatch):
     """Without the option check, a lagged Jacobian is still caught at the first residual
     evaluated away from a full Newton step, and reported as a clear error, not as wrong
     iterates."""
-    from contactvisco.solver import CondensedSNES
+    from contactvisco.solver.newton import CondensedSNES
     monkeypatch.setattr(CondensedSNES, "_check_options", lambda self: None)
     scene = _paper(["solver.petsc_options.snes_lag_jacobian=2"])
     with pytest.raises(SceneError, match="away from the full Newton step"):
@@ -81,7 +81,7 @@ def _lu(A, comm):
 def _coupled_step(problem, comm):
     """The Newton step (du, dl) of the assembled coupled system at the current state, as
     arrays over the owned dofs of u and of each multiplier."""
-    from contactvisco.solver import BlockSNES
+    from contactvisco.solver.newton import BlockSNES
     block = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, comm)
     try:
         block._from_functions(block.x)
@@ -104,8 +104,8 @@ def _coupled_step(problem, comm):
 def _condensed_step(problem, comm):
     """The step of the condensed system: J_red du = -F_red, dl recovered node by node.
     Returns du (owned dofs), dl (owned contact nodes, m columns) and the nodes' nullities."""
-    from contactvisco import compat
-    from contactvisco.condensed import NodalCondensation, recover
+    from contactvisco.fem import compat
+    from contactvisco.solver.condensed import NodalCondensation, recover
     system = NodalCondensation(problem)
     x = compat.petsc_vector(problem.u).copy()
     # copy() copies the owned values only: the lifting reads the ghosts too.
@@ -127,7 +127,7 @@ def _condensed_step(problem, comm):
 
 def _block(cells, **contact):
     """The Coulomb sliding block in its stick regime (every contact node sticks), as a scene."""
-    from contactvisco import coulomb
+    from contactvisco.studies import coulomb
     raw, _ = coulomb.block_scene("stick", cells=cells)
     raw["contact"].update(contact)
     return scene_module.resolve(raw)
@@ -153,7 +153,7 @@ def test_condensed_step_is_the_coupled_step(label):
     coupled Newton system (the Schur complement of its multiplier block, taken node by node),
     to 1e-9 relative; each null-space size named occurs at some node. On more than one rank
     the contact nodes must be owned by more than one rank."""
-    from contactvisco import compat
+    from contactvisco.fem import compat
     make, nullities = PIECE_SCENES[label]
     comm = MPI.COMM_WORLD
     scene = make()
@@ -187,8 +187,8 @@ RANKS_SCRIPT = """
 import json, sys
 import numpy as np
 from mpi4py import MPI
-from contactvisco import scene as scene_module
-from contactvisco.run import simulate
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
 scene = scene_module.load("paper", SETS)
 scene["output"]["probes"] = []
 result = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
@@ -213,7 +213,7 @@ def test_three_ranks_split_the_contact_nodes():
     import os
     import subprocess
     import sys
-    from contactvisco import compat
+    from contactvisco.fem import compat
     launcher = compat.mpi_launcher()
     if not launcher:
         pytest.skip("no MPI launcher found")
@@ -263,7 +263,7 @@ def test_memory_acts_on_its_part_of_the_strain(part):
     """Under a pure shear (eps deviatoric) a deviatoric kernel changes the stress and a
     volumetric one does not; under a pure dilatation (eps = e I) the other way round. A swap
     of the two parts fails both."""
-    from contactvisco.material import lame_constants
+    from contactvisco.model.material import lame_constants
     lame_lambda, lame_mu = lame_constants("plane_strain", 100.0, 0.3)
     e = 0.01
     shear = _homogeneous_run([f"{e} * x[1]", f"{e} * x[0]"], part)

@@ -7,12 +7,15 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import checkpoint, geometry, kernels, problem as problem_module
-from contactvisco import scene as scene_module
-from contactvisco.memory import DirectFractionalHistory, FractionalHistory
-from contactvisco.run import simulate
-from contactvisco.solver import BlockSNES
-from contactvisco.verification import orders, uniaxial, uniaxial_exact
+from contactvisco.errors import SceneError
+from contactvisco.io import checkpoint
+from contactvisco.fem import geometry, problem as problem_module
+from contactvisco.model import kernels
+from contactvisco.scene import loader as scene_module
+from contactvisco.model.memory import DirectFractionalHistory, FractionalHistory
+from contactvisco.solver.time_loop import simulate
+from contactvisco.solver.newton import BlockSNES
+from contactvisco.studies.verification import orders, uniaxial, uniaxial_exact
 
 COMM = MPI.COMM_WORLD
 
@@ -214,7 +217,7 @@ def test_checkpoint_restores_the_fitted_history(kernel, tmp_path_factory):
     ("memory.summation='fast'", "memory.summation must be soe or direct"),
 ])
 def test_bad_fractional_keys(override, words):
-    with pytest.raises(scene_module.SceneError, match=words.replace("[", r"\[")
+    with pytest.raises(SceneError, match=words.replace("[", r"\[")
                        .replace("]", r"\]").replace("(", r"\(")):
         scene_module.load("paper", KERNELS["fractional"] + [override])
 
@@ -225,6 +228,6 @@ def test_bad_fractional_keys(override, words):
     ("memory.beta=0", "memory.beta must be a number in (0, 20]"),
 ])
 def test_bad_power_keys(override, words):
-    with pytest.raises(scene_module.SceneError, match=words.replace("(", r"\(")
+    with pytest.raises(SceneError, match=words.replace("(", r"\(")
                        .replace("]", r"\]")):
         scene_module.load("paper", KERNELS["power"] + [override])

@@ -10,8 +10,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mpi4py import MPI
 
-from contactvisco import geometry, problem as problem_module, scene as scene_module
-from contactvisco.run import simulate
+from contactvisco.errors import SceneError
+from contactvisco.fem import geometry, problem as problem_module
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="hypothesis draws per process; run on one rank")
@@ -77,5 +79,5 @@ def test_any_value_gives_a_scene_error_or_a_scene(key, value):
         if scene["geometry"]["cells"] and max(scene["geometry"]["cells"]) > 64:
             return                                    # valid, but too big to build here
         problem_module.build(scene, geometry.build(scene, MPI.COMM_SELF))
-    except scene_module.SceneError as err:
+    except SceneError as err:
         assert str(err)

@@ -12,8 +12,8 @@ import time
 import pytest
 from mpi4py import MPI
 
-from contactvisco import compat
-from contactvisco.output import read_summary
+from contactvisco.fem import compat
+from contactvisco.io.output import read_summary
 from fault_cases import alive
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
@@ -60,7 +60,7 @@ def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
         time.sleep(0.05)
     assert proc.poll() is None, "the run finished before it could be killed"
     # kill -9 of a real rank process (the last one), not of mpirun: the job must end.
-    pids = json.loads((out / "contactvisco.lock").read_text())["pids"]
+    pids = json.loads((out / "contactvisco.io.lock").read_text())["pids"]
     assert len(pids) == ranks
     os.kill(pids[-1], signal.SIGKILL)
     proc.wait(timeout=30)

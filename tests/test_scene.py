@@ -4,7 +4,10 @@ import math
 import pytest
 from mpi4py import MPI
 
-from contactvisco import geometry, problem as problem_module, scene as scene_module
+from contactvisco.model.memory_kernel import memory_terms
+from contactvisco.errors import SceneError
+from contactvisco.fem import geometry, problem as problem_module
+from contactvisco.scene import loader as scene_module
 
 
 def build(overrides):
@@ -18,7 +21,7 @@ def test_paper_scene_values():
                                  "lambda": None, "mu": None}
     assert scene["contact"]["g"] == 0.05 and scene["contact"]["mu"] == 0.2
     assert scene["contact"]["augmentation"] == 100.0       # defaults to the stiffness
-    assert scene_module.memory_terms(scene) == [(100.0, math.inf, "full")]
+    assert memory_terms(scene) == [(100.0, math.inf, "full")]
     assert scene["time"] == {"T": 1.0, "steps": 10, "rule": "paper", "allow_unstable": False}
 
 
@@ -41,23 +44,23 @@ def test_set_overrides():
     ("contact.g=0", "contact.mu = 0.2 has no effect"),
 ])
 def test_bad_values_are_named(override, words):
-    with pytest.raises(scene_module.SceneError) as err:
+    with pytest.raises(SceneError) as err:
         scene_module.load("paper", [override])
     assert words in str(err.value)
 
 
 def test_poisson_ratio_limit_depends_on_the_model():
-    with pytest.raises(scene_module.SceneError, match=r"\(-1, 0.5\) for plane_strain"):
+    with pytest.raises(SceneError, match=r"\(-1, 0.5\) for plane_strain"):
         scene_module.load("paper", ["material.model=plane_strain", "material.nu=0.5"])
 
 
 def test_unknown_scene():
-    with pytest.raises(scene_module.SceneError, match="not a built-in scene"):
+    with pytest.raises(SceneError, match="not a built-in scene"):
         scene_module.load("no-such-scene")
 
 
 def test_unknown_boundary_is_named():
-    with pytest.raises(scene_module.SceneError, match="no boundary named 'floor'"):
+    with pytest.raises(SceneError, match="no boundary named 'floor'"):
         build(["contact.boundary='floor'"])
 
 
@@ -90,7 +93,7 @@ def test_presets_scale_the_scene():
     hertz = scene_module.load("hertz", ["preset='fast'"])
     assert hertz["geometry"]["parameters"]["h_contact"] == pytest.approx(0.0054)
     assert hertz["geometry"]["parameters"]["radius"] == 1.0       # not a mesh size
-    with pytest.raises(scene_module.SceneError, match="did you mean 'fast'"):
+    with pytest.raises(SceneError, match="did you mean 'fast'"):
         scene_module.load("paper", ["preset='fats'"])
 
 
@@ -98,7 +101,7 @@ def test_every_declared_key_is_documented():
     """docs/scenes.md has a row for every key the tables declare, under its table's heading."""
     import pathlib
 
-    from contactvisco import tables
+    from contactvisco.scene import tables
     text = (pathlib.Path(__file__).parents[1] / "docs" / "scenes.md").read_text()
     sections = {}
     for block in text.split("\n## ")[1:]:
@@ -115,7 +118,7 @@ def test_every_declared_key_is_documented():
 def test_a_table_checks_itself_and_names_its_origin(tmp_path):
     """A table refuses a bad value by itself (no whole-scene check), with the dotted key and
     the line of the scene file it came from; the same table from a --set names the --set."""
-    from contactvisco import tables
+    from contactvisco.scene import tables
     path = tmp_path / "mine.toml"
     path.write_text('name = "mine"\n[contact]\nstiffness = 10.0\ng = 0.1\n'
                     'mu = -0.5   # a negative friction coefficient\n')
@@ -123,15 +126,15 @@ def test_a_table_checks_itself_and_names_its_origin(tmp_path):
     provenance = tables.Provenance(path, text)
     scene = scene_module.load("paper")
     contact = tables.Contact(dict(scene["contact"], mu=-0.5), "contact", provenance)
-    with pytest.raises(scene_module.SceneError) as err:
+    with pytest.raises(SceneError) as err:
         contact.validate(scene)
     assert err.value.key == "contact.mu"
     assert "contact.mu must be a finite number >= 0, got -0.5" in str(err.value)
     assert "mine.toml, line 5: mu = -0.5" in str(err.value)
-    with pytest.raises(scene_module.SceneError) as err:
+    with pytest.raises(SceneError) as err:
         scene_module.load(str(path))
     assert err.value.key == "contact.mu" and "mine.toml, line 5" in str(err.value)
-    with pytest.raises(scene_module.SceneError) as err:
+    with pytest.raises(SceneError) as err:
         scene_module.load(str(path), ["contact.mu=0.3", "contact.g=-1"])
     assert err.value.key == "contact.g" and "(from --set contact.g=-1)" in str(err.value)
     # A valid table passes, and the values of the scene are those of its tables.
@@ -148,7 +151,7 @@ def test_an_error_found_while_building_names_its_origin(tmp_path):
     path = tmp_path / "wrong.toml"
     path.write_text('name = "wrong"\n[geometry]\ncells = [2, 2]\n[[dirichlet]]\n'
                     'boundary = "lef"\n')
-    with pytest.raises(scene_module.SceneError) as err:
+    with pytest.raises(SceneError) as err:
         api.solve(scene_module.load(str(path)))
     assert err.value.key == "dirichlet[0].boundary"
     assert "no boundary named 'lef'" in str(err.value)
@@ -167,5 +170,5 @@ def test_a_scene_survives_copy_and_pickle():
         assert other == scene and type(other["contact"]) is type(scene["contact"])
         assert other["contact"].origin("mu") == " (from load_scene contact.mu=0.3)"
         other["time"]["steps"] = 0
-        with pytest.raises(scene_module.SceneError, match="load_scene time.steps=12"):
+        with pytest.raises(SceneError, match="load_scene time.steps=12"):
             other.validate()

@@ -5,10 +5,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import geometry, problem as problem_module, scene as scene_module
-from contactvisco.memory import DirectHistory, History, table_kernel
-from contactvisco.run import simulate
-from contactvisco.verification import hertz
+from contactvisco.errors import SceneError
+from contactvisco.fem import geometry, problem as problem_module
+from contactvisco.scene import loader as scene_module
+from contactvisco.model.memory import DirectHistory, History, table_kernel
+from contactvisco.solver.time_loop import simulate
+from contactvisco.studies.verification import hertz
 
 COMM = MPI.COMM_WORLD
 
@@ -153,7 +155,7 @@ def test_lame_input():
     scene = scene_module.resolve(raw)
     assert scene["material"]["E"] == pytest.approx(100.0)
     assert scene["material"]["nu"] == pytest.approx(0.3)
-    with pytest.raises(scene_module.SceneError, match="either E and nu or lambda and mu"):
+    with pytest.raises(SceneError, match="either E and nu or lambda and mu"):
         scene_module.resolve({"material": {"E": 1.0, "mu": 2.0}})
 
 
@@ -166,15 +168,15 @@ def test_lame_input():
 def test_bad_expressions_are_named(value, words):
     scene = scene_module.load("paper", ["geometry.cells=[2, 2]"])
     scene["traction"][0]["value"] = value
-    with pytest.raises(scene_module.SceneError) as err:
+    with pytest.raises(SceneError) as err:
         problem_module.build(scene, geometry.build(scene, COMM))
     assert words in str(err.value) and "traction[0].value" in str(err.value)
 
 
 def test_unknown_mesh_script():
-    with pytest.raises(scene_module.SceneError, match="built-in mesh script .* got 'nope'"):
+    with pytest.raises(SceneError, match="built-in mesh script .* got 'nope'"):
         scene_module.load("hertz", ["geometry.script='nope'"])
     scene = scene_module.load("hertz")
     scene["geometry"]["script"] = "/tmp/nope"         # past the scene check: refused again
-    with pytest.raises(scene_module.SceneError, match="no mesh script '/tmp/nope'"):
+    with pytest.raises(SceneError, match="no mesh script '/tmp/nope'"):
         geometry.build(scene, COMM)

@@ -12,11 +12,11 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from contactvisco import compat
-from contactvisco import scene as scene_module
-from contactvisco.h5read import check_xdmf
-from contactvisco.output import xdmf_field
-from contactvisco.run import simulate
+from contactvisco.fem import compat
+from contactvisco.scene import loader as scene_module
+from contactvisco.io.h5read import check_xdmf
+from contactvisco.io.output import xdmf_field
+from contactvisco.solver.time_loop import simulate
 
 
 def test_p2_and_dg1_fields_become_p1_and_dg0_exactly():

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco import geometry, problem as problem_module, scene as scene_module
-from contactvisco.memory import DirectHistory, History, table_kernel
+from contactvisco.fem import geometry, problem as problem_module
+from contactvisco.scene import loader as scene_module
+from contactvisco.model.memory import DirectHistory, History, table_kernel
 
 ALPHA, TAU = 100.0, 0.2
 RECURSIVE = {

@@ -6,10 +6,10 @@ import pytest
 from mpi4py import MPI
 
 from contactvisco import load_scene
-from contactvisco import geometry as geometry_module
-from contactvisco import solver as solver_module
-from contactvisco.problem import build
-from contactvisco.run import StepFailed, advance
+from contactvisco.fem import geometry as geometry_module
+from contactvisco.solver import newton as solver_module
+from contactvisco.fem.problem import build
+from contactvisco.solver.time_loop import StepFailed, advance
 
 STEPS = 5
 

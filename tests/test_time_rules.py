@@ -1,5 +1,5 @@
 """Time discretization of the memory term against a closed form, and its stability (the closed
-form is in contactvisco.verification). Differencing eq (19) shows the paper's rule is forward
+form is in contactvisco.studies.verification). Differencing eq (19) shows the paper's rule is forward
 Euler for one step, then two-step Adams-Bashforth: second order and stable for
 b = k R(0) / m < 1. The trapezoid rule is Crank-Nicolson: second order and stable for every k.
 """
@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from contactvisco.memory import History, direct_sum, prony
-from contactvisco.verification import UNIAXIAL_KERNELS as KERNELS
-from contactvisco.verification import manufactured, uniaxial
-from contactvisco.verification import uniaxial_exact as exact
+from contactvisco.model.memory import History, direct_sum, prony
+from contactvisco.studies.verification import UNIAXIAL_KERNELS as KERNELS
+from contactvisco.studies.verification import manufactured, uniaxial
+from contactvisco.studies.verification import uniaxial_exact as exact
 
 
 def top_displacement(kernel, rule, T, steps):

@@ -6,8 +6,8 @@ import math
 import pytest
 from mpi4py import MPI
 
-from contactvisco import scene as scene_module
-from contactvisco import tradeoff
+from contactvisco.scene import loader as scene_module
+from contactvisco.studies import tradeoff
 from contactvisco.cli import main
 
 # The paper scene on 4, 8, 16 cells per side, 2/4/8 steps; reference 32 cells, 16 steps.

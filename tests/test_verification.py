@@ -4,7 +4,7 @@ import math
 import pytest
 from mpi4py import MPI
 
-from contactvisco.verification import hertz, manufactured, orders
+from contactvisco.studies.verification import hertz, manufactured, orders
 
 THEORY = {1: {"L2": 2.0, "H1": 1.0}, 2: {"L2": 3.0, "H1": 2.0}}
 

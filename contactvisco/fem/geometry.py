@@ -14,9 +14,10 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from . import compat
-from .scene import SceneError, dimension
-from .tables import MESH_DIR
+from contactvisco.fem import compat
+from contactvisco.errors import SceneError
+from contactvisco.model.material import dimension
+from contactvisco.scene.tables import MESH_DIR
 
 
 def _cache_dir() -> pathlib.Path:

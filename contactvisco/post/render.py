@@ -8,7 +8,7 @@ Where it runs. With Debian's DOLFINx 0.5 loaded first, VTK 9.7 (pyvista 0.49 whe
 vtkRenderer::Render (std::bad_alloc, signal 6); importing VTK before DOLFINx, or rendering
 before DOLFINx is loaded, works, and so do all four orders with the PyPI DOLFINx 0.11 wheels.
 So the rendering runs in this process unless DOLFINx 0.5 is loaded and VTK is not, and then in
-a child process (`python -m contactvisco.render IN.npz OUT.npz`), whose abort cannot take the
+a child process (`python -m contactvisco.post.render IN.npz OUT.npz`), whose abort cannot take the
 run with it.
 """
 from __future__ import annotations
@@ -48,7 +48,7 @@ def images(points, cells, displacement, values, clim, views, edges=False):
         given, taken = f"{folder}/in.npz", f"{folder}/out.npz"
         np.savez(given, **args)
         try:
-            proc = subprocess.run([sys.executable, "-m", "contactvisco.render", given, taken],
+            proc = subprocess.run([sys.executable, "-m", "contactvisco.post.render", given, taken],
                                   capture_output=True, text=True, timeout=300)
         except subprocess.TimeoutExpired:
             proc = None

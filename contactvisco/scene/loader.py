@@ -2,7 +2,7 @@
 
 :func:`load` reads a built-in scene by name or a TOML file by path, fills in :data:`DEFAULTS`,
 applies ``--set key=value`` overrides (dotted keys, values in TOML syntax) or the Python API's
-values, and returns a :class:`~contactvisco.tables.Scene`: a nested dict of typed tables, each
+values, and returns a :class:`~contactvisco.scene.tables.Scene`: a nested dict of typed tables, each
 of which checks its own keys and names where a refused value came from. Nothing else in the
 package holds a parameter value of its own.
 """
@@ -14,10 +14,10 @@ import math
 import pathlib
 import tomllib
 
-from .tables import (TABLE_LISTS, Contact, Provenance, Scene, SceneError, as_list,
-                     is_mesh_size)
+from contactvisco.scene.tables import TABLE_LISTS, Contact, Provenance, Scene, is_mesh_size
+from contactvisco.errors import SceneError
 
-SCENE_DIR = pathlib.Path(__file__).parent / "scenes"
+SCENE_DIR = pathlib.Path(__file__).parent.parent / "scenes"
 
 #: Defaults filled into every scene; a scene file only states what differs. Each key is
 #: declared once, with what it allows, in the tables of contactvisco/tables.py; docs/scenes.md
@@ -250,80 +250,3 @@ def apply_preset(scene: dict, name: str) -> None:
     scene["discretization"]["degree"] = preset["degree"]
     if preset["degree"] > 1:
         scene["discretization"]["contact_quadrature"] = "gauss"
-
-
-def dimension(scene: dict) -> int:
-    return 3 if scene["material"]["model"] == "3d" else 2
-
-
-def amplifies(b: float, steps: int) -> bool:
-    """Whether the paper's rule amplifies errors: its scalar analogue (see stability_number) is
-    u_1 = (1 - b) u_0 (one forward Euler step), then u_{n+1} = (1 - 3b/2) u_n + b/2 u_{n-1}
-    with a root of modulus > 1 once b > 1. A single step amplifies only from b = 2 on."""
-    return b >= 1.0 and (steps >= 2 or b >= 2.0)
-
-
-def steps_for_stability(steps: int, b: float) -> str:
-    return f"{math.ceil(steps * b)}" if b < 1e15 else "(far more steps)"
-
-
-def memory_terms(scene: dict) -> list[tuple[float, float, str]]:
-    """A Prony kernel as terms [(alpha_i, tau_i, part_i)], tau = inf for the constant kernel;
-    empty without memory and for a table kernel (see :func:`memory_table`)."""
-    mem = scene["memory"]
-    if mem["kernel"] == "constant":
-        alpha = float(mem["alpha"])
-        return [(alpha, math.inf, "full")] if alpha != 0.0 else []
-    if mem["kernel"] == "exponential":
-        return [(float(a), float(t), "full")
-                for a, t in zip(as_list(mem["alpha"]), as_list(mem["tau"])) if a != 0]
-    if mem["kernel"] == "prony":
-        return [(float(t["alpha"]), float(t.get("tau", math.inf)), t.get("part", "full"))
-                for t in mem["terms"] if t["alpha"] != 0]
-    return []
-
-
-def memory_table(scene: dict):
-    """(times, values) of a table kernel, else None."""
-    mem = scene["memory"]
-    if mem["kernel"] == "table" and any(v != 0 for v in mem["values"]):
-        return list(map(float, mem["times"])), list(map(float, mem["values"]))
-    return None
-
-
-def memory_power(scene: dict) -> dict | None:
-    """The memory table of a power or fractional kernel with alpha != 0, else None."""
-    mem = scene["memory"]
-    if mem["kernel"] in ("power", "fractional") and mem["alpha"] != 0:
-        return mem
-    return None
-
-
-def memory_R0(scene: dict) -> dict[str, float]:
-    """R(0) per part: the instantaneous stiffness the memory adds (for the fractional kernel,
-    infinite, the mean (1/k) int_0^k R of a step k instead)."""
-    power = memory_power(scene)
-    if power is not None:
-        alpha = float(power["alpha"])
-        if power["kernel"] == "fractional":
-            k = scene["time"]["T"] / scene["time"]["steps"]
-            alpha *= k ** -power["beta"] / math.gamma(2.0 - power["beta"])
-        return {power["part"]: alpha}
-    table = memory_table(scene)
-    if table is not None:
-        return {"full": table[1][0]}
-    out: dict[str, float] = {}
-    for a, _, part in memory_terms(scene):
-        out[part] = out.get(part, 0.0) + a
-    return out
-
-
-def stability_number(scene: dict) -> float:
-    """b = k |R(0)| / (2 mu): the paper's rule is stable for b < 1 (NOTES: the scalar analogue
-    u_{n+1} = (1 - 3b/2) u_n + b/2 u_{n-1}); 2 mu = E / (1 + nu) is the deviatoric modulus."""
-    R0 = sum(abs(a) for a in memory_R0(scene).values())
-    if R0 == 0.0:
-        return 0.0
-    k = scene["time"]["T"] / scene["time"]["steps"]
-    mat = scene["material"]
-    return k * R0 * (1.0 + mat["nu"]) / mat["E"]

@@ -8,7 +8,7 @@ global backend switch, so notebooks keep theirs), sized for a journal column (8.
 ("(model units)" when it gives none). Stress maps colour by the 1st-99th percentile of the
 von Mises stress (the clipping is said on the colour bar): a corner singularity would
 otherwise set the range. 2D maps are drawn by matplotlib (vector output stays vector); 3D
-bodies are rendered by pyvista (contactvisco.render) and framed here.
+bodies are rendered by pyvista (contactvisco.post.render) and framed here.
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ from matplotlib.figure import Figure
 from matplotlib.collections import LineCollection
 from matplotlib.patches import Rectangle
 
-from .output import STATUSES, read_summary
+from contactvisco.io.output import STATUSES, read_summary
 
 ZONE_COLOURS = {"separated": "#dddddd", "compliance": "#9ecae1", "bound": "#fdae6b"}
 COLUMN = 3.35        # inches: one journal column (8.5 cm)
@@ -301,7 +301,7 @@ def _stress_3d(data, index, clim, bar_label, t_text, table, edges):
     matplotlib colour bar and titles (no text inside the rendering to clip)."""
     from matplotlib import cm, colors
 
-    from . import render
+    from contactvisco.post import render
     view = contact_face_view(data["points"], table)
     images = render.images(data["points"], data["cells"], data["displacements"][index],
                            data["von_mises"][index], clim,

@@ -26,15 +26,15 @@ import shutil
 
 import numpy as np
 
-from . import compat
-from .scene import SceneError
+from contactvisco.fem import compat
+from contactvisco.errors import SceneError
 
 META = "meta.json"
 LEGACY = "state.npz"
 
 
 def scene_hash(scene: dict) -> str:
-    from .output import jsonable
+    from contactvisco.io.output import jsonable
     return hashlib.sha1(json.dumps(jsonable(scene), sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -44,7 +44,7 @@ FREE = ("output",)
 
 def scene_values(scene: dict) -> dict:
     """The scene as flat {"table.key": value} (JSON values), without the FREE tables."""
-    from .output import jsonable
+    from contactvisco.io.output import jsonable
     flat = {}
 
     def walk(prefix, value):

@@ -14,7 +14,9 @@ import copy
 import math
 import pathlib
 
-from .memory import PARTS
+from contactvisco.errors import SceneError
+from contactvisco.model.memory import PARTS
+from contactvisco.model.memory_kernel import as_list
 
 #: Scene moduli (E, lambda, mu, stiffness, ...) and box sizes must lie in
 #: [1/MODULUS_RANGE, MODULUS_RANGE]: products of moduli, lengths, displacements and their
@@ -37,21 +39,11 @@ SLIP_MEASURES = ("total", "increment")
 NOT_EXTENTS = ("refine",)
 
 
-class SceneError(ValueError):
-    """A scene value that is missing, misspelled or out of range. `key` is the dotted key it
-    concerns (None if none); `located` is True once the message names the value's origin."""
-
-    def __init__(self, message: str, key: str | None = None, located: bool = False):
-        super().__init__(message)
-        self.key = key
-        self.located = located
-
-
 def _mesh_dir() -> pathlib.Path:
     """The gmsh scripts: installed inside the package, or meshes/ beside it in a source tree."""
-    here = pathlib.Path(__file__).resolve().parent
-    installed = here / "meshes"
-    return installed if installed.is_dir() else here.parent / "meshes"
+    package = pathlib.Path(__file__).resolve().parent.parent
+    installed = package / "meshes"
+    return installed if installed.is_dir() else package.parent / "meshes"
 
 
 #: Folder of the built-in mesh scripts (geometry.script names one of them).
@@ -200,7 +192,7 @@ class Table(dict):
         are computed, to catch overflow and domain errors)."""
         where = where or self.key(name)
         if isinstance(value, str):
-            from .expressions import parse
+            from contactvisco.scene.expressions import parse
             try:
                 parse(value, where, d)
             except SceneError as err:
@@ -435,8 +427,6 @@ class Memory(Table):
                   f"memory.summation must be soe or direct, got {self['summation']!r}")
 
 
-def as_list(x) -> list:
-    return list(x) if isinstance(x, (list, tuple)) else [x]
 
 
 class Dirichlet(Table):
@@ -569,7 +559,7 @@ class Time(Table):
     }
 
     def rules(self, scene):
-        from .scene import amplifies, stability_number, steps_for_stability
+        from contactvisco.model.stability import amplifies, stability_number, steps_for_stability
         b = stability_number(scene)
         steps = self["steps"]
         self.need(self["rule"] != "paper" or not amplifies(b, steps) or self["allow_unstable"],

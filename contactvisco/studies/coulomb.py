@@ -32,8 +32,8 @@ import math
 import numpy as np
 from mpi4py import MPI
 
-from . import scene as scene_module
-from .run import simulate
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
 
 
 def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5,

@@ -195,7 +195,8 @@ def history(mem: dict, time: dict, max_cuts: int, d: int):
     the sum of exponentials over [k / 2^max_cuts, T] (the smallest step a cut may take) run
     by the Prony recursion, or the direct O(n) sum. Its `note` says which, with the number of
     exponentials and the measured error of the fit."""
-    from .memory import DirectFractionalHistory, DirectHistory, FractionalHistory, History
+    from contactvisco.model.memory import (DirectFractionalHistory, DirectHistory,
+        FractionalHistory, History)
     alpha, beta, part = float(mem["alpha"]), float(mem["beta"]), mem["part"]
     T, rule = float(time["T"]), time["rule"]
     k = T / time["steps"]

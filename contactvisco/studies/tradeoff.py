@@ -37,7 +37,8 @@ import tomllib
 import numpy as np
 from mpi4py import MPI
 
-from . import scene as scene_module
+from contactvisco.model.material import dimension
+from contactvisco.scene import loader as scene_module
 
 MEASURES = {
     "contact_displacement": "(u_nu, u_tau) at the contact nodes, relative discrete L2 norm "
@@ -111,8 +112,8 @@ def work(rung: dict, d: int) -> float:
 def run(source: str, overrides: list[str], comm=MPI.COMM_WORLD) -> dict:
     """Solve `source` with `overrides`; the contact fields and probes at every step, and the
     wall time (largest over ranks). A failed Newton solve gives {"failed": message}."""
-    from .run import simulate
-    from .solver import NewtonFailure
+    from contactvisco.solver.time_loop import simulate
+    from contactvisco.solver.newton import NewtonFailure
     scene = scene_module.load(source, list(overrides))
     tick = clock.perf_counter()
     try:
@@ -228,7 +229,7 @@ def tradeoff(source: str, target: float, overrides=(), measure: str = "contact_p
         raise TradeoffError(f"scene '{scene['name']}' has no contact: use --measure probe")
     if measure == "probe" and not scene["output"]["probes"]:
         raise TradeoffError(f"scene '{scene['name']}' has no output.probes for --measure probe")
-    d = scene_module.dimension(scene)
+    d = dimension(scene)
     ladder = rungs(scene, levels, coarsest, degrees)
     say = say if comm.rank == 0 else (lambda *a, **k: None)
     started = clock.perf_counter()
@@ -448,7 +449,7 @@ def figure(result: dict, path: pathlib.Path, dpi: int = 300):
     import matplotlib
     from matplotlib.figure import Figure
 
-    from .figures import STYLE
+    from contactvisco.post.figures import STYLE
     with matplotlib.rc_context(STYLE):
         fig = Figure()
         draw(result, fig)
@@ -460,7 +461,7 @@ def draw(result: dict, fig):
     """Estimated error against wall time, log-log: circles P1, squares P2, time steps by
     colour, the Pareto front (filled markers, line), the target and the recommendation."""
     import matplotlib
-    from .figures import COLUMN, STYLE
+    from contactvisco.post.figures import COLUMN, STYLE
     with matplotlib.rc_context(STYLE):
         fig.set_size_inches(COLUMN, 2.9)
         if hasattr(fig, "set_layout_engine"):          # matplotlib >= 3.6

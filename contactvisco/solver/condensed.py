@@ -45,7 +45,7 @@ from dolfinx.fem.petsc import assemble_vector, create_matrix
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import compat
+from contactvisco.fem import compat
 
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
 _FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE

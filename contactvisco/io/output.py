@@ -24,9 +24,9 @@ import pathlib
 import numpy as np
 from dolfinx import fem, io
 
-from . import compat
-from . import contact as law
-from . import problem as problem_module
+from contactvisco.fem import compat
+from contactvisco.model import contact_law as law
+from contactvisco.fem import problem as problem_module
 
 STATUSES = ("separated", "compliance", "bound")
 
@@ -89,7 +89,7 @@ def _node_fields(problem, own: np.ndarray) -> dict[str, np.ndarray | None]:
 
 
 def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -> dict:
-    """The law of the forms (contactvisco.contact) evaluated at the nodes: penetration
+    """The law of the forms (contactvisco.model.contact_law) evaluated at the nodes: penetration
     s_nu, u_nu, u_tau_vector, p_nu (zero without compliance) and slip_vector. At corners of
     Gamma_C the forms use each facet's normal: the values there are the law's as the forms
     see them (the facets' weighted mean), not at the mean normal."""

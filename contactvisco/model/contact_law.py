@@ -10,7 +10,7 @@ slip where it reaches the bound. The slip is u_tau (the paper's) or the step's
 u_tau - u_tau(t_{n-1}) (Coulomb's incremental law).
 
 Every function takes the array namespace `ops` it is evaluated in: UFL (the forms of
-contactvisco.problem) or NUMPY (the node values of the contact table, one row per node,
+contactvisco.fem.problem) or NUMPY (the node values of the contact table, one row per node,
 vectors as (n, d) arrays). The law is thus one set of expressions for both.
 """
 from __future__ import annotations

@@ -16,15 +16,15 @@ from dataclasses import dataclass, field
 from dolfinx import fem
 from mpi4py import MPI
 
-from . import checkpoint
-from . import geometry as geometry_module
-from . import output
-from . import parallel
-from . import scene as scene_module
-from .lock import FolderLock
-from .problem import Problem, build
-from . import solver as solver_module
-from .solver import NewtonFailure
+from contactvisco.model.stability import stability_number
+from contactvisco.io import checkpoint
+from contactvisco.fem import geometry as geometry_module
+from contactvisco.io import output
+from contactvisco.io import parallel
+from contactvisco.io.lock import FolderLock
+from contactvisco.fem.problem import Problem, build
+from contactvisco.solver import newton as solver_module
+from contactvisco.solver.newton import NewtonFailure
 
 
 @dataclass
@@ -74,7 +74,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
              on_step=None) -> Result:
     """Solve a resolved scene; write results into folder `out` when given, with a checkpoint
     after every step; restart=True continues from the checkpoint in `out`. The run holds the
-    folder (contactvisco.lock); an earlier run's files in it are replaced when overwrite is
+    folder (contactvisco.io.lock); an earlier run's files in it are replaced when overwrite is
     true, else refused. SIGINT/SIGTERM stop every rank after the same step (parallel.Stopped).
     `geometry` replaces the scene's own mesh; on_step(record) is called after every accepted
     step.
@@ -177,7 +177,7 @@ class Run:
             self.say(note)
             if self.writer is not None:
                 self.writer.note("notes", note)
-        b = scene_module.stability_number(scene)
+        b = stability_number(scene)
         if scene["time"]["rule"] == "paper" and b >= 1.0:
             steps = scene["time"]["steps"]
             warning = (f"warning: the paper's time rule is unstable here: k R(0) (1 + nu) / E "
@@ -253,8 +253,8 @@ class Run:
             err.reason, err.residuals)
 
     def _finish(self, table, t_end) -> dict:
-        """The final record; the summary and figures when writing."""
-        writer, out = self.writer, self.out
+        """The final record; the summary when writing."""
+        writer = self.writer
         if table is None and writer is not None and writer.last_record:
             counts = writer.last_record["status_counts"]     # nothing left after a restart
         else:
@@ -263,14 +263,6 @@ class Run:
                  "wall_s": clock.perf_counter() - self.started, "setup_s": self.setup_s}
         if writer is not None:
             writer.finish(final)
-            if self.comm.rank == 0 and self.scene["output"]["figures"]:
-                from . import figures
-                try:
-                    figures.draw_all(pathlib.Path(out))
-                except Exception as err:   # the results are written; a figure must not lose them
-                    print(f"contactvisco: warning: figures failed ({type(err).__name__}: "
-                          f"{err}); the results in {out} are complete; retry with "
-                          f"'contactvisco plot {out}'", file=sys.stderr, flush=True)
         self.say(f"done in {final['wall_s']:.2f} s; at t = {t_end:g}: "
                  + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
         return final
@@ -366,7 +358,7 @@ def likely_cause(err: NewtonFailure, scene: dict, step: int) -> str:
     if err.reason == -5:
         hint = "likely cause: too large a step for the contact state to settle"
         if step > 0 and scene["time"]["rule"] == "paper" and \
-                scene_module.stability_number(scene) >= 1:
+                stability_number(scene) >= 1:
             hint += " (the paper's time rule is unstable at this step: use 'trapezoid')"
         return hint + "; try more time steps or raise -snes_max_it"
     return "see the residual history"

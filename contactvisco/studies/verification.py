@@ -40,13 +40,13 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from . import geometry as geometry_module
-from . import kernels
-from . import scene as scene_module
-from .material import elasticity, lame_constants, strain
-from .problem import build
-from .run import simulate
-from .solver import BlockSNES
+from contactvisco.fem import geometry as geometry_module
+from contactvisco.model import kernels
+from contactvisco.scene import loader as scene_module
+from contactvisco.model.material import elasticity, lame_constants, strain
+from contactvisco.fem.problem import build
+from contactvisco.solver.time_loop import simulate
+from contactvisco.solver.newton import BlockSNES
 
 #: The manufactured displacement, as scene expressions in x.
 U_EXACT = ["0.1 * sin(pi * x[0]) * sin(pi * x[1]) + 0.05 * x[0] * x[1]",

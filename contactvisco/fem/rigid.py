@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from .scene import SceneError
+from contactvisco.errors import SceneError
 
 AXES = "xyz"
 

@@ -6,7 +6,7 @@ the UFL derivative of F, i.e. an element of the generalized (Clarke) Jacobian of
 semismooth residual. Two forms of that linear system, with the same iterates:
 
 - CondensedSNES (default where the contact conditions hold node by node): the multipliers are
-  eliminated node by node (contactvisco.condensed) and the system has the size of u;
+  eliminated node by node (contactvisco.solver.condensed) and the system has the size of u;
 - BlockSNES: u and the multipliers (whole-mesh P1 fields) in one block-assembled saddle-point
   system (the Gauss contact quadrature needs it).
 
@@ -23,9 +23,9 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from . import compat
-from .condensed import NodalCondensation
-from .scene import SceneError
+from contactvisco.fem import compat
+from contactvisco.solver.condensed import NodalCondensation
+from contactvisco.errors import SceneError
 
 #: SNES defaults. Measured on this problem: the basic (full-step) line search converges in
 #: 1-5 iterations whatever the augmentation parameter; bt/cp get worse as it grows.
@@ -397,7 +397,7 @@ class BlockSNES(_Newton):
 
 class CondensedSNES(_Newton):
     """SNES over u alone, the nodal multipliers eliminated node by node in every Newton step
-    (contactvisco.condensed); they are updated from each displacement step, as the coupled
+    (contactvisco.solver.condensed); they are updated from each displacement step, as the coupled
     Newton step's dl for that du. That holds for full Newton steps with a Jacobian at every
     iterate: options that change this are refused (_check_options), and a residual evaluated
     away from such a step stops the solve with a clear error rather than wrong iterates."""

@@ -23,7 +23,7 @@ import operator
 
 import ufl
 
-from .scene import SceneError
+from contactvisco.errors import SceneError
 
 #: UFL's two-argument arctangent (ufl.atan_2 before UFL 2023).
 _ATAN2 = getattr(ufl, "atan2", None) or getattr(ufl, "atan_2")

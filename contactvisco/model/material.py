@@ -25,3 +25,8 @@ def elasticity(eps, lmbda, mu):
     """A eps = lambda tr(eps) I + 2 mu eps."""
     d = eps.ufl_shape[0]
     return lmbda * ufl.tr(eps) * ufl.Identity(d) + 2.0 * mu * eps
+
+
+def dimension(scene: dict) -> int:
+    """The space dimension of a scene: 3 for the 3D model, else 2 (plane stress, plane strain)."""
+    return 3 if scene["material"]["model"] == "3d" else 2

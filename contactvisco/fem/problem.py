@@ -32,15 +32,16 @@ from dolfinx.fem.petsc import assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import compat
-from . import contact as law
-from . import rigid
-from .geometry import Geometry
-from .material import elasticity, lame_constants, strain
-from .expressions import Context
-from .memory import DirectHistory, History, table_kernel
-from .scene import SceneError, memory_power, memory_table, memory_terms
-from . import kernels
+from contactvisco.fem import compat
+from contactvisco.model import contact_law as law
+from contactvisco.fem import rigid
+from contactvisco.fem.geometry import Geometry
+from contactvisco.model.material import elasticity, lame_constants, strain
+from contactvisco.scene.expressions import Context
+from contactvisco.model.memory import DirectHistory, History, table_kernel
+from contactvisco.errors import SceneError
+from contactvisco.model.memory_kernel import memory_power, memory_table, memory_terms
+from contactvisco.model import kernels
 
 
 def nodal_rule(d: int) -> dict:
@@ -354,7 +355,7 @@ def _contact_measure(scene, geometry, ds):
 def _contact(scene, geometry, u, v, ds, context, updates):
     """The contact part (eqs 20-21): returns the ContactPart, the terms it adds to F_u and
     the (multiplier, its residual F_nu or F_tau) pairs, in the order lambda_nu, lambda_tau.
-    The law itself is contactvisco.contact.law_terms."""
+    The law itself is contactvisco.model.contact_law.law_terms."""
     mesh = geometry.mesh
     contact = scene["contact"]
     degree = scene["discretization"]["degree"]

@@ -1,6 +1,6 @@
 """One run owns its output folder.
 
-Rank 0 holds an exclusive fcntl.flock on DIR/contactvisco.lock for the whole run; the kernel
+Rank 0 holds an exclusive fcntl.flock on DIR/contactvisco.io.lock for the whole run; the kernel
 releases it when the process ends, however it ends (kill -9 included), so a stale lock file
 never blocks a later run. The file names the holder (host, pids of the ranks, start time).
 
@@ -18,14 +18,14 @@ import shutil
 import socket
 import time
 
-from .scene import SceneError
+from contactvisco.errors import SceneError
 
 
 class FolderError(SceneError):
     """The output folder cannot be taken (in use, or holding an earlier run's files)."""
 
 
-LOCK = "contactvisco.lock"
+LOCK = "contactvisco.io.lock"
 #: Everything a run writes into its folder (files, and folders removed as a whole).
 OWN_FILES = ("summary.json", "summary.json.tmp", "steps.jsonl", "steps.jsonl.tmp",
              "contact_nodes.csv", "contact_nodes.csv.tmp", "solution.xdmf",
