@@ -146,7 +146,7 @@ def main():
         scene, size, solver = args.one
         one(scene, float(size) if scene == "block3d" else int(size), solver, args.steps)
         return
-    from contactvisco.fem import compat
+    from contactvisco.io import launcher
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     rows = []
     path = RESULTS / f"{args.out}.json"
@@ -166,7 +166,7 @@ def main():
                         size < DIRECT_LIMIT[scene]
                     if done or (solver == "direct" and too_big):
                         continue
-                    command = [*compat.mpi_launcher(), "-n", str(ranks), PYTHON, __file__,
+                    command = [*launcher.mpi_launcher(), "-n", str(ranks), PYTHON, __file__,
                                "--one", scene, str(size), solver, "--steps", str(args.steps)]
                     print("running", scene, size, solver, ranks, flush=True)
                     proc = subprocess.run(command, env=env, capture_output=True, text=True)

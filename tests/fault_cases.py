@@ -12,7 +12,7 @@ import subprocess
 import sys
 import time
 
-from contactvisco.fem import compat
+from contactvisco.io import launcher
 from contactvisco.io.h5read import check_xdmf
 from contactvisco.io.output import read_summary
 
@@ -27,7 +27,7 @@ def command(ranks, out, steps=60, cells=16, *extra):
     base = [sys.executable, "-m", "contactvisco", "run", "paper",
             "--set", f"geometry.cells=[{cells}, {cells}]", "--set", f"time.steps={steps}",
             "--set", "output.figures=false", "--quiet", "--out", str(out), *extra]
-    return ([*compat.mpi_launcher(), "-n", str(ranks)] if ranks > 1 else []) + base
+    return ([*launcher.mpi_launcher(), "-n", str(ranks)] if ranks > 1 else []) + base
 
 
 def start(ranks, out, steps=60, cells=16, *extra, log=None):

@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco.fem import compat
+from contactvisco.io import launcher
 from contactvisco.io.h5read import check_xdmf
 from contactvisco.io.output import read_summary
 
 pytestmark = [
     pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                        reason="starts its own (MPI) processes; run on one rank"),
-    pytest.mark.skipif(not compat.mpi_launcher(), reason="no MPI launcher"),
+    pytest.mark.skipif(not launcher.mpi_launcher(), reason="no MPI launcher"),
 ]
 
 CELLS = (16, 12)
@@ -46,12 +46,12 @@ def rows(folder):
 
 def test_hostfile_run_matches_one_rank(tmp_path):
     hosts = tmp_path / "hosts"
-    hosts.write_text(compat.hostfile_line("localhost", 2) + "\n")
+    hosts.write_text(launcher.hostfile_line("localhost", 2) + "\n")
     single, multi = tmp_path / "np1", tmp_path / "np2"
     one = subprocess.run(program() + ["run", *SCENE, "--out", str(single)], env=ENV,
                          capture_output=True, text=True, timeout=300)
     assert one.returncode == 0, one.stderr
-    two = subprocess.run([*compat.mpi_launcher(), "--hostfile", str(hosts), "-n", "2",
+    two = subprocess.run([*launcher.mpi_launcher(), "--hostfile", str(hosts), "-n", "2",
                           *program(), "run",
                           *SCENE, "--out", str(multi)], env=ENV, capture_output=True,
                          text=True, timeout=300)

@@ -213,8 +213,8 @@ def test_three_ranks_split_the_contact_nodes():
     import os
     import subprocess
     import sys
-    from contactvisco.fem import compat
-    launcher = compat.mpi_launcher()
+    from contactvisco.io.launcher import mpi_launcher
+    launcher = mpi_launcher()
     if not launcher:
         pytest.skip("no MPI launcher found")
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",

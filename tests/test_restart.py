@@ -12,7 +12,7 @@ import time
 import pytest
 from mpi4py import MPI
 
-from contactvisco.fem import compat
+from contactvisco.io import launcher
 from contactvisco.io.output import read_summary
 from fault_cases import alive
 
@@ -28,7 +28,7 @@ ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIR
 
 def command(ranks, out, *extra):
     base = [sys.executable, "-m", "contactvisco", "run", *SCENE, "--out", str(out), *extra]
-    return ([*compat.mpi_launcher(), "-n", str(ranks)] if ranks > 1 else []) + base
+    return ([*launcher.mpi_launcher(), "-n", str(ranks)] if ranks > 1 else []) + base
 
 
 def last_step_rows(path):
