@@ -15,6 +15,7 @@ import math
 import pathlib
 
 from contactvisco.errors import SceneError
+from contactvisco.model.material import dimension
 from contactvisco.model.memory import PARTS
 from contactvisco.model.memory_kernel import as_list
 
@@ -686,7 +687,8 @@ class Scene(Table):
 
     @property
     def dimension(self) -> int:
-        return 3 if self["material"]["model"] == "3d" else 2
+        """The space dimension (contactvisco.model.material.dimension)."""
+        return dimension(self)
 
     @classmethod
     def build(cls, values: dict, provenance: Provenance | None = None) -> "Scene":
