@@ -1,9 +1,9 @@
 """contactvisco: quasistatic frictional contact of viscoelastic bodies with long memory against
 a foundation with normal compliance and a unilateral constraint (Ouafik 2024), in DOLFINx.
 
-The public interface (docs/api.md): load_scene, solve, Result, read_results, builtin_scenes,
-pyvista_grid, SceneError, NewtonFailure, the module tradeoff; for the demos also hertz,
-cattaneo_mindlin, cattaneo_traction, quick, show_images.
+The public interface (docs/api.md): load_scene, solve, check, scene_toml, Result, read_results,
+builtin_scenes, pyvista_grid, SceneError, NewtonFailure, the module tradeoff; for the demos also
+hertz, cattaneo_mindlin, cattaneo_traction, quick, show_images.
 
 Layers, each importing only those below it (docs/architecture.md):
 
@@ -38,7 +38,7 @@ _logging.getLogger().addFilter(
 #: `import contactvisco` loads neither DOLFINx nor PETSc.
 _PUBLIC = {
     "load_scene": "api", "solve": "api", "read_results": "api", "builtin_scenes": "api",
-    "pyvista_grid": "api",
+    "pyvista_grid": "api", "check": "api", "scene_toml": "api",
     "Result": "solver.time_loop", "SceneError": "errors", "NewtonFailure": "solver.newton",
     "hertz": "studies.verification", "cattaneo_mindlin": "studies.coulomb",
     "cattaneo_traction": "studies.coulomb",

@@ -101,15 +101,15 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
                           restart=restart, overwrite=overwrite, geometry=geometry,
                           on_step=on_step)
     except SceneError as err:          # errors found while building name their origin too
-        if not hasattr(scene, "locate"):
-            raise
-        located = scene.locate(err)
-        if located is err:
-            raise
-        raise located from None
+        raise _located(scene, err) from None
     if out is not None and comm.rank == 0 and scene["output"]["figures"]:
         _draw_figures(out)
     return result
+
+
+def _located(scene, err: SceneError) -> SceneError:
+    """A build-time error with the origin of its key (file line, override) appended."""
+    return scene.locate(err) if hasattr(scene, "locate") else err
 
 
 def _draw_figures(out) -> None:
@@ -148,3 +148,69 @@ def read_results(folder) -> dict:
     """The summary.json of a run's output folder with "steps": the step records."""
     from contactvisco.io.output import read_summary
     return read_summary(folder)
+
+
+def check(scene: dict, mesh=None, facet_tags=None, boundaries=None, comm=None) -> dict:
+    """Build `scene` as `solve` would and make every check that needs the mesh, without
+    solving: boundaries, probes, free rigid motions, the solver's PETSc options, the stability
+    of the time rule; report the size of the run. Collective.
+
+    Parameters
+    ----------
+    scene : dict
+        A scene from `load_scene`.
+    mesh, facet_tags, boundaries : optional
+        A caller's DOLFINx mesh, its facet meshtags and ``{boundary name: tag}``, as for
+        `solve`.
+    comm : MPI.Comm, optional
+        Default: the mesh's communicator, else COMM_WORLD.
+
+    Returns
+    -------
+    dict
+        ``cells``, ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
+        ``linear_system``, ``linear_solver``, ``stability_number``, ``unstable``,
+        ``history_bytes`` (the memory's storage at the last step, all ranks) and
+        ``output_bytes`` (an estimate of what ``solve(scene, out=...)`` writes, figures left
+        out).
+
+    Raises
+    ------
+    SceneError
+        Whatever a run would refuse before its first step, naming the key and its origin.
+    """
+    from mpi4py import MPI
+
+    from contactvisco.fem.user_mesh import from_mesh
+    from contactvisco.solver.check import check as check_scene
+    if comm is None:
+        comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
+    try:
+        geometry = None
+        if mesh is not None or facet_tags is not None or boundaries is not None:
+            geometry = from_mesh(scene, mesh, facet_tags, boundaries)
+        return check_scene(scene, geometry, comm)
+    except SceneError as err:
+        raise _located(scene, err) from None
+
+
+def scene_toml(scene: dict, every_value: bool = False) -> str:
+    """A scene as TOML text that ``contactvisco run`` and `load_scene` read back to the same
+    scene.
+
+    Parameters
+    ----------
+    scene : dict
+        A scene from `load_scene`.
+    every_value : bool
+        True: every key with its value, defaults included. False (default): what the scene
+        sets, i.e. the values that differ from the defaults.
+
+    Returns
+    -------
+    str
+        The TOML text (None values, which TOML cannot hold, are left out: they are the
+        defaults of optional keys).
+    """
+    from contactvisco.scene.toml_text import scene_text
+    return scene_text(scene, every_value)

@@ -2,7 +2,8 @@
 
     contactvisco run SCENE [--out DIR] [--set key=value ...] [PETSc options]
     contactvisco scenes
-    contactvisco show SCENE [--set key=value ...]
+    contactvisco show SCENE [--all] [--set key=value ...]
+    contactvisco check SCENE [--set key=value ...] [PETSc options]
     contactvisco plot DIR [--format png|pdf|svg] [--dpi N] [--times T ...] [--edges]
     contactvisco tradeoff SCENE --target TOL [--out DIR] [--budget SECONDS] [--measure NAME]
     contactvisco --version
@@ -10,21 +11,40 @@
 SCENE is a built-in scene name or a TOML file. Arguments that start with a single dash and are
 not ours (-snes_monitor, -ksp_type gmres, ...) go to PETSc.
 """
+
 from __future__ import annotations
 
 import argparse
-import json
+import signal
 import sys
 
 from contactvisco.errors import SceneError
 
+EXAMPLES = """examples:
+  contactvisco scenes                                  the built-in scenes
+  contactvisco show paper > my_scene.toml              a scene as TOML, to edit and run
+  contactvisco check my_scene.toml                     build it, check it, say its size
+  contactvisco run my_scene.toml --out results/mine    solve it (figures in results/mine)
+  contactvisco run paper --set time.steps=100 --set contact.mu=0.4
+  contactvisco run paper -snes_monitor -ksp_view       single-dash options go to PETSc
+  mpirun -n 4 contactvisco run paper --out results/np4
+  contactvisco run paper --out results/paper --restart after a stop: from the checkpoint
+  contactvisco plot results/paper --times 0.5          redraw the figures
+exit codes: 0 done, 2 scene, folder or option error, 3 a step that does not converge,
+  128 + N stopped by signal N, 1 anything else"""
+
 
 def _parser():
-    parser = argparse.ArgumentParser(prog="contactvisco", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="contactvisco", epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Quasistatic frictional contact of viscoelastic bodies with long memory "
+                    "(Ouafik 2024) in DOLFINx.")
     parser.add_argument("--version", action="store_true",
                         help="print the versions of contactvisco, DOLFINx, PETSc and MPI")
     sub = parser.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="solve a scene")
+    run = sub.add_parser("run", help="solve a scene", description="Solve a scene. Arguments "
+                         "that start with a single dash (-snes_monitor, -ksp_type gmres, ...) "
+                         "go to PETSc.")
     run.add_argument("scene", help="built-in scene name or TOML file")
     run.add_argument("--out", default=None, help="output folder (default results/<scene name>)")
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -66,9 +86,19 @@ def _parser():
                        "coarsest level relative to the scene's (default 0.25)")
     trade.add_argument("--degrees", default="1,2", help="Lagrange degrees tried (default 1,2)")
     trade.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
-    show = sub.add_parser("show", help="print a scene with its defaults filled in")
-    show.add_argument("scene")
+    show = sub.add_parser("show", help="print a scene as TOML that run accepts")
+    show.add_argument("scene", help="built-in scene name or TOML file")
+    show.add_argument("--all", action="store_true", help="every key, defaults included "
+                      "(default: what the scene sets)")
     show.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    check = sub.add_parser("check", help="build a scene and make every check a run makes, "
+                           "without solving; print its size", description="Build a scene's "
+                           "mesh, forms and solver and check them as a run does, without "
+                           "solving. Exit 0 if the scene can run, 2 if not. Single-dash "
+                           "arguments go to PETSc, as for run.")
+    check.add_argument("scene", help="built-in scene name or TOML file")
+    check.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    check.add_argument("--preset", choices=["fast", "balanced", "accurate"])
     return parser
 
 
@@ -84,7 +114,7 @@ def main(argv=None):
     # A word that follows no -option is no PETSc value: a stray argument.
     stray = [a for i, a in enumerate(petsc_args) if not a.startswith("-")
              and (i == 0 or not petsc_args[i - 1].startswith("-"))]
-    if stray or (petsc_args and args.command != "run"):
+    if stray or (petsc_args and args.command not in ("run", "check")):
         _parser().error(f"unrecognized arguments: {' '.join(stray or petsc_args)}")
     if getattr(args, "out", None) == "":
         _parser().error("--out needs a folder name (leave it out for results/<scene name>)")
@@ -100,19 +130,61 @@ def main(argv=None):
         return _tradeoff(args)
     if args.command == "run":
         return _run(args, petsc_args, scene_module)
-    preset = [f"preset='{args.preset}'"] if getattr(args, "preset", None) else []
+    if args.command == "check":
+        return _check(args)
+    # Printing commands end quietly when their reader does (`show paper | head`).
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     try:
         if args.command == "scenes":
             for name, description in api.builtin_scenes().items():
                 print(f"{name:12s} {description}")
             return 0
-        scene = api.load_scene(args.scene, sets=preset + args.set)
-        from contactvisco.io.output import jsonable
-        print(json.dumps(jsonable(scene), indent=2))
+        scene = api.load_scene(args.scene, sets=args.set)
+        print(api.scene_toml(scene, every_value=args.all), end="")
         return 0
     except SceneError as err:
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
+
+
+def _size(n: float) -> str:
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+
+
+def _check(args) -> int:
+    """`contactvisco check`: every rank builds; one report or one error message."""
+    from mpi4py import MPI
+
+    from contactvisco import api
+    from contactvisco.io import parallel
+    comm = MPI.COMM_WORLD
+    parallel.prepare(comm)
+    preset = [f"preset='{args.preset}'"] if args.preset else []
+    try:
+        scene = api.load_scene(args.scene, sets=preset + args.set)
+        report = api.check(scene, comm=comm)
+    except SceneError as err:
+        return parallel.fail_together(comm, 2, f"contactvisco: scene error: {err}", err)
+    except Exception as err:
+        return parallel.fail_together(comm, 1, f"contactvisco: error: {_describe(err, None)}",
+                                      err)
+    if comm.rank == 0:
+        unknowns = ", ".join(f"{name} {count}" for name, count in report["unknowns"].items())
+        b = report["stability_number"]
+        print(f"scene '{scene['name']}': checks passed on {comm.size} rank(s)\n"
+              f"  mesh: {report['cells']} cells, {report['vertices']} vertices; "
+              f"{report['contact_nodes']} contact nodes\n"
+              f"  unknowns: {unknowns}\n"
+              f"  linear system: {report['linear_system']}, {report['linear_solver']}\n"
+              f"  time rule: {scene['time']['rule']}, {scene['time']['steps']} steps, "
+              f"b = k R(0) (1 + nu) / E = {b:.3g}"
+              + (" (unstable: the run will warn)" if report["unstable"] else "") + "\n"
+              f"  memory of the history at the last step: {_size(report['history_bytes'])}\n"
+              f"  output (estimate, figures left out): {_size(report['output_bytes'])}")
+    return 0
 
 
 def versions() -> str:

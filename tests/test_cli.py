@@ -104,3 +104,29 @@ def test_bad_input_exits_cleanly(tmp_path, args, words):
     assert proc.returncode == 2
     assert words in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_show_prints_toml_that_run_reads():
+    import tomllib
+    proc = cli("show", "hertz", "--set", "time.steps=3")
+    assert proc.returncode == 0, proc.stderr
+    assert tomllib.loads(proc.stdout)["time"]["steps"] == 3
+
+
+def test_show_into_a_closed_pipe_ends_quietly():
+    """`contactvisco show paper | head -1`: no PETSc signal report, no MPI abort."""
+    proc = subprocess.run(f"{sys.executable} -m contactvisco show paper --all | head -1",
+                          shell=True, capture_output=True, text=True, timeout=120)
+    assert proc.stdout == 'name = "paper"\n'
+    assert proc.stderr == "", proc.stderr
+
+
+def test_check_reports_or_refuses_without_solving():
+    proc = cli("check", "paper", "--set", "geometry.cells=[8, 8]")
+    assert proc.returncode == 0, proc.stderr
+    assert "unknowns: u 162, lambda_nu 81, lambda_tau 162" in proc.stdout
+    assert "Newton" not in proc.stdout                     # nothing was solved
+    bad = cli("check", "paper", "--set", "output.probes=[[2.0, 0.5]]")
+    assert bad.returncode == 2
+    assert "output.probes[0] = [2.0, 0.5] is outside the body" in bad.stderr
+    assert "Traceback" not in bad.stderr

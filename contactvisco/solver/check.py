@@ -1,0 +1,121 @@
+"""A scene built as a run builds it, with every check that needs the mesh, and nothing solved.
+
+:func:`check` makes the mesh, the forms and the solver of a scene, so that every error a run
+would meet before its first Newton iteration (a boundary the mesh lacks, a probe outside the
+body, a free rigid motion, a PETSc option the solver refuses, an unstable time rule) is met
+here, and reports what the run will cost: its unknowns, the storage of its memory and the size
+of its output.
+"""
+from __future__ import annotations
+
+from mpi4py import MPI
+
+from contactvisco.fem import geometry as geometry_module
+from contactvisco.fem.problem import build
+from contactvisco.model.stability import amplifies, stability_number
+from contactvisco.solver import newton
+
+#: Bytes of one float64 value.
+FLOAT = 8
+#: Bytes of one number in contact_nodes.csv (text, with its separator).
+CSV_NUMBER = 10
+#: Bytes of one step's line in steps.jsonl; of its XDMF text and the HDF5 file's own
+#: structure (measured: 9.1 kB at 8 x 8 cells, 8.5 kB at 32 x 32 on the paper scene).
+STEP_RECORD = 600
+XDMF_STEP = 9600
+
+
+def _global_dofs(space) -> int:
+    index_map = space.dofmap.index_map
+    return index_map.size_global * space.dofmap.index_map_bs
+
+
+def history_values(history, steps: int) -> int:
+    """How many strain-sized arrays the history of eq (19) holds after `steps` steps: one per
+    exponential term (and the last strain) for the recursions, every step's strain for the
+    direct sums (table kernels, fractional kernels summed directly)."""
+    if history is None:
+        return 0
+    if history.direct:
+        return steps + 1
+    rates = getattr(getattr(history, "fit", None), "rates", None)
+    terms = len(rates) if rates is not None else len(history.terms)
+    return terms + 1
+
+
+def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int) -> int:
+    """An estimate of what a run writes into its folder, figures and the checkpoint (replaced,
+    not added up) left out: per step an HDF5 file with the mesh and the fields (vectors padded
+    to 3 and tensors to 9 components, as XDMF wants them), a row of contact_nodes.csv per
+    contact node and a line of steps.jsonl."""
+    mesh = problem.geometry.mesh
+    d = mesh.geometry.dim
+    tdim = mesh.topology.dim
+    opts = scene["output"]
+    per_step = STEP_RECORD + problem.count_contact_nodes() * CSV_NUMBER * (d + 10)
+    if opts["xdmf"]:
+        cells = mesh.topology.index_map(tdim).size_global
+        vertices = mesh.topology.index_map(0).size_global
+        written = {"u": counts["u"] // d * 3, "sigma": tensor_dofs // d ** 2 * 9,
+                   "history_stress": tensor_dofs // d ** 2 * 9 if problem.memory else 0,
+                   "lambda_nu": counts.get("lambda_nu", 0),
+                   "lambda_tau": counts.get("lambda_tau", 0) // d * 3}
+        values = cells * (tdim + 1) + vertices * d
+        values += sum(written[name] for name in opts["fields"])
+        per_step += FLOAT * values + XDMF_STEP
+    return (scene["time"]["steps"] + 1) * per_step
+
+
+def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
+    """Build a scene's mesh, problem and solver, run every check a run makes before solving,
+    and report the size of the run. Collective.
+
+    Parameters
+    ----------
+    scene : dict
+        A scene from ``load_scene``.
+    geometry : Geometry, optional
+        A mesh with its boundary tags (``contactvisco.fem.user_mesh.from_mesh``); default: the
+        scene's own.
+    comm : MPI.Comm
+        The communicator.
+
+    Returns
+    -------
+    dict
+        ``cells``, ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
+        ``linear_system``, ``linear_solver``, ``stability_number`` and ``unstable`` (the
+        paper's rule at b >= 1), ``history_bytes`` (all ranks, at the last step) and
+        ``output_bytes`` (an estimate for the whole run).
+
+    Raises
+    ------
+    SceneError
+        What a run would refuse before its first step.
+    """
+    geometry = geometry or geometry_module.build(scene, comm)
+    mesh = geometry.mesh
+    geometry_module.check_probes(mesh, scene["output"]["probes"])
+    problem = build(scene, geometry)
+    snes = newton.create(problem, comm)
+    try:
+        system, solver = snes.system_kind, snes.linear_solver()
+    finally:
+        snes.destroy()
+    tdim = mesh.topology.dim
+    mesh.topology.create_connectivity(0, tdim)
+    counts = problem.count_unknowns()
+    tensor = _global_dofs(problem.tensor_space)
+    history = problem.memory.history if problem.memory is not None else None
+    b = stability_number(scene)
+    steps = scene["time"]["steps"]
+    return {
+        "cells": mesh.topology.index_map(tdim).size_global,
+        "vertices": mesh.topology.index_map(0).size_global,
+        "unknowns": counts, "contact_nodes": problem.count_contact_nodes(),
+        "linear_system": system, "linear_solver": solver,
+        "stability_number": b,
+        "unstable": scene["time"]["rule"] == "paper" and amplifies(b, steps),
+        "history_bytes": FLOAT * tensor * history_values(history, steps),
+        "output_bytes": output_bytes(scene, problem, counts, tensor),
+    }
