@@ -28,7 +28,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
 .PHONY: install demo test test-serial test-parallel benchmark benchmark-scaling \
-        benchmark-reliability clean apt-packages compare-stacks figures notebook
+        benchmark-reliability clean apt-packages compare-stacks figures notebook docs
 
 install: $(VENV)/.installed
 
@@ -113,6 +113,25 @@ notebook: install
 	$(PY) -m ipykernel install --user --name contactvisco-$(STACK) \
 	  --display-name "contactvisco ($(STACK))"
 	$(VENV)/bin/jupyter lab demos/
+
+# The documentation (docs/, Sphinx + MyST + numpydoc from Debian's packages), built offline
+# into build/docs with the Debian route's Python, so that autodoc imports the package; every
+# warning (a broken internal link or anchor included) fails it. Then the relative file links
+# of README.md and docs/*.md (tests/test_docs_links.py).
+DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3-sphinx-rtd-theme
+
+docs:
+	$(MAKE) STACK=debian install
+	@missing=$$(for p in $(DOCS_APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages: $$missing"; \
+	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  $$SUDO apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
+	fi
+	.venv/bin/python -m sphinx -W --keep-going -n -b html docs build/docs
+	.venv/bin/python -m pytest -q tests/test_docs_links.py
+	@echo "documentation: build/docs/index.html"
 
 clean:
 	rm -rf results build *.egg-info

@@ -19,16 +19,38 @@ _FREE_FORM = {("geometry", "parameters"), ("solver", "petsc_options")}
 
 
 def load_scene(name_or_path, preset: str | None = None, sets=(), **overrides) -> dict:
-    """The scene `name_or_path` (a built-in name, see `builtin_scenes()`, or a TOML file) with
-    its defaults filled in and `overrides` applied, checked as a whole.
+    """A scene with its defaults filled in and overrides applied, checked as a whole.
 
-    Overrides are Python values nested by table, as in the TOML file:
-    ``load_scene("paper", contact={"mu": 0.4}, time={"steps": 20})``; a table given as a dict
-    changes only the keys it names. `preset` ("fast", "balanced", "accurate") scales the mesh
-    and the steps. Raises SceneError (what, where it came from, what is allowed) for an
-    unknown key or a value out of range, exactly as ``contactvisco run --set`` does.
-    `sets` takes ``"key=value"`` texts (TOML values) as the command line's --set, applied
-    before the keyword overrides.
+    Parameters
+    ----------
+    name_or_path : str or path-like
+        A built-in scene name (see ``builtin_scenes()``) or the path of a TOML scene file.
+    preset : str, optional
+        ``"fast"``, ``"balanced"`` or ``"accurate"``: scales the mesh and the steps.
+    sets : sequence of str, optional
+        ``"key=value"`` texts with TOML values, as the command line's ``--set``; applied
+        before the keyword overrides.
+    **overrides
+        Python values nested by table, as in the TOML file:
+        ``load_scene("paper", contact={"mu": 0.4}, time={"steps": 20})``. A table given as a
+        dict changes only the keys it names; numpy scalars and arrays are accepted.
+
+    Returns
+    -------
+    dict
+        The resolved scene: every table with every key, ready for ``solve``.
+
+    Raises
+    ------
+    SceneError
+        For an unknown key (with a suggestion) or a value out of range: what, where it came
+        from and what is allowed, exactly as ``contactvisco run --set`` reports it.
+
+    Examples
+    --------
+    >>> scene = load_scene("paper", contact={"mu": 0.4}, time={"steps": 20})
+    >>> scene["contact"]["mu"]
+    0.4
     """
     given = list(sets) + list(_assignments(overrides, []))
     if preset is not None:
@@ -62,30 +84,67 @@ def _plain(value):
 
 
 def builtin_scenes() -> dict[str, str]:
-    """The built-in scenes: name -> description."""
+    """The built-in scenes.
+
+    Returns
+    -------
+    dict of str to str
+        Scene name -> its one-line description (``block3d``, ``creep``, ``hertz``,
+        ``ironing``, ``paper``).
+    """
     return {name: scene_module.load(name)["description"]
             for name in scene_module.builtin_names()}
 
 
 def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on_step=None,
           comm=None, progress=False, restart=False, overwrite=True, keep_contact=True):
-    """Solve `scene` (from load_scene) and return a Result.
+    """Solve a scene over its time interval. Collective over `comm`.
 
-    mesh, facet_tags, boundaries: a DOLFINx mesh, its facet meshtags and a dict
-        {boundary name: tag value}; they replace the scene's geometry table. Every boundary
-        the scene names (dirichlet, traction, contact) must be in `boundaries`, and each tag
-        must mark facets of the mesh's boundary (SceneError otherwise).
-    out: a folder for the files of `contactvisco run` (steps.jsonl, summary.json, XDMF,
-        checkpoints, figures); None writes nothing. restart=True continues the run in `out`
-        from its checkpoint; overwrite=False refuses a folder holding an earlier run.
-    on_step(record): called on every rank after every accepted step with its record.
-    comm: the MPI communicator (default: the mesh's, else COMM_WORLD). Collective.
-    progress: print a line per step (rank 0).
-    keep_contact: keep the contact table of every step in result.contact (False for long
-        runs that write them to `out` anyway).
+    Parameters
+    ----------
+    scene : dict
+        A resolved scene, from ``load_scene``.
+    out : path-like, optional
+        A folder for the files of ``contactvisco run`` (steps.jsonl, summary.json, XDMF,
+        checkpoints, figures); None writes nothing.
+    mesh : dolfinx.mesh.Mesh, optional
+        A mesh of the caller's; it replaces the scene's geometry table, together with
+        `facet_tags` and `boundaries` (all three or none).
+    facet_tags : dolfinx.mesh.MeshTags, optional
+        Tags of the mesh's boundary facets.
+    boundaries : dict of str to int, optional
+        ``{boundary name: tag value}``. Every boundary the scene names (dirichlet, traction,
+        contact) must be in it, and each tag must mark facets of the mesh.
+    on_step : callable, optional
+        ``on_step(record)``, called on every rank after every accepted step with its record
+        (the step's line of steps.jsonl, as a dict).
+    comm : mpi4py.MPI.Comm, optional
+        The communicator; default: the mesh's, else ``COMM_WORLD``.
+    progress : bool, optional
+        Print a line per step (rank 0).
+    restart : bool, optional
+        Continue the run in `out` from its checkpoint.
+    overwrite : bool, optional
+        Replace an earlier run's files in `out`; False refuses such a folder.
+    keep_contact : bool, optional
+        Keep the contact table of every step in ``Result.contact`` (False for long runs that
+        write them to `out` anyway).
 
-    Raises SceneError (bad scene or mesh), NewtonFailure (a step that does not converge even
-    when cut), contactvisco.io.parallel.Stopped (SIGINT/SIGTERM, after a completed step).
+    Returns
+    -------
+    Result
+        The step records, the final record, the contact tables and the solved fields.
+
+    Raises
+    ------
+    SceneError
+        For a scene or mesh that cannot be used, or an output folder that is held, refused or
+        holds a damaged checkpoint.
+    NewtonFailure
+        For a step that does not converge even when cut (with the step, the residuals and a
+        likely cause in the message).
+    contactvisco.io.parallel.Stopped
+        On SIGINT or SIGTERM, after the step every rank has completed.
     """
     from mpi4py import MPI
 
@@ -128,9 +187,19 @@ def _draw_figures(out) -> None:
 
 
 def pyvista_grid(u):
-    """This rank's part of a P1 vector field `u` (e.g. result.u) as a pyvista
-    UnstructuredGrid, with point data "u" (3 components, zero-padded in 2D) made the active
-    vectors, ready for ``grid.warp_by_vector("u")``."""
+    """This rank's part of a P1 vector field as a pyvista grid.
+
+    Parameters
+    ----------
+    u : dolfinx.fem.Function
+        A P1 vector field, e.g. ``result.u``.
+
+    Returns
+    -------
+    pyvista.UnstructuredGrid
+        The grid with point data ``"u"`` (3 components, zero-padded in 2D) made the active
+        vectors, ready for ``grid.warp_by_vector("u")``.
+    """
     import numpy as np
     import pyvista
 
@@ -145,7 +214,19 @@ def pyvista_grid(u):
 
 
 def read_results(folder) -> dict:
-    """The summary.json of a run's output folder with "steps": the step records."""
+    """The results of a run from its output folder alone.
+
+    Parameters
+    ----------
+    folder : path-like
+        The output folder of ``contactvisco run`` or of ``solve(..., out=folder)``.
+
+    Returns
+    -------
+    dict
+        The content of summary.json (the resolved scene, unknown counts, notes and warnings,
+        ``restarts``, ``final``) with ``"steps"``: the step records of steps.jsonl.
+    """
     from contactvisco.io.output import read_summary
     return read_summary(folder)
 

@@ -4,13 +4,27 @@ import pathlib
 
 
 def quick() -> bool:
-    """True when CONTACTVISCO_QUICK is set: demos then use small sizes (the test suite sets it
-    so that every demo runs in seconds)."""
+    """Whether the demos should use small sizes.
+
+    Returns
+    -------
+    bool
+        True when the environment variable ``CONTACTVISCO_QUICK`` is set (the test suite sets
+        it so that every demo runs in seconds).
+    """
     return bool(os.environ.get("CONTACTVISCO_QUICK"))
 
 
 def show_images(*paths, width=9.0):
-    """Display PNG files one below the other (inline in a notebook)."""
+    """Display PNG files one below the other (inline in a notebook, in a window otherwise).
+
+    Parameters
+    ----------
+    *paths : path-like
+        The image files; a missing one is named and skipped.
+    width : float, optional
+        The width of each image in inches.
+    """
     import matplotlib.pyplot as plt
     for path in paths:
         path = pathlib.Path(path)

@@ -169,7 +169,17 @@ EQUIVALENCE_OPTIONS = {
 
 
 class NewtonFailure(RuntimeError):
-    """SNES did not converge."""
+    """A Newton solve (PETSc SNES) that did not converge.
+
+    Parameters
+    ----------
+    message : str
+        What failed, with the step and a likely cause.
+    reason : int
+        The SNES converged reason (negative: diverged).
+    residuals : list of float
+        The residual norms of the last attempt.
+    """
 
     def __init__(self, message, reason, residuals):
         super().__init__(message)

@@ -29,9 +29,23 @@ from contactvisco.solver.newton import NewtonFailure
 
 @dataclass
 class Result:
-    """What a run gives back: `steps` (the step records of steps.jsonl, one per accepted
-    state), `final` (the summary's final record), `tables` (the contact table of each step
-    when kept), and the solved `problem` (its fields hold the state at the last step)."""
+    """What a run gives back (``solve`` makes it).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The solved problem; its fields hold the state at the last accepted step.
+    steps : list of dict, optional
+        The step records of steps.jsonl, one per accepted state (t = 0 included).
+    tables : list of dict, optional
+        The contact table of each step when kept (see ``contact``).
+    linear_system : str, optional
+        ``"condensed"``, ``"coupled"`` or ``"displacement"``.
+    linear_solver : str, optional
+        The Krylov method and preconditioner, e.g. ``"preonly/lu"``.
+    final : dict, optional
+        The summary's final record: ``t``, ``status_counts``, timings.
+    """
     problem: Problem
     steps: list = field(default_factory=list)        # the summary.json step records
     tables: list = field(default_factory=list)       # contact_table per step (every rank)
@@ -41,13 +55,18 @@ class Result:
 
     @property
     def u(self):
-        """The displacement (a DOLFINx Function) at the last accepted step."""
+        """The displacement (a ``dolfinx.fem.Function``, P1 or P2) at the last accepted
+        step."""
         return self.problem.u
 
     @property
     def contact(self) -> list:
-        """The contact table of each accepted step (dicts of numpy arrays, see
-        output.contact_table); None entries when the scene has no contact."""
+        """The contact table of each accepted step: a dict of numpy arrays per step, one
+        entry per contact node of the whole mesh (on every rank), sorted by position: ``x``,
+        ``u_nu``, ``u_tau``, ``p_nu``, ``lambda_nu``, ``reaction_nu``, ``reaction_tau``,
+        ``status`` (0 separated, 1 compliance, 2 bound), ... (see
+        ``contactvisco.io.output.contact_table``); None entries when the scene has no
+        contact."""
         return self.tables
 
 

@@ -38,11 +38,35 @@ from contactvisco.solver.time_loop import simulate
 
 def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5,
                 cells=(8, 4), slip: str = "total", direction=None) -> tuple[dict, dict]:
-    """The sliding block in the 'stick' regime (tangential traction load x mu N on the top)
-    or the 'slip' regime (the top moved by 2 mu N H / G, twice the stick limit), along the
-    unit tangential `direction` (2D: x; 3D: any (e_x, e_y)). Returns the raw scene and the
-    exact fields as numbers: {"ux": (a, b), "uy": c} meaning u_tau = (a + b z) direction,
-    u_normal = c z (z the height), and the friction force per node."""
+    """The sliding block (module description) and its exact fields.
+
+    Parameters
+    ----------
+    regime : str
+        ``"stick"``: a tangential traction ``load * mu * N`` on the top; ``"slip"``: the top
+        moved by ``2 mu N H / G``, twice the stick limit.
+    N : float, optional
+        The pressure on the top.
+    mu : float, optional
+        The friction coefficient.
+    load : float, optional
+        The tangential load as a fraction of ``mu N`` (stick regime).
+    cells : tuple of int, optional
+        Cells of the box; two entries in 2D, three in 3D.
+    slip : str, optional
+        ``contact.slip``: ``"total"`` or ``"increment"``.
+    direction : sequence of float, optional
+        The tangential direction of the load (2D: x; 3D: any ``(e_x, e_y)``, normalized).
+
+    Returns
+    -------
+    raw : dict
+        The scene, unresolved (as a TOML file would give it).
+    exact : dict
+        The exact fields as numbers: ``{"ux": (a, b), "uy": c, "friction": f}`` meaning
+        ``u_tau = (a + b z) direction``, ``u_normal = c z`` (z the height), and the friction
+        force per unit area at every node.
+    """
     E, H = 100.0, 0.5
     G = E / 2
     d = len(cells)
@@ -81,8 +105,29 @@ def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5
 
 def cattaneo_scene(h_contact: float, nu: float = 0.49, mu: float = 0.3, w: float = 0.005,
                    delta: float = 0.0013, slip: str = "increment") -> dict:
-    """The cylinder of radius 1 (E = 200, plane strain) pressed by the top displacement w at
-    t = 0 and pulled by delta at t = 1; h_contact is the mesh size at the contact."""
+    """The cylinder of radius 1 (E = 200, plane strain) pressed by its clamped top and then
+    pulled: Signorini contact (g = 0, gap of the circle) with Coulomb friction.
+
+    Parameters
+    ----------
+    h_contact : float
+        The mesh size at the contact.
+    nu : float, optional
+        Poisson's ratio (Cattaneo-Mindlin needs it near 1/2).
+    mu : float, optional
+        The friction coefficient.
+    w : float, optional
+        The downward displacement of the top, from t = 0.
+    delta : float, optional
+        The tangential displacement of the top at t = 1.
+    slip : str, optional
+        ``contact.slip``.
+
+    Returns
+    -------
+    dict
+        The scene, unresolved.
+    """
     return {"name": "cattaneo-mindlin",
             "geometry": {"type": "gmsh", "script": "half_disk",
                          "parameters": {"radius": 1.0, "h_contact": h_contact, "h_far": 0.1,
@@ -97,7 +142,27 @@ def cattaneo_scene(h_contact: float, nu: float = 0.49, mu: float = 0.3, w: float
 
 
 def cattaneo_traction(x, a, c, p0, mu):
-    """q(x) of Cattaneo-Mindlin (module docstring)."""
+    """Cattaneo-Mindlin's tangential traction
+    ``q(x) = mu p0 sqrt(1 - x^2/a^2) - [|x| < c] mu p0 (c/a) sqrt(1 - x^2/c^2)``.
+
+    Parameters
+    ----------
+    x : array_like
+        Positions along the contact, from its centre.
+    a : float
+        Hertz's contact half-width.
+    c : float
+        The stick-zone half-width, ``a sqrt(1 - Q/(mu P))`` (0: full slip).
+    p0 : float
+        Hertz's peak pressure.
+    mu : float
+        The friction coefficient.
+
+    Returns
+    -------
+    numpy.ndarray
+        q at `x` (zero outside the contact).
+    """
     outer = mu * p0 * np.sqrt(np.maximum(0.0, 1 - (x / a) ** 2))
     inner = mu * p0 * (c / a) * np.sqrt(np.maximum(0.0, 1 - (x / c) ** 2)) if c > 0 else 0.0
     return outer - inner
@@ -116,9 +181,28 @@ def _zone_half_width(x, inside):
 
 
 def cattaneo_mindlin(h_contact: float, comm=MPI.COMM_WORLD, **kwargs) -> dict:
-    """Run cattaneo_scene and compare with the closed form: the stick-zone half-width c and
-    the tangential traction (errors relative to a and to mu p0), and the normal pressure
-    against Hertz (relative to p0). Also returns the node values for plots."""
+    """Run the pressed and pulled cylinder and compare it with Cattaneo-Mindlin's partial
+    slip and with Hertz's pressure.
+
+    Parameters
+    ----------
+    h_contact : float
+        The mesh size at the contact.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator of the run (collective).
+    **kwargs
+        Passed to ``cattaneo_scene``: ``nu``, ``mu``, ``w``, ``delta``, ``slip``.
+
+    Returns
+    -------
+    dict
+        The resultants ``P``, ``Q`` and ``load_ratio`` ``Q/(mu P)``; Hertz's ``a`` and ``p0``;
+        the stick-zone half-width ``c`` (exact) and ``c_h`` (computed), ``c_error`` (relative
+        to a) and ``stick_centre`` (relative to a); ``q_error`` (pointwise, relative to
+        mu p0), ``q_error_l2``, ``F_error`` (the force transmitted left of x, relative to Q),
+        ``p_error`` (relative to p0); ``newton``, ``unknowns``; and the node values ``x``,
+        ``q``, ``p``, ``stick`` near the contact for plots.
+    """
     scene = scene_module.resolve(cattaneo_scene(h_contact, **kwargs))
     result = simulate(scene, comm=comm, progress=False, keep_tables=True)
     table = result.tables[-1]

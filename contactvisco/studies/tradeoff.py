@@ -8,21 +8,25 @@ time steps are N/2, N and 2N (N the scene's time.steps; only N when N = 1), and 
 level degree 2 is tried at N steps (kept where its Newton converges). The reference is the
 finest run: top level, 2N steps, degree 1.
 
-The error estimate of a run q (`estimated_error`) is an upper estimate of |q - q*|, q* the
-exact value: by the triangle inequality |q - q*| <= |q - q_ref| + |q_ref - q*|, and the
-reference's own error |q_ref - q*| comes from Richardson extrapolation,
+The error estimate of a run q (`estimated_error`) is an upper estimate of ``|q - q*|``, q*
+the exact value: by the triangle inequality ``|q - q*| <= |q - q_ref| + |q_ref - q*|``, and
+the reference's own error ``|q_ref - q*|`` comes from Richardson extrapolation::
+
     |q_ref - q*| ~ d_h / (2^p_h - 1) + d_k / (2^p_k - 1),
+
 d_h the difference between the two top mesh levels (2N steps), d_k between N and 2N steps on
 the top level, and the observed orders p = log2(d_coarser / d_finer) from three levels (clamped
 to [0.5, 3]; taken as 1 when only two levels ran).
 
 Error measures (relative; differences of fields at all times the two runs share, at the
-reference's contact nodes, linear interpolation of the other run along the boundary):
+reference's contact nodes, linear interpolation of the other run along the boundary)::
+
     contact_displacement  (u_nu, u_tau) at the contact nodes, discrete L2 along the boundary,
                           divided by the largest L2 norm of the reference over time
     contact_pressure      the normal traction -sigma_nu at the contact nodes, the same norm
     probe                 u at the scene's output.probes: the largest difference of a
                           component, divided by the largest |u_i| of the reference
+
 Wall time: the whole run (mesh, set-up with form compilation, time steps), the largest over
 ranks.
 """
@@ -54,15 +58,41 @@ ESTIMATE = ("difference to the finest run of the ladder (the reference) plus the
 
 
 class TradeoffError(ValueError):
-    """A scene or option the ladder cannot use."""
+    """A scene or option the ladder cannot use: a mesh that cannot be refined, an unknown
+    measure, a target or a level count out of range, runs that share no time level.
+
+    Parameters
+    ----------
+    message : str
+        What cannot be used and what to give instead.
+    """
 
 
 # --- the ladder -------------------------------------------------------------------------
 
 
 def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[str]:
-    """The absolute `--set` lines of one rung: the scene's mesh scaled by `mesh`, `steps` time
-    steps, Lagrange degree `degree` (P2: Gauss contact quadrature)."""
+    """The absolute ``--set`` lines of one rung of the ladder.
+
+    Parameters
+    ----------
+    scene : dict
+        The resolved scene (from ``load_scene``).
+    mesh : float
+        The factor on the scene's own mesh: box cells are multiplied by it, gmsh mesh sizes
+        (``h``, ``h_*``) divided by it.
+    steps : int
+        The number of time steps.
+    degree : int
+        The Lagrange degree of the displacement; degree 2 also selects the Gauss contact
+        quadrature (the nodal conditions are P1's).
+
+    Returns
+    -------
+    list of str
+        ``"key=value"`` lines, e.g. ``["geometry.cells=[16,16]", "time.steps=10",
+        "discretization.degree=1"]``.
+    """
     geo = scene["geometry"]
     lines = []
     if geo["type"] == "box":
@@ -79,7 +109,32 @@ def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[st
 
 
 def rungs(scene: dict, levels: int, coarsest: float, degrees=(1, 2)) -> list[dict]:
-    """The ladder in the order it is climbed: level by level, cheapest first."""
+    """The ladder in the order it is climbed: level by level, cheapest first.
+
+    Parameters
+    ----------
+    scene : dict
+        The resolved scene.
+    levels : int
+        The number of mesh levels; level j scales the mesh by ``coarsest * 2**j``.
+    coarsest : float
+        The mesh factor of the coarsest level.
+    degrees : tuple of int, optional
+        The Lagrange degrees to try; a degree above the scene's is tried at N steps on every
+        level but the top one.
+
+    Returns
+    -------
+    list of dict
+        One rung per run: ``level``, ``mesh``, ``steps``, ``degree`` and ``set`` (its
+        ``--set`` lines).
+
+    Raises
+    ------
+    TradeoffError
+        When the scene's mesh cannot be refined (a .msh file, or a gmsh script without mesh
+        size parameters).
+    """
     if scene["geometry"]["type"] != "box" and not any(
             scene_module.is_mesh_size(key) for key in scene["geometry"]["parameters"]):
         raise TradeoffError("geometry: the mesh cannot be refined (a .msh file, or a gmsh "
@@ -102,7 +157,20 @@ def rungs(scene: dict, levels: int, coarsest: float, degrees=(1, 2)) -> list[dic
 
 
 def work(rung: dict, d: int) -> float:
-    """Relative cost model: unknowns times steps, (mesh degree)^d N."""
+    """Relative cost model of a rung: unknowns times steps, ``(mesh * degree)**d * N``.
+
+    Parameters
+    ----------
+    rung : dict
+        A rung of ``rungs``.
+    d : int
+        The space dimension.
+
+    Returns
+    -------
+    float
+        The rung's work in units of one step on the unit mesh.
+    """
     return (rung["mesh"] * rung["degree"]) ** d * rung["steps"]
 
 
@@ -110,8 +178,25 @@ def work(rung: dict, d: int) -> float:
 
 
 def run(source: str, overrides: list[str], comm=MPI.COMM_WORLD) -> dict:
-    """Solve `source` with `overrides`; the contact fields and probes at every step, and the
-    wall time (largest over ranks). A failed Newton solve gives {"failed": message}."""
+    """Solve a scene once and sample what the error measures compare.
+
+    Parameters
+    ----------
+    source : str
+        A built-in scene name or the path of a scene file.
+    overrides : list of str
+        ``"key=value"`` lines, as ``--set``.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator to solve on (collective).
+
+    Returns
+    -------
+    dict
+        ``samples`` (per time: the probes' displacements and, with contact, the contact
+        nodes' ``x``, ``u_nu``, ``u_tau`` and ``pressure``), ``wall_s`` (the whole run, largest
+        over ranks), ``steps_s``, ``unknowns`` and ``newton_mean``. When Newton fails even
+        after cutting the step: ``{"failed": message, "wall_s": ...}`` instead.
+    """
     from contactvisco.solver.time_loop import simulate
     from contactvisco.solver.newton import NewtonFailure
     scene = scene_module.load(source, list(overrides))
@@ -171,8 +256,29 @@ def _onto(x_from: np.ndarray, values: np.ndarray, x_to: np.ndarray) -> np.ndarra
 
 
 def difference(run_a: dict, reference: dict, measure: str) -> float:
-    """The relative difference of `measure` between two runs (module docstring), over the
-    times both have."""
+    """The relative difference of an error measure between two runs, over the times both have
+    (the measures are defined in the module's description).
+
+    Parameters
+    ----------
+    run_a : dict
+        A run, as ``run`` returns it.
+    reference : dict
+        The run compared against; its contact nodes carry the comparison.
+    measure : str
+        ``"contact_pressure"``, ``"contact_displacement"`` or ``"probe"``.
+
+    Returns
+    -------
+    float
+        The largest difference over the shared times divided by the reference's largest norm.
+
+    Raises
+    ------
+    TradeoffError
+        When the runs share no time level, or the reference's measured field is zero at every
+        time.
+    """
     common = sorted(set(run_a["samples"]) & set(reference["samples"]))
     if not common:
         raise TradeoffError("the two runs share no time level")
@@ -214,9 +320,51 @@ def _order(coarse: float, fine: float) -> float:
 def tradeoff(source: str, target: float, overrides=(), measure: str = "contact_pressure",
              levels: int = 4, coarsest: float = 0.25, degrees=(1, 2), budget: float = math.inf,
              out=None, comm=MPI.COMM_WORLD, say=print) -> dict:
-    """Climb the ladder of `source` (a scene name or file, with `overrides`), estimate errors,
-    recommend the cheapest run whose estimated error is <= target; write tradeoff.json,
-    tradeoff.png and recommended.toml into `out` (rank 0) when given."""
+    """Climb the ladder of discretizations of a scene, estimate each run's error and recommend
+    the cheapest run whose estimated error is at most `target` (``contactvisco tradeoff``).
+
+    Parameters
+    ----------
+    source : str
+        A built-in scene name or the path of a scene file.
+    target : float
+        The relative error to reach (> 0).
+    overrides : sequence of str, optional
+        ``"key=value"`` lines applied to the scene first, as ``--set``.
+    measure : str, optional
+        The error measure: ``"contact_pressure"`` (default), ``"contact_displacement"`` or
+        ``"probe"``.
+    levels : int, optional
+        The number of mesh levels (>= 2).
+    coarsest : float, optional
+        The mesh factor of the coarsest level (the others double it).
+    degrees : tuple of int, optional
+        The Lagrange degrees tried.
+    budget : float, optional
+        Seconds: the climb stops before a run whose predicted time exceeds what is left.
+    out : path-like, optional
+        A folder for ``tradeoff.json``, ``tradeoff.png`` and ``recommended.toml`` (written by
+        rank 0); None writes nothing.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator of the runs (collective).
+    say : callable, optional
+        Prints the progress lines (rank 0 only).
+
+    Returns
+    -------
+    dict
+        ``scene``, ``measure``, ``target``, ``reference`` (its settings, own error and the
+        observed orders), ``ladder`` (one row per run with ``set``, ``wall_s``,
+        ``difference``, ``estimated_error``, ``pareto``), ``recommended`` (``set``,
+        ``estimated_error``, ``wall_s``; None with ``not_reached`` saying why), ``stopped``
+        (why the budget ended the climb, or None) and ``total_s``.
+
+    Raises
+    ------
+    TradeoffError
+        For an unknown measure, a target <= 0, fewer than 2 levels, a scene without contact
+        (or without probes) for the measure, or a mesh that cannot be refined.
+    """
     if measure not in MEASURES:
         raise TradeoffError(f"unknown measure '{measure}'; allowed: {', '.join(MEASURES)}")
     if not target > 0:
@@ -366,7 +514,20 @@ def _recommend(good: list, target: float, overrides: list) -> dict:
 
 
 def write(result: dict, folder: pathlib.Path, source: str, overrides: list) -> None:
-    """tradeoff.json, tradeoff.png and (with a recommendation) recommended.toml."""
+    """Write a trade-off result into a folder: ``tradeoff.json``, ``tradeoff.png`` and, with a
+    recommendation, ``recommended.toml``.
+
+    Parameters
+    ----------
+    result : dict
+        What ``tradeoff`` returns; ``recommended["scene_file"]`` is set to the file written.
+    folder : pathlib.Path
+        The folder (made if missing).
+    source : str
+        The scene name or file the ladder ran.
+    overrides : list of str
+        The ``--set`` lines the ladder ran with.
+    """
     folder.mkdir(parents=True, exist_ok=True)
     if result["recommended"] is not None:
         path = folder / "recommended.toml"
@@ -377,9 +538,24 @@ def write(result: dict, folder: pathlib.Path, source: str, overrides: list) -> N
 
 
 def recommended_toml(source: str, lines: list[str], result: dict) -> str:
-    """The scene file of `source` with the `--set` lines applied to its own (unresolved)
-    tables, so that it loads to the same scene as `source` with those lines; the preset key
-    is dropped (the lines give absolute values)."""
+    """The scene file of `source` with `--set` lines applied to its own (unresolved) tables,
+    so that it loads to the same scene as `source` with those lines; the preset key is
+    dropped (the lines give absolute values).
+
+    Parameters
+    ----------
+    source : str
+        A built-in scene name or the path of a scene file.
+    lines : list of str
+        ``"key=value"`` lines.
+    result : dict
+        The trade-off result, quoted in the file's heading comment.
+
+    Returns
+    -------
+    str
+        The TOML text.
+    """
     path = pathlib.Path(source)
     if not path.suffix and (scene_module.SCENE_DIR / f"{source}.toml").exists():
         path = scene_module.SCENE_DIR / f"{source}.toml"
@@ -426,8 +602,19 @@ def _toml_key(key: str) -> str:
 
 
 def dumps_toml(document: dict) -> str:
-    """A scene dict as TOML: top-level values, then one [table] per dict and [[table]] per
-    list of dicts; deeper dicts inline."""
+    """A scene dict as TOML: top-level values, then one ``[table]`` per dict and
+    ``[[table]]`` per list of dicts; deeper dicts inline.
+
+    Parameters
+    ----------
+    document : dict
+        Values of TOML types (None values are left out).
+
+    Returns
+    -------
+    str
+        The TOML text.
+    """
     lines, tables = [], []
     for key, value in document.items():
         if isinstance(value, dict) or (isinstance(value, list) and value
@@ -445,7 +632,22 @@ def dumps_toml(document: dict) -> str:
 
 
 def figure(result: dict, path: pathlib.Path, dpi: int = 300):
-    """The trade-off figure of a result, saved to `path` (one journal column wide)."""
+    """The trade-off figure of a result, saved to a file (one journal column wide).
+
+    Parameters
+    ----------
+    result : dict
+        What ``tradeoff`` returns.
+    path : pathlib.Path
+        The image file; its suffix gives the format.
+    dpi : int, optional
+        Resolution of raster formats.
+
+    Returns
+    -------
+    pathlib.Path
+        `path`.
+    """
     import matplotlib
     from matplotlib.figure import Figure
 
@@ -458,8 +660,21 @@ def figure(result: dict, path: pathlib.Path, dpi: int = 300):
 
 
 def draw(result: dict, fig):
-    """Estimated error against wall time, log-log: circles P1, squares P2, time steps by
-    colour, the Pareto front (filled markers, line), the target and the recommendation."""
+    """Draw estimated error against wall time, log-log: circles P1, squares P2, time steps by
+    colour, the Pareto front (filled markers, line), the target and the recommendation.
+
+    Parameters
+    ----------
+    result : dict
+        What ``tradeoff`` returns.
+    fig : matplotlib.figure.Figure
+        An empty figure to draw on (sized and laid out here).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        `fig`.
+    """
     import matplotlib
     from contactvisco.post.figures import COLUMN, STYLE
     with matplotlib.rc_context(STYLE):
@@ -501,7 +716,34 @@ def draw(result: dict, fig):
 
 def verify(source: str, overrides: list, recommended_set: list, measure: str,
            reference_set: list, comm=MPI.COMM_WORLD) -> dict:
-    """The recommended run's error measured against a reference finer than the ladder."""
+    """The recommended run's error measured against a reference finer than the ladder.
+
+    Parameters
+    ----------
+    source : str
+        A built-in scene name or the path of a scene file.
+    overrides : list of str
+        The ``--set`` lines the ladder ran with (the reference runs with them too).
+    recommended_set : list of str
+        The recommended run's ``--set`` lines (absolute values).
+    measure : str
+        The error measure.
+    reference_set : list of str
+        The reference's ``--set`` lines (``finer_reference``).
+    comm : mpi4py.MPI.Comm, optional
+        The communicator of the runs.
+
+    Returns
+    -------
+    dict
+        ``error`` (the measured relative difference), ``wall_s``, ``reference_wall_s`` and
+        ``reference_unknowns``.
+
+    Raises
+    ------
+    TradeoffError
+        When either run's Newton fails.
+    """
     rec = run(source, list(recommended_set), comm)
     ref = run(source, list(overrides) + list(reference_set), comm)
     if "failed" in rec or "failed" in ref:
@@ -511,8 +753,25 @@ def verify(source: str, overrides: list, recommended_set: list, measure: str,
 
 
 def finer_reference(source: str, overrides: list, levels: int, coarsest: float) -> list[str]:
-    """`--set` lines of a run one mesh level above the ladder's top and with twice its
-    largest step count."""
+    """The ``--set`` lines of a run one mesh level above the ladder's top and with twice its
+    largest step count.
+
+    Parameters
+    ----------
+    source : str
+        A built-in scene name or the path of a scene file.
+    overrides : list of str
+        ``--set`` lines applied to the scene first.
+    levels : int
+        The ladder's number of mesh levels.
+    coarsest : float
+        The ladder's coarsest mesh factor.
+
+    Returns
+    -------
+    list of str
+        ``"key=value"`` lines.
+    """
     scene = scene_module.load(source, list(overrides))
     N = scene["time"]["steps"]
     return settings_lines(scene, coarsest * 2 ** levels, 4 * N if N > 1 else N,
@@ -520,7 +779,19 @@ def finer_reference(source: str, overrides: list, levels: int, coarsest: float) 
 
 
 def summary_lines(result: dict) -> list[str]:
-    """What the command prints at the end."""
+    """What ``contactvisco tradeoff`` prints at the end: the measure, the estimate, the
+    budget stop and the recommendation as ``--set`` lines.
+
+    Parameters
+    ----------
+    result : dict
+        What ``tradeoff`` returns.
+
+    Returns
+    -------
+    list of str
+        The lines.
+    """
     lines = [f"error measure: {result['measure']} ({result['measure_description']})",
              f"error estimate: {ESTIMATE}; reference's own error "
              f"{result['reference']['self_error']:.3g} (observed orders: space "

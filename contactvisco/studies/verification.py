@@ -55,8 +55,28 @@ U_EXACT = ["0.1 * sin(pi * x[0]) * sin(pi * x[1]) + 0.05 * x[0] * x[1]",
 
 def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 4,
                  alpha: float = 50.0, comm=MPI.COMM_WORLD) -> dict:
-    """L2 and H1-seminorm errors at T = 1 of the manufactured solution on a cells x cells
-    mesh with Lagrange elements of the given degree."""
+    """Errors at T = 1 of the manufactured solution (module description).
+
+    Parameters
+    ----------
+    cells : int
+        The unit square is meshed with cells x cells squares (two triangles each).
+    degree : int
+        The Lagrange degree.
+    rule : str, optional
+        ``time.rule``: ``"paper"`` or ``"trapezoid"``.
+    steps : int, optional
+        The number of time steps.
+    alpha : float, optional
+        The constant memory kernel ``R = alpha I``.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator (collective).
+
+    Returns
+    -------
+    dict
+        ``cells``, ``degree``, ``h`` and the errors ``L2`` and ``H1`` (seminorm).
+    """
     raw = {"name": "manufactured",
            "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [cells, cells]},
            "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3},
@@ -92,15 +112,44 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
 
 
 def orders(errors: list[float], sizes: list[float]) -> list[float]:
-    """Observed orders log(e_i / e_{i+1}) / log(h_i / h_{i+1})."""
+    """Observed orders of convergence ``log(e_i / e_{i+1}) / log(h_i / h_{i+1})``.
+
+    Parameters
+    ----------
+    errors : list of float
+        Errors, coarsest first.
+    sizes : list of float
+        The mesh sizes (or time steps) of the errors.
+
+    Returns
+    -------
+    list of float
+        One order per consecutive pair.
+    """
     return [math.log(coarse / fine) / math.log(h_coarse / h_fine)
             for coarse, fine, h_coarse, h_fine in zip(errors, errors[1:], sizes, sizes[1:])]
 
 
 def hertz(overrides=(), comm=MPI.COMM_WORLD, scene=None) -> dict:
-    """The hertz scene against the closed form: the contact half-width (midway between the last
-    node in contact and the next) and the pressure at the centre, with their relative errors.
-    The scene is the built-in one with `overrides` (--set texts), or `scene` when given."""
+    """The ``hertz`` scene against Hertz's closed form: the contact half-width (midway between
+    the last node in contact and the next) and the pressure at the centre.
+
+    Parameters
+    ----------
+    overrides : sequence of str, optional
+        ``"key=value"`` texts applied to the built-in scene, as ``--set``.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator of the run (collective).
+    scene : dict, optional
+        A resolved scene to run instead of the built-in one (not modified).
+
+    Returns
+    -------
+    dict
+        ``a``, ``a_exact``, ``a_error`` (relative), ``a_bracket`` (the last node in contact
+        and the next), ``p0``, ``p0_exact``, ``p0_error`` (relative), ``unknowns`` and
+        ``wall_s`` (of the time steps).
+    """
     scene = copy.deepcopy(scene) if scene is not None else \
         scene_module.load("hertz", list(overrides))
     scene["output"]["probes"] = []
@@ -132,8 +181,28 @@ POWER_KERNELS = {"power": {"kernel": "power", "alpha": 300.0, "tau": 0.05, "beta
 
 
 def prony_creep(M: float, weights, rates, q: float, t) -> np.ndarray:
-    """e(t) of M e + int_0^t sum_j a_j exp(-s_j (t - s)) e(s) ds = -q (a_j > 0), by partial
-    fractions (module docstring); the roots of D are found by bisection, one per bracket."""
+    """The creep ``e(t)`` of ``M e + int_0^t sum_j a_j exp(-s_j (t - s)) e(s) ds = -q``
+    (``a_j > 0``), by partial fractions (module description); the roots of D are found by
+    bisection, one per bracket.
+
+    Parameters
+    ----------
+    M : float
+        The modulus of the instantaneous response.
+    weights : array_like
+        The weights ``a_j`` of the exponentials.
+    rates : array_like
+        Their rates ``s_j``.
+    q : float
+        The constant pressure.
+    t : float or array_like
+        Times.
+
+    Returns
+    -------
+    numpy.ndarray
+        e at each time.
+    """
     order = np.argsort(rates)
     a, s = np.asarray(weights)[order], np.asarray(rates)[order]
 
@@ -155,6 +224,24 @@ def prony_creep(M: float, weights, rates, q: float, t) -> np.ndarray:
 
 
 def uniaxial_exact(kernel: str, t: float, q: float = 10.0, E: float = 100.0, nu: float = 0.3):
+    """The exact creep of the uniaxial block (module description).
+
+    Parameters
+    ----------
+    kernel : str
+        ``"constant"``, ``"exponential"``, ``"power"`` or ``"fractional"``.
+    t : float
+        The time.
+    q : float, optional
+        The pressure on the top.
+    E, nu : float, optional
+        Young's modulus and Poisson's ratio (plane strain).
+
+    Returns
+    -------
+    float
+        ``e(t) = eps_yy(t)``, equal to u_y at the top of the unit block.
+    """
     lmbda, mu = lame_constants("plane_strain", E, nu)
     M = lmbda + 2 * mu
     if kernel == "constant":
@@ -174,8 +261,32 @@ def uniaxial_exact(kernel: str, t: float, q: float = 10.0, E: float = 100.0, nu:
 
 def uniaxial(kernel: str, rule: str, T: float, steps: int, q: float = 10.0,
              comm=MPI.COMM_WORLD, memory: dict = None) -> np.ndarray:
-    """u_y at the top (= e(t)) at every step of the uniaxial block (memory: extra keys of
-    the memory table, e.g. the tolerance)."""
+    """The uniaxial block under constant pressure, solved (module description).
+
+    Parameters
+    ----------
+    kernel : str
+        ``"constant"``, ``"exponential"``, ``"power"`` or ``"fractional"`` (the kernels of
+        ``UNIAXIAL_KERNELS`` and ``POWER_KERNELS``).
+    rule : str
+        ``time.rule``: ``"paper"`` or ``"trapezoid"`` (the paper's rule runs past its
+        stability limit too).
+    T : float
+        The final time.
+    steps : int
+        The number of time steps.
+    q : float, optional
+        The pressure on the top.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator (collective).
+    memory : dict, optional
+        Extra keys of the memory table, e.g. ``{"tolerance": 1e-8}``.
+
+    Returns
+    -------
+    numpy.ndarray
+        u_y at the top (= e(t)) at every step, t = 0 included.
+    """
     raw = {"name": "uniaxial",
            "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [1, 1]},
            "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3},
