@@ -200,7 +200,8 @@ class SolverOptions:
         """Keep PETSc's record of reads where it outlives the prefixed options: the scene
         options this solver has not read in _UNREAD_SCENE_OPTIONS (unused_options), and a read
         copy of a command-line option as a read of the option itself (marked by hasName), so
-        that neither unused_options nor PETSc's -options_left report it."""
+        that neither unused_options nor PETSc's -options_left report it. Where the record is
+        not available, every copy counts as read."""
         if self._removal is None or not self._removal.alive:
             return
         for key in self.scene:
@@ -210,7 +211,7 @@ class SolverOptions:
             else:
                 unread.discard(self.number)
         for key in self.command_line:
-            if self.read(key):
+            if self.read(key) is not False:
                 PETSc.Options().hasName(key)
 
     def remove(self):
