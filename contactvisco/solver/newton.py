@@ -281,11 +281,9 @@ class NewtonSolver:
     def _rejected(self, err) -> SceneError:
         """The error for an option value PETSc rejected, naming the given options it had read
         (by scene key where the scene gave one, so that the message gets its origin)."""
-        read = [key for key in self.options.scene + self.options.command_line
-                if self.options.read(key) is not False]
         reason = f"PETSc error {err.ierr}" + (": unknown type" if err.ierr == 86 else "")
         named = ", ".join(self.options.given_read()) or "none"
-        scene_keys = [key for key in read if key in self.options.scene]
+        scene_keys = [key for key in self.options.scene if self.options.read(key) is not False]
         if scene_keys:
             return SceneError(f"solver.petsc_options.{scene_keys[0]}: PETSc rejected an "
                               f"option value ({reason}); the given options it had read: "
