@@ -264,7 +264,7 @@ def test_cut_step_measures_slip_from_the_last_accepted_state(monkeypatch):
     run reaches the answer of the uniform run through the same times."""
     sets = ["time.T=1.0", "contact.friction='coulomb'", "contact.slip='increment'",
             "geometry.parameters.h=0.1"]
-    solve = solver_module._Newton.solve
+    solve = solver_module.NewtonSolver.solve
     calls = []
 
     def fail_once_at_the_end(newton):
@@ -276,9 +276,9 @@ def test_cut_step_measures_slip_from_the_last_accepted_state(monkeypatch):
 
     scene = scene_module.load("ironing", sets + ["time.steps=1"])
     scene["output"]["probes"] = []
-    monkeypatch.setattr(solver_module._Newton, "solve", fail_once_at_the_end)
+    monkeypatch.setattr(solver_module.NewtonSolver, "solve", fail_once_at_the_end)
     cut = _run(scene)
-    monkeypatch.setattr(solver_module._Newton, "solve", solve)
+    monkeypatch.setattr(solver_module.NewtonSolver, "solve", solve)
     scene = scene_module.load("ironing", sets + ["time.steps=2"])
     scene["output"]["probes"] = []
     uniform = _run(scene)

@@ -364,7 +364,12 @@ def test_friction_counts_as_a_tangential_restraint():
         assert np.allclose(u, [p["u"] for p in single["probes"]], rtol=1e-7, atol=1e-12)
 
 
-# ---- PETSc options of a scene: present in every solve, reported when no solver read them ----
+# ---- PETSc options of a scene: under the solver's prefix, reported when no solver read them ----
+
+#: Whether petsc4py gives PETSc's record of the options objects read (Options.used): the report
+#: of unused options rests on it (petsc4py 3.18 has none, 3.25 has it).
+READS_KNOWN = hasattr(PETSc.Options, "used")
+
 
 def direct_solver(petsc_options: str):
     """The MUMPS solver of a small paper scene with these solver.petsc_options, its problem
@@ -379,10 +384,21 @@ def scene_unused() -> set[str]:
     return {name.split()[0] for name in solver_module.unused_options([])}
 
 
+def with_solver(before: dict, newton) -> dict:
+    """The database `before` plus the solver's options, which are all under its prefix."""
+    now = PETSc.Options().getAll()
+    ours = {key: value for key, value in now.items() if key not in before}
+    assert ours and all(key.startswith(newton.options.prefix) for key in ours)
+    assert {key: value for key, value in now.items() if key in before} == before
+    return now
+
+
 def test_options_read_while_solving_act():
     """MUMPS reads ICNTL(14) (workspace increase, %) when it first factors, inside the solve:
-    a scene's value reaches the factor (the default is not 55), is in PETSc's database
-    during every solve and nowhere else, and is not reported unused; misspelled options are."""
+    a scene's value reaches the factor (the default is not 55), is in PETSc's database under
+    the solver's prefix from its set-up to its destruction and nowhere else, and is not
+    reported unused once read; misspelled options are (where PETSc's record of reads is
+    available; without it nothing is reported)."""
     before = PETSc.Options().getAll()
     problem, default = direct_solver("{}")
     try:
@@ -394,18 +410,21 @@ def test_options_read_while_solving_act():
     assert icntl_default != 55
     problem, newton = direct_solver("{mat_mumps_icntl_14=55, mat_mumps_icntl_14x=55, "
                                     "snes_rtol_x=1.0}")
+    key = newton.options.prefix + "mat_mumps_icntl_14"
     try:
-        assert PETSc.Options().getAll() == before                 # none between solves
-        assert {"-mat_mumps_icntl_14", "-mat_mumps_icntl_14x"} <= scene_unused()  # setup only
+        set_up = with_solver(before, newton)      # the solver's options, nothing unprefixed
+        assert set_up[key] == "55" and "mat_mumps_icntl_14" not in set_up
+        if READS_KNOWN:
+            assert {"-mat_mumps_icntl_14", "-mat_mumps_icntl_14x"} <= scene_unused()  # setup
         present = []                   # getAll does not mark options as read
         newton.snes.setMonitor(lambda snes, it, norm: present.append(
-            PETSc.Options().getAll().get("mat_mumps_icntl_14")))
+            PETSc.Options().getAll().get(key)))
         problem.set_time(1.0)
         iterations = []
         for _ in range(2):             # the second from the converged state: 0 iterations
             iterations.append(newton.solve())
             assert newton.residuals[-1] < 1e-8
-            assert PETSc.Options().getAll() == before
+            assert PETSc.Options().getAll() == set_up       # unchanged by the solves
         assert iterations[0] >= 1
         assert present == ["55"] * (sum(iterations) + 2)      # a monitor call per iterate
         assert newton.snes.getKSP().getPC().getFactorMatrix().getMumpsIcntl(14) == 55
@@ -413,21 +432,50 @@ def test_options_read_while_solving_act():
         newton.destroy()
     assert PETSc.Options().getAll() == before
     unused = scene_unused()
-    assert "-mat_mumps_icntl_14" not in unused
-    assert {"-mat_mumps_icntl_14x", "-snes_rtol_x"} <= unused
+    if READS_KNOWN:
+        assert "-mat_mumps_icntl_14" not in unused
+        assert {"-mat_mumps_icntl_14x", "-snes_rtol_x"} <= unused
+    else:
+        assert not unused
+
+
+def test_two_solvers_keep_their_own_options():
+    """Two solvers alive at once, with other scene options, each read their own: the Newton
+    tolerance at set-up, MUMPS's ICNTL(14) in the first solve (made after both exist, the
+    first solver's after the second was set up)."""
+    before = PETSc.Options().getAll()
+    first, one = direct_solver("{snes_rtol=1e-9, mat_mumps_icntl_14=55}")
+    second, two = direct_solver("{snes_rtol=1e-11, mat_mumps_icntl_14=35}")
+    try:
+        assert one.options.prefix != two.options.prefix
+        assert one.snes.getTolerances()[0] == pytest.approx(1e-9)
+        assert two.snes.getTolerances()[0] == pytest.approx(1e-11)
+        for problem, newton in ((first, one), (second, two)):
+            problem.set_time(1.0)
+            assert newton.solve() >= 1 and newton.residuals[-1] < 1e-8
+        factors = [n.snes.getKSP().getPC().getFactorMatrix() for n in (one, two)]
+        assert [f.getMumpsIcntl(14) for f in factors] == [55, 35]
+        one.destroy()
+        assert with_solver(before, two)[two.options.prefix + "snes_rtol"] == "1e-11"
+    finally:
+        one.destroy()
+        two.destroy()
+    assert PETSc.Options().getAll() == before
 
 
 def test_failing_solve_leaves_no_options():
     """An option value PETSc checks only in the solve stops it with a message naming the
-    scene's option, and the solver's options leave PETSc's database all the same."""
+    scene's option; the database then holds the solver's prefixed options besides what it
+    held before, and after the solver is destroyed what it held before."""
     before = PETSc.Options().getAll()
     problem, newton = direct_solver("{pc_factor_mat_solver_type='nonsense'}")
     try:
+        set_up = with_solver(before, newton)
         problem.set_time(1.0)
         with pytest.raises(SceneError, match="while setting up the solve.*"
                                              "-pc_factor_mat_solver_type nonsense"):
             newton.solve()
-        assert PETSc.Options().getAll() == before
+        assert PETSc.Options().getAll() == set_up
     finally:
         newton.destroy()
     assert PETSc.Options().getAll() == before
@@ -471,8 +519,10 @@ SMALL = ["--set", "geometry.cells=[4, 4]", "--set", "time.steps=2", "--quiet"]
     (["run", "paper", "--set", "solver.petsc_options.mat_mumps_icntl_14='abc'", *SMALL], 2,
      "while setting up the solve (its message is above); given options it had read: "
      "-mat_mumps_icntl_14 abc"),
-    (["run", "paper", "-snes_monitr", "-snes_rtol", "1e-9", *SMALL], 0,
-     "PETSc options no solver used: -snes_monitr (misspelled"),
+    pytest.param(["run", "paper", "-snes_monitr", "-snes_rtol", "1e-9", *SMALL], 0,
+                 "PETSc options no solver used: -snes_monitr (misspelled",
+                 marks=pytest.mark.skipif(not READS_KNOWN, reason="petsc4py without "
+                                          "Options.used: PETSc's record of reads is missing")),
 ])
 def test_command_line(tmp_path, args, code, words):
     marker = tmp_path / "out"

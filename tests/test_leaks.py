@@ -114,3 +114,31 @@ def test_collected_problem_frees_its_mesh():
     del geometry, problem, newton
     gc.collect()
     assert mesh() is None
+
+
+@pytest.mark.parametrize("options, error, words", [
+    ({}, None, None),                                                 # a run
+    ({"snes_max_it": 1}, NewtonFailure, "did not converge"),          # Newton fails
+    ({"pc_factor_mat_solver_type": "nonsense"}, SceneError, "while setting up the solve"),
+    ({"snes_lag_jacobian": 2}, SceneError, "full step"),              # refused (condensed)
+    ({"snes_type": "no_such_method"}, SceneError, "PETSc rejected"),  # rejected at set-up
+])
+def test_database_holds_what_it_held_before(options, error, words):
+    """After a run, a failing one, and one whose option is refused or rejected, PETSc's
+    database holds exactly what it held before, values included (on every rank); an
+    unprefixed entry (as from the command line) that every solver copies stays as it was."""
+    opts = PETSc.Options()
+    opts["test_database_marker"] = 7
+    before = opts.getAll()
+    scene = small(True)
+    scene["solver"].update(petsc_options=options, max_cuts=0)
+    try:
+        if error is None:
+            result = simulate(scene, comm=COMM, progress=False)
+            assert displacement_norm(result.problem) > 0.0
+        else:
+            with pytest.raises(error, match=words):
+                simulate(scene, comm=COMM, progress=False)
+        assert opts.getAll() == before
+    finally:
+        opts.delValue("test_database_marker")

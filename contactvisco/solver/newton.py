@@ -12,6 +12,12 @@ semismooth residual. Two forms of that linear system, with the same iterates:
 
 `create` picks one from the scene, and a direct (MUMPS) or iterative (GMRES + BoomerAMG)
 linear solver.
+
+PETSc options: each solver (NewtonSolver) writes its own under a prefix of its own,
+contactvisco_<n>_, when it is set up, and removes them when it is destroyed (SolverOptions);
+the command line's (unprefixed) options are copied under the prefix, so they act on every
+solver. Options that no solver read are reported by unused_options, from PETSc's record of
+reads where petsc4py gives it (Options.used; petsc4py 3.18 has none).
 """
 from __future__ import annotations
 
@@ -27,9 +33,9 @@ from contactvisco.fem import compat
 from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.errors import SceneError
 
-#: SNES defaults. Measured on this problem: the basic (full-step) line search converges in
-#: 1-5 iterations whatever the augmentation parameter; bt/cp get worse as it grows.
-#: The divergence tolerance is off: its default stops large-parameter runs after one step.
+#: SNES defaults: full Newton steps (the basic line search) and no divergence tolerance (its
+#: default stops runs with a large augmentation parameter after one step); docs/scaling.md
+#: gives the measurements behind them.
 DEFAULT_OPTIONS = {
     "snes_type": "newtonls",
     "snes_linesearch_type": "basic",
@@ -44,10 +50,8 @@ DEFAULT_OPTIONS = {
 }
 
 #: The iterative linear solver: GMRES preconditioned by BoomerAMG (hypre), HMIS coarsening with
-#: extended+i interpolation. On the condensed contact system it kept 12-19 Krylov iterations
-#: per Newton step from 128^2 to 512^2 cells, where PETSc's GAMG needed 40-120 (the rows of
-#: active nodes are constraints, not elasticity). The relative tolerance is tight enough for
-#: Newton to take the steps of the direct solver.
+#: extended+i interpolation; the relative tolerance is tight enough for Newton to take the
+#: steps of the direct solver. Iteration counts against PETSc's GAMG: docs/scaling.md.
 ITERATIVE_OPTIONS = {
     "ksp_type": "gmres",
     "ksp_gmres_restart": 100,
@@ -64,13 +68,10 @@ ITERATIVE_OPTIONS = {
 }
 
 #: Where PETSc has no hypre: GMRES preconditioned by PETSc's smoothed-aggregation AMG (GAMG),
-#: with the rigid motions as near-nullspace like BoomerAMG. By default GAMG keeps the
-#: prolongation built for the first matrix and only recomputes the Galerkin coarse operators;
-#: here each Jacobian has other constraint rows (other active contact nodes) than the first
-#: one (t_0's first Newton iteration), and with that stale prolongation the Krylov count grew
-#: with the mesh. So it is rebuilt for every Jacobian, as BoomerAMG's set-up is. Graph edges
-#: weaker than 0.02 of the diagonal are dropped from the aggregation: the flattest count among
-#: the thresholds tried (docs/scaling.md, benchmarks/gamg.py).
+#: with the rigid motions as near-nullspace. Each Jacobian has other constraint rows (other
+#: active contact nodes) than the first, so the prolongation is rebuilt for every Jacobian
+#: instead of being reused; the aggregation threshold is the one chosen in docs/scaling.md
+#: (benchmarks/gamg.py).
 GAMG_OPTIONS = {
     "ksp_type": "gmres",
     "ksp_gmres_restart": 100,
@@ -85,15 +86,11 @@ GAMG_OPTIONS = {
     "mg_levels_pc_type": "jacobi",
 }
 
-#: linear_solver = "auto" takes the iterative solver from this many displacement unknowns
-#: on (by dimension), where it was measured to beat MUMPS (benchmarks/scaling.py), with
-#: BoomerAMG.
+#: linear_solver = "auto" takes the iterative solver from this many displacement unknowns on
+#: (by dimension), with BoomerAMG; where the measurements put the switch: docs/scaling.md.
 AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
 
-#: The same where PETSc has no hypre (GAMG). In 2D MUMPS stayed faster per Newton iteration up
-#: to the largest size measured (benchmarks/gamg.py, docs/scaling.md), so auto keeps it up to
-#: there. In 3D (block3d) GAMG was faster per Newton iteration from the smallest measured size
-#: above this threshold on, and MUMPS at the measured sizes below it.
+#: The same where PETSc has no hypre (GAMG): docs/scaling.md.
 AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 22_000}
 
 
@@ -101,46 +98,32 @@ def auto_iterative_size(d: int) -> int:
     """The number of displacement unknowns from which linear_solver = "auto" is iterative."""
     return (AUTO_ITERATIVE if compat.has_hypre() else AUTO_ITERATIVE_GAMG)[d]
 
+
+#: Every solver keeps its options in PETSc's database under its own prefix PREFIX<n>_. PETSc
+#: looks an option that is missing there up under PREFIX alone (it drops the number of a
+#: numbered prefix), so options given as -contactvisco_<option> act on every solver.
+PREFIX = "contactvisco_"
+_SOLVER_NUMBERS = itertools.count()
+
 #: Scene options (solver.petsc_options) -> the solvers (by number) that were given the option
 #: and have not read it, neither at setup nor in any solve so far.
 _UNREAD_SCENE_OPTIONS: dict[str, set[int]] = {}
-_SOLVER_NUMBERS = itertools.count()
 
 
-def _petsc_library():
-    """The loaded PETSc library, for PetscOptionsUsed (petsc4py 3.18 does not wrap it)."""
-    import ctypes
-    try:
-        with open("/proc/self/maps") as maps:
-            paths = sorted({line.split()[-1] for line in maps if "libpetsc" in line})
-        return ctypes.CDLL(paths[0]) if paths else None
-    except (OSError, IndexError):
-        return None
-
-
-_LIBRARY = []
-
-
-def option_used(name: str) -> bool | None:
-    """Whether PETSc has read the option `name` (without '-'); None if that is unknown."""
-    import ctypes
-    if not _LIBRARY:
-        _LIBRARY.append(_petsc_library())
-    library = _LIBRARY[0]
-    if library is None:
-        return None
-    flag = ctypes.c_int(0)
-    if library.PetscOptionsUsed(None, name.encode(), ctypes.byref(flag)) != 0:
-        return None
-    return bool(flag.value)
+def option_read(name: str) -> bool | None:
+    """PETSc's record of whether an object has read the option `name` (without '-'), or None
+    where petsc4py does not give it (no Options.used, as in petsc4py 3.18)."""
+    used = getattr(PETSc.Options(), "used", None)
+    return None if used is None else bool(used(name))
 
 
 def unused_options(arguments) -> list[str]:
     """Options of the command line (arguments, e.g. ['-snes_monitor', '-ksp_type', 'cg']) and
-    of scenes that no solver read: misspelled, or for a solver that was not used."""
+    of scenes that no solver read: misspelled, or for a solver that was not used. Empty where
+    PETSc's record of reads is not available (option_read)."""
     names = [a.lstrip("-") for a in arguments if a.startswith("-") and len(a) > 1
              and not _is_number(a)]
-    unused = [f"-{name}" for name in names if option_used(name) is False]
+    unused = [f"-{name}" for name in names if option_read(name) is False]
     unused += [f"-{name} (solver.petsc_options)"
                for name, solvers in sorted(_UNREAD_SCENE_OPTIONS.items()) if solvers]
     return unused
@@ -152,6 +135,91 @@ def _is_number(text: str) -> bool:
         return True
     except ValueError:
         return False
+
+
+def _remove_prefix(prefix: str):
+    """Delete every option under `prefix` from PETSc's database (local to the process)."""
+    if PETSc.Sys.isFinalized():
+        return
+    opts = PETSc.Options()
+    for key in [k for k in opts.getAll() if k.startswith(prefix)]:
+        opts.delValue(key)
+
+
+class SolverOptions:
+    """The PETSc options of one solver, under its own prefix in PETSc's database from its
+    setup (write) until it is destroyed (remove). The command line (the unprefixed options in
+    the database: petsc4py.init's arguments, PETSC_OPTIONS) wins over the scene
+    (solver.petsc_options), the scene over the solver's defaults."""
+
+    def __init__(self, scene_options=None, defaults=None):
+        self.number = next(_SOLVER_NUMBERS)
+        self.prefix = f"{PREFIX}{self.number}_"
+        command_line = {key: value for key, value in PETSc.Options().getAll().items()
+                        if not key.startswith(PREFIX)}
+        scene = {key: value for key, value in (scene_options or {}).items()
+                 if key not in command_line}
+        self.values = {**DEFAULT_OPTIONS, **(defaults or {}), **scene, **command_line}
+        self.command_line = list(command_line)
+        self.scene = list(scene)
+        self._removal = None
+
+    def write(self):
+        """Put the options into PETSc's database under the prefix; they leave it by remove(),
+        or when this object is collected."""
+        opts = PETSc.Options()
+        for key, value in self.values.items():
+            opts[self.prefix + key] = value
+        self._removal = weakref.finalize(self, _remove_prefix, self.prefix)
+
+    def given(self, key: str) -> str | None:
+        """The value the solver's objects see for `key`: its own, else the one under PREFIX
+        for all solvers (None: not given)."""
+        if key in self.values:
+            value = self.values[key]
+            if isinstance(value, bool):
+                return str(value).lower()
+            return "" if value is None else str(value)
+        return PETSc.Options().getAll().get(PREFIX + key)
+
+    def origin(self, key: str) -> str:
+        """Where option `key` came from, for messages: the scene key or the command line."""
+        return f"solver.petsc_options.{key}" if key in self.scene else f"the option -{key}"
+
+    def read(self, key: str) -> bool | None:
+        """Whether PETSc has read this solver's option `key` (option_read)."""
+        return option_read(self.prefix + key)
+
+    def given_read(self) -> list[str]:
+        """'-key value' of the scene's and the command line's options that PETSc has read
+        under the prefix; all of them where PETSc's record is not available."""
+        return [f"-{key} {self.given(key)}".strip() for key in self.scene + self.command_line
+                if self.read(key) is not False]
+
+    def note_reads(self):
+        """Keep PETSc's record of reads where it outlives the prefixed options: the scene
+        options this solver has not read in _UNREAD_SCENE_OPTIONS (unused_options), and a read
+        copy of a command-line option as a read of the option itself (marked by hasName), so
+        that neither unused_options nor PETSc's -options_left report it. Where the record is
+        not available, every copy counts as read."""
+        if self._removal is None or not self._removal.alive:
+            return
+        for key in self.scene:
+            unread = _UNREAD_SCENE_OPTIONS.setdefault(key, set())
+            if self.read(key) is False:
+                unread.add(self.number)
+            else:
+                unread.discard(self.number)
+        for key in self.command_line:
+            if self.read(key) is not False:
+                PETSc.Options().hasName(key)
+
+    def remove(self):
+        """Take every option under the prefix out of PETSc's database (idempotent), after
+        noting the reads."""
+        self.note_reads()
+        if self._removal is not None:
+            self._removal()
 
 
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
@@ -187,59 +255,45 @@ class NewtonFailure(RuntimeError):
         self.residuals = residuals
 
 
-class _Newton:
-    """The SNES shared by both linear systems: options, monitor, solve, failure report."""
+class NewtonSolver:
+    """A PETSc SNES over UFL forms, shared by both linear systems: its options (SolverOptions,
+    under a prefix of its own), monitor, solve and failure report."""
 
     def __init__(self, comm, functions, scene_options=None, defaults=None):
         self.functions = functions
         self.residuals: list[float] = []
         self.krylov_iterations: list[int] = []
-        # Command-line options win over the scene, the scene over the defaults. This solver's
-        # options are in PETSc's global database only during its setup and each of its
-        # solves (_push_options, _pop_options), so they do not leak into other solvers.
-        opts = PETSc.Options()
-        merged = dict(DEFAULT_OPTIONS)
-        merged.update(defaults or {})
-        merged.update(scene_options or {})
-        self._scene_options = set(scene_options or {})
-        self._options = {key: value for key, value in merged.items()
-                         if not opts.hasName(key)}
-        self._number = next(_SOLVER_NUMBERS)
-        self._scene_read: dict[str, str] = {}    # scene options PETSc read: key -> "-key value"
-        self._pushed = False
+        self.options = SolverOptions(scene_options, defaults)
         self.snes = PETSc.SNES().create(comm)
 
     def _finish_setup(self):
+        """Give the SNES (and through it the KSP, PC, line search and the factorization or
+        fieldsplit objects they make) the prefix and its options. On failure the solver is
+        destroyed, its options removed, and a SceneError names the given options."""
         self.snes.setMonitor(_weak(self._monitor))
-        self._push_options()
+        self.snes.setOptionsPrefix(self.options.prefix)
+        self.options.write()
         try:
             self.snes.setFromOptions()
             self._check_options()
         except PETSc.Error as err:
-            raise self._rejected(err) from None
-        finally:                       # also when PETSc rejects an option
-            self._pop_options()
+            error = self._rejected(err)
+            self.destroy()
+            raise error from None
+        except BaseException:
+            self.destroy()
+            raise
+        self.options.note_reads()
 
     def _check_options(self):
-        """Refuse options this linear system cannot follow (raises SceneError); the options
-        are still in PETSc's database here."""
-
-    def _origin(self, key: str) -> str:
-        """Where option `key` came from, for messages: the scene key or the command line."""
-        if key in self._scene_options:
-            return f"solver.petsc_options.{key}"
-        return f"the option -{key}"
+        """Refuse options this linear system cannot follow (raises SceneError)."""
 
     def _rejected(self, err) -> SceneError:
         """The error for an option value PETSc rejected, naming the given options it had read
-        (by scene key where the scene gave it, so that the message gets its origin)."""
-        opts = PETSc.Options()
-        given = {key: value for key, value in opts.getAll().items()
-                 if key in self._scene_options or key not in self._options}
-        read = [key for key in given if option_used(key)]
+        (by scene key where the scene gave one, so that the message gets its origin)."""
         reason = f"PETSc error {err.ierr}" + (": unknown type" if err.ierr == 86 else "")
-        named = ", ".join(f"-{k} {given[k] or ''}".strip() for k in read) or "none"
-        scene_keys = [k for k in read if k in self._scene_options]
+        named = ", ".join(self.options.given_read()) or "none"
+        scene_keys = [key for key in self.options.scene if self.options.read(key) is not False]
         if scene_keys:
             return SceneError(f"solver.petsc_options.{scene_keys[0]}: PETSc rejected an "
                               f"option value ({reason}); the given options it had read: "
@@ -247,58 +301,14 @@ class _Newton:
         return SceneError(f"PETSc rejected a command-line option value ({reason}); the "
                           f"given options it had read: {named}")
 
-    def _push_options(self):
-        """Put this solver's options into PETSc's global database: for its setup, and for
-        each solve, since PETSc reads some options only while solving (MUMPS its ICNTL and
-        CNTL when it first factors the matrix)."""
-        opts = PETSc.Options()
-        for key, value in self._options.items():
-            opts[key] = value
-        self._pushed = True
-
-    def _pop_options(self):
-        """Take this solver's options out of PETSc's global database again (idempotent),
-        noting first which of the scene's options PETSc has read: deleting an option drops
-        PETSc's record of its use, so the record is kept here across pushes."""
-        if not self._pushed:
-            return
-        self._note_reads()
-        opts = PETSc.Options()
-        for key in self._options:
-            opts.delValue(key)
-        self._pushed = False
-
-    def _note_reads(self):
-        """Record the scene options PETSc has read since the push, and keep the scene
-        options this solver has never read in _UNREAD_SCENE_OPTIONS (for unused_options)."""
-        opts = PETSc.Options()
-        for key in self._scene_options & self._options.keys():
-            used = option_used(key)
-            if used:
-                self._scene_read[key] = f"-{key} {opts.getString(key, '')}".strip()
-            unread = _UNREAD_SCENE_OPTIONS.setdefault(key, set())
-            if used is False and key not in self._scene_read:
-                unread.add(self._number)
-            else:                      # read now or before, or unknown: not reported
-                unread.discard(self._number)
-
     def destroy(self):
-        """Free the SNES and its vectors and matrices (idempotent); the object is unusable
-        afterwards."""
-        self._pop_options()
+        """Free the SNES and its vectors and matrices and take its options out of PETSc's
+        database (idempotent); the object is unusable afterwards."""
+        self.options.remove()
         for name in ("snes", "b", "x", "A", "_x_jacobian", "_du"):
             obj = self.__dict__.get(name)
             if obj is not None:
                 obj.destroy()
-
-    def _given_read(self) -> list[str]:
-        """Options of the scene and of the command line that PETSc has read (at setup or in
-        a solve); called while this solver's options are in PETSc's database."""
-        self._note_reads()
-        command_line = [f"-{key} {value or ''}".strip()
-                        for key, value in PETSc.Options().getAll().items()
-                        if key not in self._options and option_used(key)]
-        return list(self._scene_read.values()) + command_line
 
     def _monitor(self, snes, it, norm):
         self.residuals.append(float(norm))
@@ -316,20 +326,19 @@ class _Newton:
         self.residuals = []
         self.krylov_iterations = []
         self._from_functions(self.x)
-        self._push_options()
         try:
             self.snes.solve(None, self.x)
         except PETSc.Error as err:
             # An option value PETSc checks only when it sets up the solve (a factorization
             # package, a MUMPS parameter): name the given options it had read.
-            given = self._given_read()
+            given = self.options.given_read()
             if not given:
                 raise
             raise SceneError(f"PETSc stopped with error {err.ierr} while setting up the solve "
                              f"(its message is above); given options it had read: "
                              f"{', '.join(given)}") from None
-        finally:                       # nothing of this solver stays in the database
-            self._pop_options()
+        finally:                       # MUMPS reads its options in the first solve
+            self.options.note_reads()
         self._to_functions(self.x)
         reason = self.snes.getConvergedReason()
         if reason > 0 and not np.isfinite(self.x.norm()):
@@ -362,7 +371,7 @@ class _Newton:
         x.ghostUpdate(addv=_INSERT, mode=_FORWARD)
 
 
-class BlockSNES(_Newton):
+class BlockSNES(NewtonSolver):
     """SNES over all unknowns `functions` (u and the multipliers) with residual blocks F and
     Jacobian blocks J: the coupled saddle-point system."""
 
@@ -405,7 +414,7 @@ class BlockSNES(_Newton):
         A.assemble()
 
 
-class CondensedSNES(_Newton):
+class CondensedSNES(NewtonSolver):
     """SNES over u alone, the nodal multipliers eliminated node by node in every Newton step
     (contactvisco.solver.condensed); they are updated from each displacement step, as the coupled
     Newton step's dl for that du. That holds for full Newton steps with a Jacobian at every
@@ -439,11 +448,11 @@ class CondensedSNES(_Newton):
         that change either (a lagged Jacobian or preconditioner, a line search other than the
         full step, damping, another SNES type, matrix-free or finite-difference Jacobians) are
         refused here by name."""
-        opts = PETSc.Options()
         problems = []
         for key, allowed in EQUIVALENCE_OPTIONS.items():
-            if opts.hasName(key) and not allowed(opts.getString(key, "").strip()):
-                problems.append(f"{self._origin(key)} = {opts.getString(key, '')}")
+            value = self.options.given(key)
+            if value is not None and not allowed(value.strip()):
+                problems.append(f"{self.options.origin(key)} = {value}")
         if self.snes.getType() != "newtonls" and not problems:
             problems.append(f"the SNES type {self.snes.getType()}")
         if self.snes.getUseMF() or self.snes.getUseFD():
@@ -561,7 +570,7 @@ def rigid_body_modes(V) -> PETSc.NullSpace:
     return PETSc.NullSpace().create(vectors=vectors, comm=V.mesh.comm)
 
 
-def create(problem, comm, scene_options=None) -> _Newton:
+def create(problem, comm, scene_options=None) -> NewtonSolver:
     """The Newton solver a Problem's scene asks for (solver.linear_system, .linear_solver)."""
     solver = problem.scene["solver"]
     options = solver["petsc_options"] if scene_options is None else scene_options
