@@ -51,6 +51,33 @@ def _lines(values: dict) -> list[str]:
     return [f"{_key(name)} = {value_text(v)}" for name, v in values.items() if v is not None]
 
 
+def document_text(document: dict) -> str:
+    """A dict as TOML: its plain values first, then one ``[table]`` per dict and one
+    ``[[table]]`` per list of dicts; deeper dicts inline; None values left out.
+
+    Parameters
+    ----------
+    document : dict
+        Values of TOML types, or None.
+
+    Returns
+    -------
+    str
+        The TOML text.
+    """
+    def is_tables(value):
+        return isinstance(value, list) and value and all(isinstance(v, dict) for v in value)
+    plain = {k: v for k, v in document.items() if not isinstance(v, dict) and not is_tables(v)}
+    lines = _lines(plain)
+    for name, value in document.items():
+        if isinstance(value, dict):
+            lines += ["", f"[{_key(name)}]", *_lines(value)]
+        elif is_tables(value):
+            for entry in value:
+                lines += ["", f"[[{_key(name)}]]", *_lines(entry)]
+    return "\n".join(lines).lstrip("\n") + "\n"
+
+
 def _changed(values: dict, defaults: dict, always) -> dict:
     return {name: v for name, v in values.items()
             if name in always or name not in defaults or v != defaults[name]}
@@ -72,20 +99,17 @@ def scene_text(scene: Scene, every_value: bool = False) -> str:
     str
         TOML text; ``contactvisco run`` on it gives the same scene.
     """
-    top = {"name": scene["name"], "description": scene.get("description")}
-    out = _lines(top)
+    document = {"name": scene["name"], "description": scene.get("description")}
     for name in scene:
-        if name in top or name == "preset" or scene[name] is None:
+        if name in document or name == "preset" or scene[name] is None:
             continue
         if name in TABLE_LISTS:          # items hold what was given; defaults apply on use
             defaults = TABLE_LISTS[name].defaults() if every_value else {}
-            for item in scene[name]:
-                out += ["", f"[[{name}]]", *_lines({**defaults, **item})]
+            document[name] = [{**defaults, **item} for item in scene[name]]
             continue
-        table = TABLES.get(name)
         values = dict(scene[name])
-        if table is not None and not every_value:
-            values = _changed(values, table.defaults(), _ALWAYS.get(name, ()))
+        if name in TABLES and not every_value:
+            values = _changed(values, TABLES[name].defaults(), _ALWAYS.get(name, ()))
         if values:
-            out += ["", f"[{name}]", *_lines(values)]
-    return "\n".join(out) + "\n"
+            document[name] = values
+    return document_text(document)

@@ -43,6 +43,7 @@ from mpi4py import MPI
 
 from contactvisco.model.material import dimension
 from contactvisco.scene import loader as scene_module
+from contactvisco.scene.toml_text import document_text
 
 MEASURES = {
     "contact_displacement": "(u_nu, u_tau) at the contact nodes, relative discrete L2 norm "
@@ -577,58 +578,7 @@ def recommended_toml(source: str, lines: list[str], result: dict) -> str:
             f"{result['measure'].replace('_', ' ')} error {rec['estimated_error']:.3g} <= "
             f"{result['target']:g}\n# (contactvisco tradeoff; wall time {rec['wall_s']:.2f} s)\n"
             f"# estimate: {ESTIMATE}\n")
-    return head + dumps_toml(raw)
-
-
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        if isinstance(value, float) and not math.isfinite(value):
-            return ("-" if value < 0 else "") + ("inf" if math.isinf(value) else "nan")
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)         # a JSON string is a TOML basic string
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{_toml_key(name)} = {_toml_value(v)}" for name, v in value.items()
-                               if v is not None) + "}"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"no TOML form for {value!r}")
-
-
-def _toml_key(key: str) -> str:
-    return key if key.replace("_", "").replace("-", "").isalnum() else json.dumps(key)
-
-
-def dumps_toml(document: dict) -> str:
-    """A scene dict as TOML: top-level values, then one ``[table]`` per dict and
-    ``[[table]]`` per list of dicts; deeper dicts inline.
-
-    Parameters
-    ----------
-    document : dict
-        Values of TOML types (None values are left out).
-
-    Returns
-    -------
-    str
-        The TOML text.
-    """
-    lines, tables = [], []
-    for key, value in document.items():
-        if isinstance(value, dict) or (isinstance(value, list) and value
-                                       and all(isinstance(v, dict) for v in value)):
-            tables.append((key, value))
-        elif value is not None:
-            lines.append(f"{_toml_key(key)} = {_toml_value(value)}")
-    for key, value in tables:
-        for entry in ([value] if isinstance(value, dict) else value):
-            lines += ["", f"[{_toml_key(key)}]" if isinstance(value, dict)
-                      else f"[[{_toml_key(key)}]]"]
-            lines += [f"{_toml_key(name)} = {_toml_value(v)}" for name, v in entry.items()
-                      if v is not None]
-    return "\n".join(lines) + "\n"
+    return head + document_text(raw)
 
 
 def figure(result: dict, path: pathlib.Path, dpi: int = 300):
