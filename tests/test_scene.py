@@ -118,12 +118,12 @@ def test_every_declared_key_is_documented():
 def test_a_table_checks_itself_and_names_its_origin(tmp_path):
     """A table refuses a bad value by itself (no whole-scene check), with the dotted key and
     the line of the scene file it came from; the same table from a --set names the --set."""
-    from contactvisco.scene import tables
+    from contactvisco.scene import table, tables
     path = tmp_path / "mine.toml"
     path.write_text('name = "mine"\n[contact]\nstiffness = 10.0\ng = 0.1\n'
                     'mu = -0.5   # a negative friction coefficient\n')
     text = path.read_text()
-    provenance = tables.Provenance(path, text)
+    provenance = table.Provenance(path, text)
     scene = scene_module.load("paper")
     contact = tables.Contact(dict(scene["contact"], mu=-0.5), "contact", provenance)
     with pytest.raises(SceneError) as err:

@@ -14,7 +14,8 @@ import math
 import pathlib
 import tomllib
 
-from contactvisco.scene.tables import TABLE_LISTS, Contact, Provenance, Scene, is_mesh_size
+from contactvisco.scene.table import Provenance, is_mesh_size
+from contactvisco.scene.tables import TABLE_LISTS, Contact, Scene
 from contactvisco.errors import SceneError
 
 SCENE_DIR = pathlib.Path(__file__).parent.parent / "scenes"

@@ -1,16 +1,15 @@
-"""The tables of a scene: each key declared once (default, what is allowed, meaning), each table
-checking its own keys and the rules between them, and naming where a refused value came from.
+"""The tables of a scene, one class each: every key declared once (default, what is allowed,
+meaning), the rules between keys in ``rules()``; :class:`Scene` holds them all.
 
 A table is a dict of its values (``scene["contact"]["mu"]``) with its declarations in ``KEYS``,
-its place in the scene (``path``: "contact", "dirichlet[1]") and the scene's
-:class:`Provenance`. :meth:`Table.fail` raises a :class:`SceneError` that carries the dotted
-key and names its origin (a line of the scene file, a --set or load_scene override, or the
+its place in the scene (``path``: "contact", "dirichlet[1]") and the scene's provenance
+(contactvisco.scene.table): a refused value raises a SceneError that carries the dotted key
+and names its origin (a line of the scene file, a --set or load_scene override, or the
 defaults), so no message is ever parsed to find a key.
 """
 from __future__ import annotations
 
 import ast
-import copy
 import math
 import pathlib
 
@@ -18,11 +17,9 @@ from contactvisco.errors import SceneError
 from contactvisco.model.material import dimension
 from contactvisco.model.memory import PARTS
 from contactvisco.model.memory_kernel import as_list
+from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
+                                      finite, integer, is_mesh_size, modulus, number_list)
 
-#: Scene moduli (E, lambda, mu, stiffness, ...) and box sizes must lie in
-#: [1/MODULUS_RANGE, MODULUS_RANGE]: products of moduli, lengths, displacements and their
-#: squares then stay far inside double precision.
-MODULUS_RANGE = 1e100
 
 #: Most cells a gmsh script may be asked for, estimated as (largest length / smallest size)^d.
 MAX_SCRIPT_CELLS = 1e7
@@ -49,158 +46,6 @@ def _mesh_dir() -> pathlib.Path:
 
 #: Folder of the built-in mesh scripts (geometry.script names one of them).
 MESH_DIR = _mesh_dir()
-
-
-# Value tests, shared by the declarations below.
-def finite(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-
-
-def integer(x) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool)
-
-
-def modulus(x) -> bool:
-    return finite(x) and 1.0 / MODULUS_RANGE <= abs(x) <= MODULUS_RANGE
-
-
-def one_of(*choices):
-    return lambda x: isinstance(x, str) and x in choices
-
-
-def boolean(x) -> bool:
-    return isinstance(x, bool)
-
-
-def number_list(x) -> bool:
-    return isinstance(x, list) and all(finite(v) for v in x)
-
-
-def is_mesh_size(key: str) -> bool:
-    """A gmsh script parameter that is a mesh size: h or h_<where> (not height)."""
-    return key == "h" or key.startswith("h_")
-
-
-def choices(*names) -> str:
-    return ", ".join(names[:-1]) + f" or {names[-1]}"
-
-
-class Key:
-    """One scene key: its default, a test of its values (None: checked by the table's rules)
-    and the words saying what the test allows."""
-
-    __slots__ = ("default", "test", "allowed")
-
-    def __init__(self, default, test=None, allowed: str = ""):
-        self.default, self.test, self.allowed = default, test, allowed
-
-
-def choice(default: str, *names: str) -> Key:
-    return Key(default, one_of(*names), choices(*names))
-
-
-class Provenance:
-    """Where the values of a scene came from: the scene file (its name and text) and the
-    overrides in the order they were applied (``key=value`` texts or Override objects)."""
-
-    def __init__(self, path=None, text: str = "", overrides=()):
-        self.path = pathlib.Path(path) if path is not None else None
-        self.text = text
-        self.overrides = list(overrides)
-
-    def origin(self, key: str) -> str:
-        """" (from --set k=v)", " (file.toml, line N: ...)", " (a default value)" or "" for
-        the dotted key (list items as [i] or .i)."""
-        dotted = key.replace("[", ".").replace("]", "")
-        for given in reversed(self.overrides):       # the last override of a key wins
-            set_key = given.split("=", 1)[0].strip()
-            if dotted == set_key or dotted.startswith(set_key + "."):
-                return f" (from {getattr(given, 'source', '--set')} {given})"
-        if self.path is None:
-            return ""
-        found = _line_of(dotted, self.text)
-        if found:
-            number, line = found
-            return f" ({self.path.name}, line {number}: {line.strip()})"
-        return " (a default value)"
-
-
-def _line_of(dotted: str, text: str):
-    """(number, line) of the TOML line that sets the dotted key (or a table holding it), with
-    the [table] and [[array]] headers followed; None if no line does."""
-    prefix, counts, best = [], {}, None
-    for number, line in enumerate(text.splitlines(), start=1):
-        stripped = line.split("#", 1)[0].strip()
-        if stripped.startswith("[[") and stripped.endswith("]]"):
-            name = stripped[2:-2].strip()
-            counts[name] = counts.get(name, -1) + 1
-            prefix = [name, str(counts[name])]
-            full = ".".join(prefix)
-            if dotted == full or dotted.startswith(full + "."):
-                best = best or (number, line)
-            continue
-        if stripped.startswith("[") and stripped.endswith("]"):
-            prefix = stripped[1:-1].strip().split(".")
-            continue
-        if "=" in stripped:
-            name = stripped.split("=", 1)[0].strip().strip('"')
-            full = ".".join(prefix + [name])
-            if dotted == full or dotted.startswith(full + "."):
-                return number, line
-    return best
-
-
-class Table(dict):
-    """A scene table: its values by key, checked against the declarations KEYS and the rules
-    of :meth:`rules`; errors name the key and its origin."""
-
-    KEYS: dict[str, Key] = {}
-
-    def __init__(self, values=(), path: str = "", provenance: Provenance | None = None):
-        super().__init__(values)
-        self.path = path
-        self.provenance = provenance
-
-    @classmethod
-    def defaults(cls) -> dict:
-        return {name: copy.deepcopy(key.default) for name, key in cls.KEYS.items()}
-
-    def key(self, name: str) -> str:
-        return f"{self.path}.{name}" if self.path else name
-
-    def origin(self, name: str) -> str:
-        return self.provenance.origin(self.key(name)) if self.provenance else ""
-
-    def fail(self, name: str, message: str):
-        raise SceneError(f"{message}{self.origin(name)}", key=self.key(name), located=True)
-
-    def need(self, ok: bool, name: str, message: str) -> None:
-        if not ok:
-            self.fail(name, message)
-
-    def validate(self, scene: "Scene") -> None:
-        """Each declared test, then the table's rules."""
-        for name, key in self.KEYS.items():
-            if key.test is not None and name in self and not key.test(self[name]):
-                self.fail(name, f"{self.key(name)} must be {key.allowed}, got {self[name]!r}")
-        self.rules(scene)
-
-    def rules(self, scene: "Scene") -> None:
-        """Rules that involve several keys, or the rest of the scene."""
-
-    def expression(self, name: str, value, d: int, where: str | None = None) -> None:
-        """A number, or an expression text that passes the whitelist (only its constant parts
-        are computed, to catch overflow and domain errors)."""
-        where = where or self.key(name)
-        if isinstance(value, str):
-            from contactvisco.scene.expressions import parse
-            try:
-                parse(value, where, d)
-            except SceneError as err:
-                self.fail(name, str(err))
-        elif not finite(value):
-            self.fail(name, f"{where} must be a finite number or an expression string, "
-                            f"got {value!r}")
 
 
 class Geometry(Table):

@@ -1,0 +1,168 @@
+"""What every scene table is made of: a declared key (:class:`Key`: its default, its test, the
+words for what it allows), the :class:`Table` that checks its keys and names where a refused
+value came from (:class:`Provenance`: a line of the scene file, an override, or the defaults),
+and the value tests the declarations share."""
+from __future__ import annotations
+
+import copy
+import math
+import pathlib
+
+from contactvisco.errors import SceneError
+
+#: Scene moduli (E, lambda, mu, stiffness, ...) and box sizes must lie in
+#: [1/MODULUS_RANGE, MODULUS_RANGE]: products of moduli, lengths, displacements and their
+#: squares then stay far inside double precision.
+MODULUS_RANGE = 1e100
+
+
+# Value tests, shared by the declarations below.
+def finite(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def integer(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def modulus(x) -> bool:
+    return finite(x) and 1.0 / MODULUS_RANGE <= abs(x) <= MODULUS_RANGE
+
+
+def one_of(*choices):
+    return lambda x: isinstance(x, str) and x in choices
+
+
+def boolean(x) -> bool:
+    return isinstance(x, bool)
+
+
+def number_list(x) -> bool:
+    return isinstance(x, list) and all(finite(v) for v in x)
+
+
+def is_mesh_size(key: str) -> bool:
+    """A gmsh script parameter that is a mesh size: h or h_<where> (not height)."""
+    return key == "h" or key.startswith("h_")
+
+
+def choices(*names) -> str:
+    return ", ".join(names[:-1]) + f" or {names[-1]}"
+
+
+class Key:
+    """One scene key: its default, a test of its values (None: checked by the table's rules)
+    and the words saying what the test allows."""
+
+    __slots__ = ("default", "test", "allowed")
+
+    def __init__(self, default, test=None, allowed: str = ""):
+        self.default, self.test, self.allowed = default, test, allowed
+
+
+def choice(default: str, *names: str) -> Key:
+    return Key(default, one_of(*names), choices(*names))
+
+
+class Provenance:
+    """Where the values of a scene came from: the scene file (its name and text) and the
+    overrides in the order they were applied (``key=value`` texts or Override objects)."""
+
+    def __init__(self, path=None, text: str = "", overrides=()):
+        self.path = pathlib.Path(path) if path is not None else None
+        self.text = text
+        self.overrides = list(overrides)
+
+    def origin(self, key: str) -> str:
+        """" (from --set k=v)", " (file.toml, line N: ...)", " (a default value)" or "" for
+        the dotted key (list items as [i] or .i)."""
+        dotted = key.replace("[", ".").replace("]", "")
+        for given in reversed(self.overrides):       # the last override of a key wins
+            set_key = given.split("=", 1)[0].strip()
+            if dotted == set_key or dotted.startswith(set_key + "."):
+                return f" (from {getattr(given, 'source', '--set')} {given})"
+        if self.path is None:
+            return ""
+        found = _line_of(dotted, self.text)
+        if found:
+            number, line = found
+            return f" ({self.path.name}, line {number}: {line.strip()})"
+        return " (a default value)"
+
+
+def _line_of(dotted: str, text: str):
+    """(number, line) of the TOML line that sets the dotted key (or a table holding it), with
+    the [table] and [[array]] headers followed; None if no line does."""
+    prefix, counts, best = [], {}, None
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.split("#", 1)[0].strip()
+        if stripped.startswith("[[") and stripped.endswith("]]"):
+            name = stripped[2:-2].strip()
+            counts[name] = counts.get(name, -1) + 1
+            prefix = [name, str(counts[name])]
+            full = ".".join(prefix)
+            if dotted == full or dotted.startswith(full + "."):
+                best = best or (number, line)
+            continue
+        if stripped.startswith("[") and stripped.endswith("]"):
+            prefix = stripped[1:-1].strip().split(".")
+            continue
+        if "=" in stripped:
+            name = stripped.split("=", 1)[0].strip().strip('"')
+            full = ".".join(prefix + [name])
+            if dotted == full or dotted.startswith(full + "."):
+                return number, line
+    return best
+
+
+class Table(dict):
+    """A scene table: its values by key, checked against the declarations KEYS and the rules
+    of :meth:`rules`; errors name the key and its origin."""
+
+    KEYS: dict[str, Key] = {}
+
+    def __init__(self, values=(), path: str = "", provenance: Provenance | None = None):
+        super().__init__(values)
+        self.path = path
+        self.provenance = provenance
+
+    @classmethod
+    def defaults(cls) -> dict:
+        return {name: copy.deepcopy(key.default) for name, key in cls.KEYS.items()}
+
+    def key(self, name: str) -> str:
+        return f"{self.path}.{name}" if self.path else name
+
+    def origin(self, name: str) -> str:
+        return self.provenance.origin(self.key(name)) if self.provenance else ""
+
+    def fail(self, name: str, message: str):
+        raise SceneError(f"{message}{self.origin(name)}", key=self.key(name), located=True)
+
+    def need(self, ok: bool, name: str, message: str) -> None:
+        if not ok:
+            self.fail(name, message)
+
+    def validate(self, scene: dict) -> None:
+        """Each declared test, then the table's rules."""
+        for name, key in self.KEYS.items():
+            if key.test is not None and name in self and not key.test(self[name]):
+                self.fail(name, f"{self.key(name)} must be {key.allowed}, got {self[name]!r}")
+        self.rules(scene)
+
+    def rules(self, scene: dict) -> None:
+        """Rules that involve several keys, or the rest of the scene."""
+
+    def expression(self, name: str, value, d: int, where: str | None = None) -> None:
+        """A number, or an expression text that passes the whitelist (only its constant parts
+        are computed, to catch overflow and domain errors)."""
+        where = where or self.key(name)
+        if isinstance(value, str):
+            from contactvisco.scene.expressions import parse
+            try:
+                parse(value, where, d)
+            except SceneError as err:
+                self.fail(name, str(err))
+        elif not finite(value):
+            self.fail(name, f"{where} must be a finite number or an expression string, "
+                            f"got {value!r}")
