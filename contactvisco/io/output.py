@@ -144,39 +144,6 @@ def _gather_sorted(local: dict, comm, length: float) -> dict:
 FRICTION_STATES = ("none", "stick", "slip")
 
 
-def friction_limit(problem, comm, previous) -> str | None:
-    """Why a step of a body held by contact alone (no Dirichlet condition) failed, when the
-    reason is that it has no quasistatic equilibrium: the tangential part of the external load
-    resultant F exceeds mu times its normal part, the most that friction on the total normal
-    pressure can hold (mu F.nu >= sum_i w_i |sigma_tau,i|). nu: the contact normal at the last
-    equilibrium `previous` (a contact table), weighted by the normal reaction. Collective.
-    Returns the explanation, or None."""
-    if problem.lambda_tau is None or problem.bcs_u:
-        return None
-    known = previous is not None
-    previous = previous if known else contact_table(problem, comm)   # for weights and normals
-    w = previous["weight"] * (np.maximum(previous["reaction_nu"], 0.0) if known else 1.0)
-    normal = np.sum(w[:, None] * previous["normal"], axis=0)
-    if not np.linalg.norm(normal) > 0:
-        normal = np.sum(previous["weight"][:, None] * previous["normal"], axis=0)
-    normal /= np.linalg.norm(normal)
-    F = problem.load_resultant()
-    pressing = float(F @ normal)          # the load pushing the body onto Gamma_C (nu: outward)
-    tangential = float(np.linalg.norm(F - pressing * normal))
-    mu = problem.scene["contact"]["mu"]
-    if tangential <= mu * max(pressing, 0.0) * (1 + 1e-9):
-        return None
-    note = ""
-    if known:
-        force = np.linalg.norm(np.sum(previous["weight"][:, None]
-                                      * previous["sigma_tau_vector"], axis=0))
-        note = f"; friction force {force:.6g} at the last equilibrium"
-    return (f"no quasistatic equilibrium: the tangential load exceeds the friction limit "
-            f"(tangential load {tangential:.6g} > mu x normal load = {mu:g} x {pressing:.6g} = "
-            f"{mu * max(pressing, 0.0):.6g}{note}); reduce the tangential load, raise "
-            "contact.mu, or hold the body with a Dirichlet condition")
-
-
 def friction_state(table) -> np.ndarray:
     """Per node: 0 no friction (zero bound), 1 stick (|sigma_tau| below the bound, so the
     node's slip is zero), 2 slip (|sigma_tau| at the bound mu times the law's pressure),
