@@ -386,7 +386,7 @@ def test_options_read_while_solving_act():
     before = PETSc.Options().getAll()
     problem, default = direct_solver("{}")
     try:
-        problem.set_time(1.0)
+        problem.time.stage(1.0)
         assert default.solve() >= 1
         icntl_default = default.snes.getKSP().getPC().getFactorMatrix().getMumpsIcntl(14)
     finally:
@@ -400,7 +400,7 @@ def test_options_read_while_solving_act():
         present = []                   # getAll does not mark options as read
         newton.snes.setMonitor(lambda snes, it, norm: present.append(
             PETSc.Options().getAll().get("mat_mumps_icntl_14")))
-        problem.set_time(1.0)
+        problem.time.stage(1.0)
         iterations = []
         for _ in range(2):             # the second from the converged state: 0 iterations
             iterations.append(newton.solve())
@@ -423,7 +423,7 @@ def test_failing_solve_leaves_no_options():
     before = PETSc.Options().getAll()
     problem, newton = direct_solver("{pc_factor_mat_solver_type='nonsense'}")
     try:
-        problem.set_time(1.0)
+        problem.time.stage(1.0)
         with pytest.raises(SceneError, match="while setting up the solve.*"
                                              "-pc_factor_mat_solver_type nonsense"):
             newton.solve()

@@ -141,8 +141,8 @@ class Run:
             if self.resumed and n * k <= t + 1e-12 * t_end:
                 continue                      # done before the restart
             try:
-                for state in advance(problem, snes, t, n * k, count == 0,
-                                     scene["solver"]["max_cuts"], self.say):
+                for state in advance(problem, snes, n * k, scene["solver"]["max_cuts"],
+                                     self.say):
                     table = output.contact_table(problem, comm)
                     record = self._record(count, state, table)
                     for observe in observers:
@@ -209,33 +209,33 @@ def recorder(result: Result, keep_tables):
     return record_into_result
 
 
-def advance(problem, snes, t_from, t_to, first, max_cuts, say, cuts=0):
-    """Yield the accepted states that take the problem from t_from to t_to: one, or, when
-    Newton fails, those of the two halves (at most max_cuts halvings in a row; none on the
-    first state, which has no earlier state to fall back on). Each state is committed (the
-    history of eq 19 takes the exact step sizes) before it is yielded; a failure that may not
-    be cut raises StepFailed with the unknowns restored."""
+def advance(problem, snes, t_to, max_cuts, say, cuts=0):
+    """Yield the accepted states that take the problem from its committed time to t_to: one,
+    or, when Newton fails, those of the two halves (at most max_cuts halvings in a row; none
+    on the first state, which has no earlier state to fall back on). Each state is committed
+    (the history of eq 19 takes the exact step sizes) before it is yielded; a failure that
+    may not be cut raises StepFailed with the unknowns restored."""
     tick = clock.perf_counter()
-    k = t_to - t_from
+    t_from = problem.time.committed           # None: the first state, t_0
+    first = t_from is None
     saved = [f.x.array.copy() for f in problem.unknowns]
-    problem.set_time(t_to)
-    if not first:
-        problem.prepare(k)        # H from u_0 .. u_n (eq 19, any step sizes)
+    problem.time.stage(t_to)                  # H from u_0 .. u_n (eq 19, any step sizes)
     try:
         iterations = snes.solve()
     except NewtonFailure as err:
         for f, values in zip(problem.unknowns, saved):
             f.x.array[:] = values
         if first or cuts >= max_cuts:
-            raise StepFailed(t_from, t_to, cuts, err) from None
+            raise StepFailed(t_to if first else t_from, t_to, cuts, err) from None
         say(f"step to t = {t_to:.4g} failed (SNES reason {err.reason}); taking it in two "
             "halves")
-        middle = t_from + 0.5 * k
-        yield from advance(problem, snes, t_from, middle, first, max_cuts, say, cuts + 1)
-        yield from advance(problem, snes, middle, t_to, False, max_cuts, say, cuts + 1)
+        middle = t_from + 0.5 * (t_to - t_from)
+        yield from advance(problem, snes, middle, max_cuts, say, cuts + 1)
+        yield from advance(problem, snes, t_to, max_cuts, say, cuts + 1)
         return
-    problem.commit(None if first else k)
-    yield Accepted(t_to, None if first else k, iterations, clock.perf_counter() - tick, cuts)
+    problem.time.commit()
+    k = None if first else t_to - t_from
+    yield Accepted(t_to, k, iterations, clock.perf_counter() - tick, cuts)
 
 
 class FieldWriter:
@@ -250,9 +250,10 @@ class FieldWriter:
             problem = self.problem
             if "sigma" in self.names:
                 self.sigma.interpolate(problem.sigma_expression)
-            available = {"u": problem.u, "sigma": self.sigma, "history_stress": problem.H,
-                         "lambda_nu": problem.lambda_nu, "lambda_tau": problem.lambda_tau}
-            fields = [available[name] for name in self.names if available[name] is not None]
+            available = {"u": problem.u, "sigma": self.sigma,
+                         "history_stress": problem.memory and problem.memory.H,
+                         **problem.multipliers}
+            fields = [available[name] for name in self.names if available.get(name) is not None]
         self.writer.step(record, table, fields)
 
 

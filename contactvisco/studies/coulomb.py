@@ -1,4 +1,4 @@
-"""Closed forms of Coulomb friction (contact.friction = "coulomb"), shared by the tests, the
+"""Closed forms of Coulomb friction (contact.friction_law = "coulomb"), shared by the tests, the
 benchmark and the demo.
 
 sliding_block(): a block (plane strain, nu = 0) pressed onto a rigid foundation (g = 0) by a
@@ -73,7 +73,7 @@ def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5
            "material": {"model": "plane_strain" if d == 2 else "3d", "E": E, "nu": 0.0},
            "dirichlet": dirichlet,
            "traction": [top] + tractions,
-           "contact": {"boundary": "bottom", "g": 0.0, "mu": mu, "friction": "coulomb",
+           "contact": {"boundary": "bottom", "g": 0.0, "mu": mu, "friction_law": "coulomb",
                        "slip": slip},
            "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
     return raw, exact
@@ -91,7 +91,7 @@ def cattaneo_scene(h_contact: float, nu: float = 0.49, mu: float = 0.3, w: float
             "dirichlet": [{"boundary": "top", "components": "all",
                            "value": [f"{delta} * t", -w]}],
             "contact": {"boundary": "contact", "g": 0.0, "gap": "x[1]", "mu": mu,
-                        "friction": "coulomb", "slip": slip, "augmentation": 200.0},
+                        "friction_law": "coulomb", "slip": slip, "augmentation": 200.0},
             "time": {"T": 1.0, "steps": 1},
             "output": {"probes": []}}
 
