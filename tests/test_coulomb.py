@@ -48,7 +48,7 @@ def _block_check(regime, slip, cells=(8, 4), direction=None):
     assert np.allclose(table["reaction_nu"], N, rtol=1e-10)
     # The foundation holds the body back: the friction force opposes the pull.
     force = table["sigma_tau_vector"][:, :-1]
-    assert np.max(np.abs(force + exact["friction"] * e)) < 1e-9 * exact["friction"]
+    assert np.max(np.abs(force + exact["friction_force"] * e)) < 1e-9 * exact["friction_force"]
     assert_contact_conditions(table, 0.0, 1e-10 * N)
     return table
 

@@ -42,7 +42,7 @@ def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5
     or the 'slip' regime (the top moved by 2 mu N H / G, twice the stick limit), along the
     unit tangential `direction` (2D: x; 3D: any (e_x, e_y)). Returns the raw scene and the
     exact fields as numbers: {"ux": (a, b), "uy": c} meaning u_tau = (a + b z) direction,
-    u_normal = c z (z the height), and the friction force per node."""
+    u_normal = c z (z the height), and "friction_force", the friction force per node."""
     E, H = 100.0, 0.5
     G = E / 2
     d = len(cells)
@@ -60,13 +60,13 @@ def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5
     if regime == "stick":
         top = {"boundary": "top", "value": [float(tau * c) for c in e] + [-N]}
         dirichlet = []
-        exact = {"ux": (0.0, tau / G), "uy": -N / E, "friction": tau}
+        exact = {"ux": (0.0, tau / G), "uy": -N / E, "friction_force": tau}
     else:
         U = 2 * tau * H / G
         top = {"boundary": "top", "value": [0.0] * (d - 1) + [-N]}
         dirichlet = [{"boundary": "top", "components": list(range(d - 1)),
                       "value": [float(U * c) for c in e]}]
-        exact = {"ux": (U - tau * H / G, tau / G), "uy": -N / E, "friction": tau}
+        exact = {"ux": (U - tau * H / G, tau / G), "uy": -N / E, "friction_force": tau}
     upper = [1.0] * (d - 1) + [H]
     raw = {"name": f"block-{regime}",
            "geometry": {"lower": [0.0] * d, "upper": upper, "cells": list(cells)},
