@@ -78,7 +78,7 @@ def solvers():
     cases = {
         "Cattaneo-Mindlin a/h = 44": scene_module.resolve(cattaneo_scene(0.00125)),
         "paper 128^2, coulomb, increment": scene_module.load(
-            "paper", ["geometry.cells=[128, 128]", "contact.friction='coulomb'",
+            "paper", ["geometry.cells=[128, 128]", "contact.friction_law='coulomb'",
                       "contact.slip='increment'"]),
     }
     rows = []
@@ -118,7 +118,7 @@ def ironing():
              "|---|---|---|---|---|---|"]
     rows = []
     for slip in ("total", "increment"):
-        scene = scene_module.load("ironing", ["contact.friction='coulomb'",
+        scene = scene_module.load("ironing", ["contact.friction_law='coulomb'",
                                               f"contact.slip='{slip}'"])
         scene["output"]["probes"] = []
         result = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)

@@ -6,7 +6,7 @@ the fractional kernel R = 100 t^-0.5 / Gamma(1/2) (trapezoid rule, memory.tolera
 - memory.summation = 'direct' (exact kernel, O(n) per step): 2000 steps (T = 20), stopped
   there because its cost grows with n.
 Per step: the wall time of the whole step (Newton included) and of the history update alone
-(Problem.commit + Problem.prepare, measured by wrapping them); the median over windows of 10
+(TimeState.record + TimeState.prepare, measured by wrapping them); the median over windows of 10
 steps ending at step 10, 100, 1000, 2000 and 10^4. Memory held: the bytes of the history's
 arrays (History.state()) at the end of the run, per rank.
 
@@ -26,7 +26,7 @@ from mpi4py import MPI
 from common import RESULTS
 from contactvisco.model import kernels
 from contactvisco.scene import loader as scene_module
-from contactvisco.fem.problem import Problem
+from contactvisco.fem.problem import TimeState
 from contactvisco.solver.time_loop import simulate
 
 K = 0.01
@@ -39,22 +39,22 @@ WINDOWS = (10, 100, 1000, 2000, 10000)
 
 
 class HistoryClock:
-    """Wall time of every Problem.commit and Problem.prepare call, in call order."""
+    """Wall time of every TimeState.record and TimeState.prepare call, in call order."""
 
     def __init__(self):
-        self.calls = {"commit": [], "prepare": []}
+        self.calls = {"record": [], "prepare": []}
         for name in self.calls:
-            original = getattr(Problem, name)
+            original = getattr(TimeState, name)
 
-            def timed(problem, k, original=original, record=self.calls[name]):
+            def timed(state, k, original=original, record=self.calls[name]):
                 tick = time.perf_counter()
-                original(problem, k)
+                original(state, k)
                 record.append(time.perf_counter() - tick)
-            setattr(Problem, name, timed)
+            setattr(TimeState, name, timed)
 
     def per_step(self):
-        commit, prepare = self.calls["commit"], self.calls["prepare"]
-        return [p + c for p, c in zip(prepare, commit[1:])]
+        record, prepare = self.calls["record"], self.calls["prepare"]
+        return [p + c for p, c in zip(prepare, record[1:])]
 
 
 def window(values, end):
@@ -76,11 +76,12 @@ def one_run(kernel, summation, cells, clock):
     total = time.perf_counter() - tick
     steps = [s["wall_s"] for s in result.steps[1:]]
     history = clock.per_step()
-    held = sum(a.nbytes for a in result.problem.history.state().values())
-    fit = getattr(result.problem.history, "fit", None)
+    memory = result.problem.memory
+    held = sum(a.nbytes for a in memory.history.state().values())
+    fit = getattr(memory.history, "fit", None)
     return {"kernel": kernel, "summation": summation, "steps": N, "T": N * K, "run_s": total,
             "terms": len(fit) if fit else None, "fit_error": fit.error if fit else None,
-            "history_bytes": held, "strain_bytes": result.problem.eps_function.x.array.nbytes,
+            "history_bytes": held, "strain_bytes": memory.eps_function.x.array.nbytes,
             "step_ms": {str(w): (window(steps, w) or math.nan) * 1e3 for w in WINDOWS},
             "history_ms": {str(w): (window(history, w) or math.nan) * 1e3 for w in WINDOWS},
             "newton": sum(s["newton_iterations"] for s in result.steps[1:]),

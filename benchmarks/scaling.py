@@ -105,7 +105,7 @@ def one(scene_name, size, solver, steps):
     its = sum(s["newton_iterations"] for s in steps_)
     row = {"scene": scene_name, "size": size, "solver": solver, "ranks": comm.size,
            "unknowns_u": problem.count_unknowns()["u"],
-           "contact_nodes": comm.allreduce(int(problem.nodes.owned.sum())),
+           "contact_nodes": comm.allreduce(int(problem.contact.nodes.owned.sum())),
            "system": result.linear_system, "ksp_pc": result.linear_solver,
            "newton_per_step": newton,
            "krylov_per_newton_max": max(krylov) if krylov else 0,

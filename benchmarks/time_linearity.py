@@ -4,8 +4,8 @@ of eq (19) kept by the recursion of contactvisco/memory.py, O(1) work per step) 
 contrast, a table kernel (eq (19) summed directly, O(n) work at step n).
 
 Per run: the wall time of the time loop (steps 1..N, the elastic solve at t_0 left out), the
-Newton iterations, and the time spent in the history update (Problem.commit: eps of the
-converged u into the history; Problem.prepare: the history stress H of the next step),
+Newton iterations, and the time spent in the history update (TimeState.record: eps of
+the converged u into the history; TimeState.prepare: the history stress H of the next step),
 measured per step by wrapping those two methods.
 
 With O(1) history work the loop time grows like N (ratio 1000/100 near 10) and the history
@@ -24,7 +24,7 @@ from mpi4py import MPI
 
 from common import RESULTS
 from contactvisco.scene import loader as scene_module
-from contactvisco.fem.problem import Problem
+from contactvisco.fem.problem import TimeState
 from contactvisco.solver.time_loop import simulate
 
 STEPS = (100, 1000)
@@ -45,33 +45,33 @@ KERNELS = {
 
 
 class HistoryClock:
-    """Wall time of every Problem.commit and Problem.prepare call, in call order."""
+    """Wall time of every TimeState.record and TimeState.prepare call, in call order."""
 
     def __init__(self):
-        self.commit: list[float] = []
+        self.record: list[float] = []
         self.prepare: list[float] = []
-        for name in ("commit", "prepare"):
+        for name in ("record", "prepare"):
             self._wrap(name)
 
     def _wrap(self, name):
-        original = getattr(Problem, name)
-        record = getattr(self, name)
+        original = getattr(TimeState, name)
+        calls = getattr(self, name)
 
-        def timed(problem, k):
+        def timed(state, k):
             tick = time.perf_counter()
-            original(problem, k)
-            record.append(time.perf_counter() - tick)
-        setattr(Problem, name, timed)
+            original(state, k)
+            calls.append(time.perf_counter() - tick)
+        setattr(TimeState, name, timed)
 
     def reset(self):
-        self.commit.clear()
+        self.record.clear()
         self.prepare.clear()
 
     def per_step(self, N):
-        """History seconds of steps 1..N: prepare(k) before the solve, commit(k) after it.
-        Step 0 commits eps_0 only and is left out, like its solve."""
-        assert len(self.commit) == N + 1 and len(self.prepare) == N, "a step was cut"
-        return [p + c for p, c in zip(self.prepare, self.commit[1:])]
+        """History seconds of steps 1..N: prepare(k) before the solve, record(k) after it.
+        Step 0 records eps_0 only and is left out, like its solve."""
+        assert len(self.record) == N + 1 and len(self.prepare) == N, "a step was cut"
+        return [p + c for p, c in zip(self.prepare, self.record[1:])]
 
 
 def one_run(scene, clock):
@@ -143,7 +143,7 @@ def write(rows, cells, ranks):
     lines = [
         f"Paper scene, {cells} x {cells} cells, T = 1, N = {n0} and {n1} steps, paper's rule, "
         f"{ranks} rank(s), no output files. Loop: steps 1..N (the elastic solve at t_0 left "
-        "out). History: Problem.commit + Problem.prepare. Times are the best of the repeats.",
+        "out). History: TimeState.record + TimeState.prepare. Times are the best of the repeats.",
         "",
         "Machine-independent ratios (O(1) history work per step: loop and history near "
         f"{n1 // n0}, last/first near 1; O(n): history near {(n1 // n0) ** 2}, last/first "

@@ -13,7 +13,7 @@
 # %% [markdown]
 # # Signorini contact with Coulomb friction: partial slip of a cylinder
 #
-# With `contact.friction = "coulomb"` the friction ball has the radius $\mu$ times the total
+# With `contact.friction_law = "coulomb"` the friction ball has the radius $\mu$ times the total
 # normal pressure, $\mu\,(p_\nu(u_\nu) + R_\nu)$, instead of the paper's $\mu\,p_\nu(u_\nu)$.
 # With $g = 0$ (no compliance layer) this is Signorini contact with Coulomb friction:
 # $$s \le 0,\quad \sigma_\nu \le 0,\quad s\,\sigma_\nu = 0,\qquad

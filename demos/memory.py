@@ -42,7 +42,7 @@ for alpha in alphas:
                        output={"probes": [[0.5, 1.0]]})
     result = solve(scene)
     runs[alpha] = result
-    print(f"alpha = {alpha:5.0f}: history built: {result.problem.history is not None}, "
+    print(f"alpha = {alpha:5.0f}: history built: {result.problem.memory is not None}, "
           f"final states {result.steps[-1]['status_counts']}")
 
 # %% [markdown]

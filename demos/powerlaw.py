@@ -72,7 +72,7 @@ for name, memory in kernels.items():
                        time={"T": T, "steps": steps, "rule": "trapezoid"},
                        output={"probes": [[0.5, 1.0]]}, memory=memory)
     runs[name] = solve(scene)
-    history = runs[name].problem.history
+    history = runs[name].problem.memory.history
     note = getattr(history, "note", f"{len(history.terms)} exponential term(s)")
     print(f"{name:12s} {note}")
     print(f"{'':12s} at t = {T:g}: {runs[name].steps[-1]['status_counts']}")

@@ -53,8 +53,8 @@ def test_uniform_block(model, q, g, regime):
         assert probe["u"][0] == pytest.approx(0.0, abs=1e-12)
         assert probe["u"][1] == pytest.approx(-u_nu - q * y / M, abs=1e-12)
     # no friction, no memory: neither lambda_tau nor a history is built
-    assert result.problem.lambda_tau is None and result.problem.history is None
-    assert (result.problem.lambda_nu is None) == (not math.isfinite(g))
+    assert result.problem.contact.lambda_tau is None and result.problem.memory is None
+    assert (result.problem.contact.lambda_nu is None) == (not math.isfinite(g))
 
 
 def test_block_separates_under_tension():

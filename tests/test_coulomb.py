@@ -1,5 +1,5 @@
-"""Coulomb friction on the total normal pressure (contact.friction = "coulomb") and slip measured
-per step (contact.slip = "increment"): closed forms (sliding block, Cattaneo-Mindlin), the
+"""Coulomb friction on the total normal pressure (contact.friction_law = "coulomb") and slip
+measured per step (contact.slip = "increment"): closed forms (sliding block, Cattaneo-Mindlin), the
 stop when the tangential load exceeds the friction limit, the condensed system against the
 coupled one, 1 and 2 ranks, the checkpoint, and the scene checks."""
 import math
@@ -48,7 +48,7 @@ def _block_check(regime, slip, cells=(8, 4), direction=None):
     assert np.allclose(table["reaction_nu"], N, rtol=1e-10)
     # The foundation holds the body back: the friction force opposes the pull.
     force = table["sigma_tau_vector"][:, :-1]
-    assert np.max(np.abs(force + exact["friction"] * e)) < 1e-9 * exact["friction"]
+    assert np.max(np.abs(force + exact["friction_force"] * e)) < 1e-9 * exact["friction_force"]
     assert_contact_conditions(table, 0.0, 1e-10 * N)
     return table
 
@@ -140,9 +140,9 @@ def test_signorini_coulomb_hertz_runs():
     """hertz with contact.mu > 0 is Signorini contact with Coulomb friction: it runs, friction
     unknowns are built, and the conditions hold with the bound mu (p_nu + R_nu)."""
     scene = scene_module.load("hertz", ["preset='fast'", "contact.mu=0.2",
-                                        "contact.friction='coulomb'"])
+                                        "contact.friction_law='coulomb'"])
     result = _run(scene)
-    assert result.problem.lambda_tau is not None
+    assert result.problem.contact.lambda_tau is not None
     table = result.tables[-1]
     R = -table["lambda_nu"]
     assert np.allclose(table["radius"], 0.2 * R, atol=1e-12)
@@ -159,7 +159,7 @@ def test_condensed_equals_coupled_with_coulomb(slip):
     the kink of the projection (|lambda_tau| = its bound, z = lambda_tau): round-off picks the
     branch of the generalized derivative there, so the iterates (not the answer) may differ
     between the two systems and between partitions; only the answers are compared."""
-    sets = ["time.steps=8", "time.T=0.4", "contact.friction='coulomb'",
+    sets = ["time.steps=8", "time.T=0.4", "contact.friction_law='coulomb'",
             f"contact.slip='{slip}'"]
     runs = {}
     for system in ("coupled", "condensed"):
@@ -226,7 +226,7 @@ def test_slip_increment_against_total_on_ironing():
             for table in result.tables)
         assert sliding > 20              # friction against the measured slip checked there
         tables[slip] = result.tables[-1]
-        assert (result.problem.u_previous is not None) == (slip == "increment")
+        assert (result.problem.contact.u_previous is not None) == (slip == "increment")
     assert np.max(np.abs(tables["total"]["u_tau"] - tables["increment"]["u_tau"])) > 1e-4
 
 
@@ -246,15 +246,16 @@ def test_checkpoint_keeps_the_slip_origin(tmp_path_factory):
     ref = result.problem.V.tabulate_dof_coordinates()
     if MPI.COMM_WORLD.size == 1:            # same partition: same dof order
         assert np.allclose(key, ref)
-        assert np.array_equal(fresh.u_previous.x.array, result.problem.u_previous.x.array)
+        assert np.array_equal(fresh.contact.u_previous.x.array,
+                              result.problem.contact.u_previous.x.array)
         assert np.array_equal(fresh.u.x.array, result.problem.u.x.array)
     # The slip origin of the last step is u(t_{n-1}): not the converged u of t_n.
     comm = MPI.COMM_WORLD
-    change = comm.allreduce(float(np.max(np.abs(fresh.u_previous.x.array - fresh.u.x.array),
-                                         initial=0.0)), MPI.MAX)
+    origin = fresh.contact.u_previous.x.array
+    change = comm.allreduce(float(np.max(np.abs(origin - fresh.u.x.array), initial=0.0)),
+                            MPI.MAX)
     assert change > 1e-6
-    assert comm.allreduce(float(np.max(np.abs(fresh.u_previous.x.array), initial=0.0)),
-                          MPI.MAX) > 0
+    assert comm.allreduce(float(np.max(np.abs(origin), initial=0.0)), MPI.MAX) > 0
 
 
 def test_cut_step_measures_slip_from_the_last_accepted_state(monkeypatch):
@@ -262,7 +263,7 @@ def test_cut_step_measures_slip_from_the_last_accepted_state(monkeypatch):
     to t = 1 converges and is then declared failed) is restored and taken in two halves: each
     half's slip is measured from the state before it, not from the failed attempt, and the
     run reaches the answer of the uniform run through the same times."""
-    sets = ["time.T=1.0", "contact.friction='coulomb'", "contact.slip='increment'",
+    sets = ["time.T=1.0", "contact.friction_law='coulomb'", "contact.slip='increment'",
             "geometry.parameters.h=0.1"]
     solve = solver_module.NewtonSolver.solve
     calls = []
@@ -305,7 +306,7 @@ def test_restart_continues_the_slip_per_step(tmp_path_factory, monkeypatch):
     folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
                for name in ("whole", "stopped")]
     scene = scene_module.load("ironing", ["time.steps=5", "time.T=0.25",
-                                          "contact.friction='coulomb'",
+                                          "contact.friction_law='coulomb'",
                                           "contact.slip='increment'"])
     scene["output"].update(probes=[], figures=False, xdmf=False)
     whole = simulate(scene, out=folders[0], comm=comm, progress=False, keep_tables=True)
@@ -340,7 +341,7 @@ def test_ranks_agree_with_coulomb():
     raw["traction"][2]["value"] = [0.0, "2 * t"]
     raw["time"]["steps"] = 3
     scene = scene_module.load("ironing", ["time.steps=6", "time.T=0.3",
-                                          "contact.friction='coulomb'", "contact.g=0",
+                                          "contact.friction_law='coulomb'", "contact.g=0",
                                           "contact.stiffness=0", "contact.slip='increment'",
                                           "geometry.parameters.h=0.1"])
     scene["output"]["probes"] = []
@@ -357,20 +358,37 @@ def test_ranks_agree_with_coulomb():
 @pytest.mark.parametrize("sets, message", [
     (["contact.friction='tresca'"], "contact.friction must be compliance or coulomb"),
     (["contact.slip='rate'"], "contact.slip must be total or increment"),
-    (["contact.mu=0.2"], "contact.friction = 'coulomb'"),     # hertz: compliance law refused
+    (["contact.friction_law='tresca'"], "contact.friction_law must be compliance or coulomb"),
+    (["contact.mu=0.2"], "contact.friction_law = 'coulomb'"),  # hertz: compliance law refused
+    (["contact.friction='coulomb'", "contact.friction_law='compliance'"],
+     "contact.friction is the former name of contact.friction_law: give one of them"),
 ])
 def test_scene_checks(sets, message):
     with pytest.raises(SceneError, match=message):
         scene_module.load("hertz", sets)
 
 
-@pytest.mark.parametrize("sets", [["contact.friction='coulomb'"],
+def test_former_key_friction_is_read_as_friction_law(tmp_path):
+    """contact.friction, the former name of contact.friction_law, gives the same scene, from
+    --set and from a scene file, and the scene then holds friction_law only; neither given:
+    the paper's compliance law."""
+    former = scene_module.load("hertz", ["contact.friction='coulomb'", "contact.mu=0.2"])
+    new = scene_module.load("hertz", ["contact.friction_law='coulomb'", "contact.mu=0.2"])
+    assert former["contact"] == new["contact"]
+    assert former["contact"]["friction_law"] == "coulomb" and "friction" not in former["contact"]
+    assert scene_module.load("hertz")["contact"]["friction_law"] == "compliance"
+    path = tmp_path / "former.toml"
+    path.write_text('[contact]\nstiffness = 100.0\ng = 0.1\nmu = 0.2\nfriction = "coulomb"\n')
+    assert scene_module.load(str(path))["contact"]["friction_law"] == "coulomb"
+
+
+@pytest.mark.parametrize("sets", [["contact.friction_law='coulomb'"],
                                   ["contact.slip='increment'"]])
 def test_no_friction_unknowns_without_mu(sets):
     """mu = 0 with either key: a valid scene that builds no lambda_tau and no slip origin."""
     scene = scene_module.load("hertz", ["preset='fast'"] + sets)
     problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
-    assert problem.lambda_tau is None and problem.u_previous is None
+    assert problem.contact.lambda_tau is None and problem.contact.u_previous is None
 
 
 @st.composite
@@ -384,7 +402,7 @@ def coulomb_scenes(draw):
             f"contact.mu={draw(st.sampled_from([0.2, 0.8]))}",
             f"contact.augmentation={draw(st.sampled_from([1.0, 100.0, 1e4]))}",
             f"contact.slip='{draw(st.sampled_from(['total', 'increment']))}'",
-            "contact.friction='coulomb'",
+            "contact.friction_law='coulomb'",
             f"time.steps={draw(st.integers(1, 4))}", "time.rule='trapezoid'",
             "output.probes=[]"]
 

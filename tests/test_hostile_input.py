@@ -402,7 +402,7 @@ def test_options_read_while_solving_act():
     before = PETSc.Options().getAll()
     problem, default = direct_solver("{}")
     try:
-        problem.set_time(1.0)
+        problem.time.stage(1.0)
         assert default.solve() >= 1
         icntl_default = default.snes.getKSP().getPC().getFactorMatrix().getMumpsIcntl(14)
     finally:
@@ -419,7 +419,7 @@ def test_options_read_while_solving_act():
         present = []                   # getAll does not mark options as read
         newton.snes.setMonitor(lambda snes, it, norm: present.append(
             PETSc.Options().getAll().get(key)))
-        problem.set_time(1.0)
+        problem.time.stage(1.0)
         iterations = []
         for _ in range(2):             # the second from the converged state: 0 iterations
             iterations.append(newton.solve())
@@ -451,7 +451,7 @@ def test_two_solvers_keep_their_own_options():
         assert one.snes.getTolerances()[0] == pytest.approx(1e-9)
         assert two.snes.getTolerances()[0] == pytest.approx(1e-11)
         for problem, newton in ((first, one), (second, two)):
-            problem.set_time(1.0)
+            problem.time.stage(1.0)
             assert newton.solve() >= 1 and newton.residuals[-1] < 1e-8
         factors = [n.snes.getKSP().getPC().getFactorMatrix() for n in (one, two)]
         assert [f.getMumpsIcntl(14) for f in factors] == [55, 35]
@@ -471,7 +471,7 @@ def test_failing_solve_leaves_no_options():
     problem, newton = direct_solver("{pc_factor_mat_solver_type='nonsense'}")
     try:
         set_up = with_solver(before, newton)
-        problem.set_time(1.0)
+        problem.time.stage(1.0)
         with pytest.raises(SceneError, match="while setting up the solve.*"
                                              "-pc_factor_mat_solver_type nonsense"):
             newton.solve()

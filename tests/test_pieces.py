@@ -160,7 +160,7 @@ def test_condensed_step_is_the_coupled_step(label):
     scene["output"]["probes"] = []
     problem = simulate(scene, comm=comm, progress=False).problem
     if comm.size > 1:       # the contact nodes lie on both sides of a partition boundary
-        owners = comm.allgather(int(problem.nodes.owned.sum()))
+        owners = comm.allgather(int(problem.contact.nodes.owned.sum()))
         assert sum(n > 0 for n in owners) >= 2, owners
     rng = np.random.default_rng(comm.rank)
     u = compat.petsc_vector(problem.u)
@@ -192,7 +192,7 @@ from contactvisco.solver.time_loop import simulate
 scene = scene_module.load("paper", SETS)
 scene["output"]["probes"] = []
 result = simulate(scene, comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
-owned = MPI.COMM_WORLD.allgather(int(result.problem.nodes.owned.sum()))
+owned = MPI.COMM_WORLD.allgather(int(result.problem.contact.nodes.owned.sum()))
 table = result.tables[-1]
 if MPI.COMM_WORLD.rank == 0:
     print(json.dumps({"owned": owned, "newton": [s["newton_iterations"] for s in result.steps],

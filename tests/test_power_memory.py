@@ -188,23 +188,20 @@ def test_checkpoint_restores_the_fitted_history(kernel, tmp_path_factory):
 
     first, snes = make()
     for n in range(4):
-        first.set_time(n * k)
-        if n:
-            first.update_history()
+        first.time.stage(n * k)
         snes.solve()
-    first.commit(k)
+        first.time.commit()
     checkpoint.save(folder, first, COMM, 3 * k, 4, k)
     second, snes2 = make()
     checkpoint.load(folder, second, COMM)
+    assert second.time.committed == first.time.committed == 3 * k
     for problem, solver in ((first, snes), (second, snes2)):
         for n in (4, 5):
-            problem.set_time(n * k)
-            if n > 4:
-                problem.commit(k)
-            problem.prepare(k)
+            problem.time.stage(n * k)
             solver.solve()
-    assert np.max(np.abs(first.H.x.array)) > 1e-3
-    assert np.max(np.abs(first.H.x.array - second.H.x.array)) < 1e-12
+            problem.time.commit()
+    assert np.max(np.abs(first.memory.H.x.array)) > 1e-3
+    assert np.max(np.abs(first.memory.H.x.array - second.memory.H.x.array)) < 1e-12
     assert np.max(np.abs(first.u.x.array - second.u.x.array)) < 1e-10
 
 

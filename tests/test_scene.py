@@ -74,8 +74,8 @@ def test_unknown_boundary_is_named():
 def test_only_needed_terms_are_built(overrides, unknowns, history):
     problem = build(overrides)
     assert set(problem.count_unknowns()) == unknowns
-    assert (problem.history is not None) == history
-    assert (problem.H is not None) == history
+    assert (problem.memory is not None) == history
+    assert (problem.memory is not None and problem.memory.H is not None) == history
     # the residual depends on exactly these unknowns
     assert len(problem.F) == len(unknowns)
 

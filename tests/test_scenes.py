@@ -25,8 +25,8 @@ def test_builtin_scene_builds(name):
     unknowns = set(problem.count_unknowns())
     assert ("lambda_nu" in unknowns) == math.isfinite(contact["g"])
     assert ("lambda_tau" in unknowns) == (contact["mu"] > 0)
-    assert problem.nodes is not None
-    n_contact = COMM.allreduce(int(problem.nodes.owned.sum()))
+    assert problem.contact is not None
+    n_contact = COMM.allreduce(int(problem.contact.nodes.owned.sum()))
     assert n_contact >= 9
 
 
@@ -65,8 +65,8 @@ def test_no_contact_is_plain_viscoelasticity():
     scene["contact"] = None
     scene["dirichlet"].append({"boundary": "bottom", "components": "all"})
     problem = problem_module.build(scene, geometry.build(scene, COMM))
-    assert set(problem.count_unknowns()) == {"u"} and problem.nodes is None
-    assert problem.history is not None
+    assert set(problem.count_unknowns()) == {"u"} and problem.contact is None
+    assert problem.memory is not None
 
 
 def test_signorini_builds_no_compliance_term():

@@ -79,16 +79,17 @@ def test_history_state_of_a_problem(kernel):
     scene = scene_module.load("paper", ["geometry.cells=[8, 8]", "time.steps=50"]
                               + SCENE_KERNELS[kernel])
     problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
-    assert problem.history.direct == (kernel == "table")
+    history = problem.memory.history
+    assert history.direct == (kernel == "table")
     problem.u.interpolate(lambda x: np.stack([0.01 * x[0] * x[1], -0.02 * x[1] ** 2]))
     k = scene["time"]["T"] / scene["time"]["steps"]
-    local = problem.eps_function.x.array.nbytes
+    local = problem.memory.eps_function.x.array.nbytes
     sizes = {}
     for n in range(1, 51):
-        problem.commit(None if n == 1 else k)
-        problem.prepare(k)
-        sizes[n] = footprint(problem.history)
-    assert np.max(np.abs(problem.H.x.array)) > 0
+        problem.time.record(None if n == 1 else k)
+        problem.time.prepare(k)
+        sizes[n] = footprint(history)
+    assert np.max(np.abs(problem.memory.H.x.array)) > 0
     if kernel == "table":
         for n in (5, 50):
             assert sizes[n][0] == 1 + n

@@ -32,7 +32,7 @@ def test_cut_states_tile_the_step_and_converge():
         for n in range(STEPS + 1):
             t_to = n * t_end / STEPS
             states = []
-            for state in advance(problem, snes, t, t_to, n == 0, 4, lambda text: None):
+            for state in advance(problem, snes, t_to, 4, lambda text: None):
                 # Converged: the residual fell by 1e6 at least (or was already at round-off).
                 assert snes.residuals[-1] <= 1e-6 * max(snes.residuals[0], 1e-8)
                 assert state.iterations <= 8
@@ -59,21 +59,22 @@ def test_a_step_that_may_not_be_cut_restores_the_unknowns():
     scene, problem, snes = ironing(8)
     t_end = scene["time"]["T"]
     try:
-        list(advance(problem, snes, 0.0, 0.0, True, 0, lambda text: None))
+        list(advance(problem, snes, 0.0, 0, lambda text: None))
         failures = 0
         for n in range(1, STEPS + 1):
             t_from, t_to = (n - 1) * t_end / STEPS, n * t_end / STEPS
             before = [f.x.array.copy() for f in problem.unknowns]
             try:
-                list(advance(problem, snes, t_from, t_to, False, 0, lambda text: None))
+                list(advance(problem, snes, t_to, 0, lambda text: None))
             except StepFailed as failed:
                 failures += 1
                 assert failed.cuts == 0
                 assert failed.failure.reason < 0 and failed.t_to == t_to
+                assert failed.t_from == t_from == problem.time.committed
                 for f, values in zip(problem.unknowns, before):
                     assert np.array_equal(f.x.array, values)
                 # From the restored state the step goes through when it may be cut.
-                states = list(advance(problem, snes, t_from, t_to, False, 4, lambda text: None))
+                states = list(advance(problem, snes, t_to, 4, lambda text: None))
                 assert len(states) > 1 and states[-1].t == t_to
         assert failures >= 1
     finally:

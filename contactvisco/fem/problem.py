@@ -6,7 +6,7 @@ previous-step displacement unless friction acts on the slip per step.
 
 Residual, with sigma_n = A eps(u_n) + H_n (H_n the history stress of eq 19) and
 R_nu = (lambda_nu - r (u_nu - g))_-, sigma_tau = P_B(lambda_tau - r u_tau), B of radius
-mu p_nu(u_nu) (contact.friction = "compliance", the paper's) or mu (p_nu(u_nu) + R_nu)
+mu p_nu(u_nu) (contact.friction_law = "compliance", the paper's) or mu (p_nu(u_nu) + R_nu)
 ("coulomb": the total normal pressure); with contact.slip = "increment", u_tau is replaced by
 the slip of the step, u_tau - u_tau(t_{n-1}):
 
@@ -93,14 +93,81 @@ class ContactPart:
     u_previous: fem.Function | None
     Q_coordinates: np.ndarray
     u_p1: fem.Function | None
-    constants: dict                            # r, g, stiffness, friction (the coefficient)
+    constants: dict                            # r, g, stiffness, mu (those the law needs)
     corner_forms: dict | None = None           # corner_forms() (None without corners)
+
+
+@dataclass
+class TimeState:
+    """What a time step stages before its solve and commits after it (like an ODE
+    integrator's stage and update): the time t of the scene's expressions with the data that
+    follow it (loads, Dirichlet values, the gap), the history stress H of eq (19) with the
+    implicit weights of the step, prepared from the committed strains, and the origin of the
+    step's slip (slip = "increment").
+
+    stage(t) takes the problem from the committed time to t, a step of size k = t - committed
+    (the first state, t_0, has no step and nothing to prepare); a step that failed is staged
+    again with another t. commit() takes the converged state into the history and makes the
+    staged time the committed one. A restart sets `committed` to the checkpoint's time."""
+    t: fem.Constant                            # the time of the expressions (Context.t)
+    updates: list                              # callables that follow t (interpolations)
+    u: fem.Function
+    memory: MemoryPart | None
+    u_previous: fem.Function | None            # the slip's origin (slip = "increment")
+    committed: float | None = None             # the last committed time (None: none yet)
+    staged: float | None = None
+
+    def stage(self, t: float):
+        """Move to time t and prepare the step from the committed state."""
+        self.move_to(t)
+        if self.committed is not None:
+            self.prepare(t - self.committed)
+        self.staged = t
+
+    def commit(self):
+        """Take the converged state at the staged time into the history."""
+        self.record(None if self.committed is None else self.staged - self.committed)
+        self.committed = self.staged
+
+    def move_to(self, t: float):
+        """Move time-dependent data (loads, Dirichlet values, gap) to time t."""
+        self.t.value = t
+        for update in self.updates:
+            update()
+
+    def prepare(self, k: float):
+        """Set the history stress H of a step of size k from the committed state, and the
+        implicit weight k/2 R(0) of the trapezoid rule (0 at t_0, where nothing is prepared).
+        A failed step can be prepared again with a smaller k.
+
+        With slip = "increment" the current u, the converged state of t_{n-1}, becomes the
+        origin of the step's slip; it stays so until the next step is prepared, so that the
+        step's output still sees it."""
+        if self.u_previous is not None:
+            self.u_previous.x.array[:] = self.u.x.array
+        memory = self.memory
+        if memory is None:
+            return
+        weights = memory.history.implicit(k)
+        for constant, part in memory.implicit_terms:
+            constant.value = weights[part]
+        memory.H.x.array[:] = memory.history.explicit(k)
+
+    def record(self, k: float | None):
+        """Take eps of the current, converged u (reached by a step of size k; None at t_0)
+        into the history."""
+        memory = self.memory
+        if memory is None:
+            return
+        memory.eps_function.interpolate(memory.eps_expression)
+        memory.history.commit(memory.eps_function.x.array, k)
 
 
 @dataclass
 class Problem:
     """The discrete problem, complete when built (build()); afterwards only the values of
-    its Functions and Constants change (time, history, iterates)."""
+    its Functions and Constants change (time, history, iterates), through `time` between
+    steps and the solver within them."""
     scene: dict
     geometry: Geometry
     V: fem.FunctionSpace                      # displacement
@@ -113,28 +180,13 @@ class Problem:
     multiplier_free: list                     # per multiplier: (nodes, bs) bool
     constants: dict                           # every Constant of the forms, by name
     context: Context                          # x and t of the scene's expressions
-    updates: list                             # callables run at each new time
+    time: TimeState                           # staged and committed between steps
     loads: object                             # the linear form of the external loads (UFL)
     tensor_space: fem.FunctionSpace           # the stress output's tensor space
     sigma_expression: fem.Expression
     length_scale: float
     memory: MemoryPart | None = None
     contact: ContactPart | None = None
-    history_started: bool = False
-
-    # The parts' fields under the names the rest of the package uses.
-    history = property(lambda self: self.memory and self.memory.history)
-    H = property(lambda self: self.memory and self.memory.H)
-    eps_function = property(lambda self: self.memory and self.memory.eps_function)
-    eps_expression = property(lambda self: self.memory and self.memory.eps_expression)
-    implicit_terms = property(lambda self: self.memory.implicit_terms if self.memory else [])
-    nodes = property(lambda self: self.contact and self.contact.nodes)
-    lambda_nu = property(lambda self: self.contact and self.contact.lambda_nu)
-    lambda_tau = property(lambda self: self.contact and self.contact.lambda_tau)
-    gap = property(lambda self: self.contact and self.contact.gap)
-    u_previous = property(lambda self: self.contact and self.contact.u_previous)
-    Q_coordinates = property(lambda self: self.contact and self.contact.Q_coordinates)
-    u_p1 = property(lambda self: self.contact and self.contact.u_p1)
 
     def load_resultant(self) -> np.ndarray:
         """The resultant of the external loads at the current time, int f + int_N f_N
@@ -152,64 +204,31 @@ class Problem:
                          for f in self._resultant])
 
     @property
+    def multipliers(self) -> dict[str, fem.Function]:
+        """The multipliers the scene needs, by name, in the order lambda_nu, lambda_tau."""
+        contact = self.contact
+        if contact is None:
+            return {}
+        return {name: f for name, f in (("lambda_nu", contact.lambda_nu),
+                                        ("lambda_tau", contact.lambda_tau)) if f is not None}
+
+    @property
     def unknowns(self) -> list[fem.Function]:
-        return [f for f in (self.u, self.lambda_nu, self.lambda_tau) if f is not None]
+        return [self.u, *self.multipliers.values()]
 
     def count_unknowns(self) -> dict:
         """Global dof counts per unknown."""
         out = {}
-        for name, f in (("u", self.u), ("lambda_nu", self.lambda_nu),
-                        ("lambda_tau", self.lambda_tau)):
-            if f is not None:
-                imap = f.function_space.dofmap.index_map
-                out[name] = imap.size_global * f.function_space.dofmap.index_map_bs
+        for name, f in (("u", self.u), *self.multipliers.items()):
+            imap = f.function_space.dofmap.index_map
+            out[name] = imap.size_global * f.function_space.dofmap.index_map_bs
         return out
 
     def count_contact_nodes(self) -> int:
         """Global number of contact nodes (0 without contact)."""
-        if self.nodes is None:
+        if self.contact is None:
             return 0
-        return self.V.mesh.comm.allreduce(int(self.nodes.owned.sum()))
-
-    def set_time(self, t: float):
-        """Move time-dependent data (loads, Dirichlet values, gap) to time t."""
-        self.context.t.value = t
-        for update in self.updates:
-            update()
-
-    def commit(self, k: float | None):
-        """Take eps of the current, converged u (reached by a step of size k; None at t_0)
-        into the history."""
-        if self.history is None:
-            return
-        self.eps_function.interpolate(self.eps_expression)
-        self.history.commit(self.eps_function.x.array, k)
-
-    def prepare(self, k: float):
-        """Set the history stress H of a step of size k from the committed state, and the
-        implicit weight k/2 R(0) of the trapezoid rule (0 at t_0, where nothing is prepared).
-        A failed step can be prepared again with a smaller k.
-
-        With slip = "increment" the current u, the converged state of t_{n-1}, becomes the
-        origin of the step's slip; it stays so until the next step is prepared, so that the
-        step's output still sees it."""
-        if self.u_previous is not None:
-            self.u_previous.x.array[:] = self.u.x.array
-        if self.history is None:
-            return
-        weights = self.history.implicit(k)
-        for constant, part in self.implicit_terms:
-            constant.value = weights[part]
-        self.H.x.array[:] = self.history.explicit(k)
-
-    def update_history(self, k: float | None = None):
-        """Uniform steps: commit the current u and prepare the next step of size k (the
-        scene's T/N by default)."""
-        k = k or self.scene["time"]["T"] / self.scene["time"]["steps"]
-        first = self.history is not None and not self.history_started
-        self.commit(None if first else k)
-        self.history_started = True
-        self.prepare(k)
+        return self.V.mesh.comm.allreduce(int(self.contact.nodes.owned.sum()))
 
 
 def _scalar(mesh, value):
@@ -275,7 +294,8 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         scene=scene, geometry=geometry, V=V, u=u, F=F, J=_block_jacobian(F, unknowns, spaces),
         bcs=bcs + multiplier_bcs, bcs_u=list(bcs), u_fixed=fixed_components,
         multiplier_free=multiplier_free, constants=constants, context=context,
-        updates=updates, loads=loads, tensor_space=tensor_space,
+        time=TimeState(context.t, updates, u, memory, contact and contact.u_previous),
+        loads=loads, tensor_space=tensor_space,
         sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
         length_scale=_length_scale(mesh), memory=memory, contact=contact)
     rigid.check(problem)
@@ -374,7 +394,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
 
     constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
     terms = law.law_terms(law.UFL, u, normal, gap_value, lambda_nu, lambda_tau, u_previous,
-                          constants, coulomb=contact["friction"] == "coulomb")
+                          constants, contact["friction_law"])
     F_u = None
     pairs = []
     if terms["normal_force"] is not None:
@@ -385,8 +405,8 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                       * ufl.TestFunction(Q) * dsc))
     if lambda_tau is not None:
         r, sigma_tau = constants["r"], terms["sigma_tau"]
-        friction = -ufl.dot(sigma_tau, law.tangential_part(v, normal)) * dsc
-        F_u = friction if F_u is None else F_u + friction
+        tangential = -ufl.dot(sigma_tau, law.tangential_part(v, normal)) * dsc
+        F_u = tangential if F_u is None else F_u + tangential
         pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
                                                       ufl.TestFunction(W)) * dsc))
     corners = mesh.comm.allreduce(nodes.corners.size, MPI.SUM) > 0
@@ -401,7 +421,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
 
 def _contact_unknowns(contact: dict, u, Q, W):
     """What the law of the [contact] table needs: its Constants by name (r, g when finite,
-    stiffness when the compliance term acts, friction = mu when friction acts), the
+    stiffness when the compliance term acts, mu when friction acts), the
     multiplier lambda_nu in Q (a finite bound g only), lambda_tau in W (mu > 0 and a pressure
     to bound it: compliance, or Coulomb with a bound) and u(t_{n-1}) for slip = "increment"
     (None where absent)."""
@@ -413,10 +433,10 @@ def _contact_unknowns(contact: dict, u, Q, W):
         constants["stiffness"] = _scalar(mesh, contact["stiffness"])
     lambda_nu = fem.Function(Q, name="lambda_nu") if math.isfinite(g) else None
     has_pressure = ("stiffness" in constants
-                    or (contact["friction"] == "coulomb" and lambda_nu is not None))
+                    or (contact["friction_law"] == "coulomb" and lambda_nu is not None))
     lambda_tau = u_previous = None
     if contact["mu"] > 0 and has_pressure:
-        constants["friction"] = _scalar(mesh, contact["mu"])
+        constants["mu"] = _scalar(mesh, contact["mu"])
         lambda_tau = fem.Function(W, name="lambda_tau")
         if contact["slip"] == "increment":
             # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).

@@ -82,15 +82,15 @@ def _gram(problem, centre: np.ndarray, scale: float, modes: int) -> np.ndarray:
     fixed = problem.u_fixed[:owned] > 0
     for c in range(d):          # the motions evaluated at the constrained nodes only
         add("dirichlet", _basis(X[fixed[:, c]], centre, scale)[0][:, :, c])
-    nodes = problem.nodes
-    if nodes is not None:
-        on = nodes.owned
-        Xc = problem.Q_coordinates[nodes.nodes[on], :d]
+    part = problem.contact
+    if part is not None:
+        nodes, on = part.nodes, part.nodes.owned
+        Xc = part.Q_coordinates[nodes.nodes[on], :d]
         normals = nodes.normals[on]
         motion, _ = _basis(Xc, centre, scale)
         normal = np.einsum("mnd,nd->mn", motion, normals)
         add("normal", normal)
-        if problem.lambda_tau is not None:          # friction: mu > 0 with a compliance law
+        if part.lambda_tau is not None:             # friction: mu > 0 with a compliance law
             tangential = motion - normal[:, :, None] * normals[None]
             for c in range(d):
                 add("tangential", tangential[:, :, c])
@@ -153,7 +153,7 @@ def check(problem) -> None:
     if not free:
         return
     contact = problem.scene["contact"]
-    frictionless = contact is not None and problem.lambda_tau is None
+    frictionless = contact is not None and problem.contact.lambda_tau is None
     raise SceneError(
         f"dirichlet: the body is free to move rigidly ({'; '.join(free)}): neither the "
         "Dirichlet conditions nor the contact law hold it, so the solution is not unique. "

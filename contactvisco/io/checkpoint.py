@@ -101,11 +101,12 @@ def _cached_keys(problem, space):
 def _fields(problem):
     """(name, space, local array view) of everything a restart needs."""
     out = [(f"unknown{i}", f.function_space, f.x.array) for i, f in enumerate(problem.unknowns)]
-    if problem.u_previous is not None:     # the origin of the slip (slip = "increment")
-        out.append(("u_previous", problem.V, problem.u_previous.x.array))
-    if problem.history is not None:
+    u_previous = problem.contact and problem.contact.u_previous   # the slip's origin
+    if u_previous is not None:
+        out.append(("u_previous", problem.V, u_previous.x.array))
+    if problem.memory is not None:
         out += [(f"history_{key}", problem.tensor_space, value)
-                for key, value in problem.history.state().items()]
+                for key, value in problem.memory.history.state().items()]
     return out
 
 
@@ -266,8 +267,8 @@ def _match(want: np.ndarray, have: np.ndarray) -> np.ndarray:
 
 
 def load(folder, problem, comm) -> dict:
-    """Restore the unknowns and the history; return the meta (t, count, step). Collective:
-    a check that fails on one rank stops every rank with the same error."""
+    """Restore the unknowns, the history and the committed time; return the meta (t, count,
+    step). Collective: a check that fails on one rank stops every rank with the same error."""
     root = pathlib.Path(folder) / "checkpoint"
     meta = _read_meta(root)
     _check_scene(meta, problem.scene)
@@ -281,8 +282,9 @@ def load(folder, problem, comm) -> dict:
     parts = _parts_near(meta["parts"], mine, scale)
     data, first = _read_parts(root, parts, meta, comm)
     state = _restore(fields, mine, data, first, scale, comm)
-    if problem.history is not None:
-        problem.history.restore(state)
+    if problem.memory is not None:
+        problem.memory.history.restore(state)
+    problem.time.committed = meta["t"]
     return meta
 
 

@@ -38,13 +38,13 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     u_tau (2D: along t = (-nu_y, nu_x); 3D: |u_tau|),
     lambda_nu, p_nu (compliance traction p_nu(min(s, g))), reaction_nu (-sigma_nu),
     reaction_tau (sigma_tau, same convention as u_tau), radius (the friction bound: mu p_nu,
-    or mu (p_nu + R_nu) with contact.friction = "coulomb"), slip_vector (u_tau, or the step's
-    u_tau - u_tau(t_{n-1}) with contact.slip = "increment"), status (0, 1, 2 as in STATUSES),
-    friction (0, 1, 2 as in FRICTION_STATES).
+    or mu (p_nu + R_nu) with contact.friction_law = "coulomb"), slip_vector (u_tau, or the
+    step's u_tau - u_tau(t_{n-1}) with contact.slip = "increment"), status (0, 1, 2 as in
+    STATUSES), friction (the stick/slip state: 0, 1, 2 as in STICK_SLIP_STATES).
     """
-    nodes = problem.nodes
-    if nodes is None:
+    if problem.contact is None:
         return None
+    nodes = problem.contact.nodes
     contact = problem.scene["contact"]
     d = problem.geometry.mesh.geometry.dim
     own = nodes.nodes[nodes.owned]
@@ -56,9 +56,8 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     # The rigid part's reaction is the one the multiplier carries, R_nu = -lambda_nu (the
     # law's R_nu(lambda_nu, u_nu) at the converged state).
     lam_nu, p_nu = fields["lambda_nu"], law_values["p_nu"]
-    radius = law.friction_radius(contact["mu"], p_nu, -lam_nu,
-                                 contact.get("friction") == "coulomb")
-    local = dict(x=problem.Q_coordinates[own][:, :d], normal=normals,
+    radius = law.friction_radius(contact["mu"], p_nu, -lam_nu, contact["friction_law"])
+    local = dict(x=problem.contact.Q_coordinates[own][:, :d], normal=normals,
                  u_nu=law_values["u_nu"], gap=fields["gap"],
                  penetration=law_values["penetration"], u_tau=u_tau, lambda_nu=lam_nu,
                  p_nu=p_nu, reaction_nu=p_nu - lam_nu, reaction_tau=reaction_tau,
@@ -67,7 +66,7 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
                  slip_vector=law_values["slip_vector"], weight=nodes.weights[nodes.owned])
     table = _gather_sorted(local, comm, problem.length_scale)
     table["status"] = classify(table["penetration"], contact["g"], problem.length_scale)
-    table["friction"] = friction_state(table)
+    table["friction"] = stick_slip(table)             # the stick/slip state
     return table
 
 
@@ -77,15 +76,16 @@ def _node_fields(problem, own: np.ndarray) -> dict[str, np.ndarray | None]:
     unless the slip is an increment). P1: node i of the multiplier spaces is dof block i of
     V."""
     d = problem.geometry.mesh.geometry.dim
+    part = problem.contact
     u = _nodal_displacement(problem)[own]
     return dict(
-        u=u, gap=problem.gap.x.array[own],
-        lambda_nu=(problem.lambda_nu.x.array[own] if problem.lambda_nu is not None
+        u=u, gap=part.gap.x.array[own],
+        lambda_nu=(part.lambda_nu.x.array[own] if part.lambda_nu is not None
                    else np.zeros(len(own))),
-        sigma_tau_vector=(problem.lambda_tau.x.array.reshape(-1, d)[own]
-                          if problem.lambda_tau is not None else np.zeros_like(u)),
-        u_previous=(problem.u_previous.x.array.reshape(-1, d)[own]
-                    if problem.u_previous is not None else None))
+        sigma_tau_vector=(part.lambda_tau.x.array.reshape(-1, d)[own]
+                          if part.lambda_tau is not None else np.zeros_like(u)),
+        u_previous=(part.u_previous.x.array.reshape(-1, d)[own]
+                    if part.u_previous is not None else None))
 
 
 def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -> dict:
@@ -96,17 +96,16 @@ def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -
     contact = problem.scene["contact"]
     u = fields["u"]
     constants = {key: float(c.value) for key, c in problem.constants.items()
-                 if key in ("r", "g", "stiffness", "friction") and c is not None}
+                 if key in ("r", "g", "stiffness", "mu") and c is not None}
     terms = law.law_terms(law.NUMPY, u, normals, fields["gap"], None, None,
-                          fields["u_previous"], constants,
-                          coulomb=contact.get("friction") == "coulomb")
+                          fields["u_previous"], constants, contact["friction_law"])
     u_nu = law.normal_part(u, normals, law.NUMPY)
     values = dict(penetration=terms["s_nu"], u_nu=u_nu,
                   u_tau_vector=law.tangential_part(u, normals, law.NUMPY),
                   p_nu=terms["p_nu"] if terms["p_nu"] is not None else np.zeros_like(u_nu),
                   slip_vector=terms["slip"])
     if problem.contact.corner_forms is not None:
-        at = np.isin(own, problem.nodes.corners)
+        at = np.isin(own, problem.contact.nodes.corners)
         corner = problem_module.corner_values(problem, own[at])
         for key, corner_key in (("penetration", "s_nu"), ("u_nu", "u_nu"),
                                 ("slip_vector", "slip"), ("u_tau_vector", "u_tau"),
@@ -121,7 +120,7 @@ def _tangential_values(problem, u_tau_vector: np.ndarray, sigma_tau_vector: np.n
                        normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """u_tau and the tangential reaction as scalars: in 2D their components along the
     tangent t = (-nu_y, nu_x), in 3D the norms |u_tau| and |sigma_tau - (sigma_tau.nu) nu|."""
-    nodes = problem.nodes
+    nodes = problem.contact.nodes
     if problem.geometry.mesh.geometry.dim == 2:
         tangents = nodes.tangents[nodes.owned]
         return (np.einsum("ij,ij->i", u_tau_vector, tangents),
@@ -141,43 +140,11 @@ def _gather_sorted(local: dict, comm, length: float) -> dict:
     return {key: value[order] for key, value in table.items()}
 
 
-FRICTION_STATES = ("none", "stick", "slip")
+#: The stick/slip state of a contact node (the table's "friction" column).
+STICK_SLIP_STATES = ("none", "stick", "slip")
 
 
-def friction_limit(problem, comm, previous) -> str | None:
-    """Why a step of a body held by contact alone (no Dirichlet condition) failed, when the
-    reason is that it has no quasistatic equilibrium: the tangential part of the external load
-    resultant F exceeds mu times its normal part, the most that friction on the total normal
-    pressure can hold (mu F.nu >= sum_i w_i |sigma_tau,i|). nu: the contact normal at the last
-    equilibrium `previous` (a contact table), weighted by the normal reaction. Collective.
-    Returns the explanation, or None."""
-    if problem.lambda_tau is None or problem.bcs_u:
-        return None
-    known = previous is not None
-    previous = previous if known else contact_table(problem, comm)   # for weights and normals
-    w = previous["weight"] * (np.maximum(previous["reaction_nu"], 0.0) if known else 1.0)
-    normal = np.sum(w[:, None] * previous["normal"], axis=0)
-    if not np.linalg.norm(normal) > 0:
-        normal = np.sum(previous["weight"][:, None] * previous["normal"], axis=0)
-    normal /= np.linalg.norm(normal)
-    F = problem.load_resultant()
-    pressing = float(F @ normal)          # the load pushing the body onto Gamma_C (nu: outward)
-    tangential = float(np.linalg.norm(F - pressing * normal))
-    mu = problem.scene["contact"]["mu"]
-    if tangential <= mu * max(pressing, 0.0) * (1 + 1e-9):
-        return None
-    note = ""
-    if known:
-        force = np.linalg.norm(np.sum(previous["weight"][:, None]
-                                      * previous["sigma_tau_vector"], axis=0))
-        note = f"; friction force {force:.6g} at the last equilibrium"
-    return (f"no quasistatic equilibrium: the tangential load exceeds the friction limit "
-            f"(tangential load {tangential:.6g} > mu x normal load = {mu:g} x {pressing:.6g} = "
-            f"{mu * max(pressing, 0.0):.6g}{note}); reduce the tangential load, raise "
-            "contact.mu, or hold the body with a Dirichlet condition")
-
-
-def friction_state(table) -> np.ndarray:
+def stick_slip(table) -> np.ndarray:
     """Per node: 0 no friction (zero bound), 1 stick (|sigma_tau| below the bound, so the
     node's slip is zero), 2 slip (|sigma_tau| at the bound mu times the law's pressure),
     with a tolerance of 1e-8 times the largest bound."""
@@ -206,10 +173,11 @@ def status_counts(table) -> dict[str, int]:
 
 def _nodal_displacement(problem) -> np.ndarray:
     d = problem.geometry.mesh.geometry.dim
-    if problem.u_p1 is None:
+    u_p1 = problem.contact.u_p1
+    if u_p1 is None:
         return problem.u.x.array.reshape(-1, d)
-    problem.u_p1.interpolate(problem.u)
-    return problem.u_p1.x.array.reshape(-1, d)
+    u_p1.interpolate(problem.u)
+    return u_p1.x.array.reshape(-1, d)
 
 
 class Probes:
@@ -276,7 +244,7 @@ class Writer:
                                    for record in kept_steps))
             self.steps_file = open(path, "a")
             self._write_summary()
-        if self.rank == 0 and problem.nodes is not None:
+        if self.rank == 0 and problem.contact is not None:
             self._start_csv(problem.geometry.mesh.geometry.dim, restart_count)
         self.xdmf = None
         if xdmf:
@@ -331,7 +299,7 @@ class Writer:
                                      ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
                                       "radius")]
                                   + [STATUSES[table["status"][i]],
-                                     FRICTION_STATES[table["friction"][i]]])
+                                     STICK_SLIP_STATES[table["friction"][i]]])
             self.csv_file.flush()
         if self.index is not None and fields:
             self.index.append(n, record["t"])

@@ -4,10 +4,10 @@ Signs: nu is the outward unit normal, u_nu = u.nu (> 0 means penetration into th
 sigma_nu = (sigma nu).nu (< 0 in compression). The foundation's normal reaction is
 -sigma_nu = p_nu(u_nu) + R_nu with R_nu >= 0 the rigid part's reaction at the bound u_nu = g.
 
-Friction: sigma_tau lies in the ball of radius mu p_nu(u_nu) (the paper's law) or
-mu (p_nu(u_nu) + R_nu) = -mu sigma_nu (Coulomb on the total normal pressure), and opposes the
-slip where it reaches the bound. The slip is u_tau (the paper's) or the step's
-u_tau - u_tau(t_{n-1}) (Coulomb's incremental law).
+Friction: sigma_tau lies in the ball of radius mu p_nu(u_nu) (friction_law = "compliance", the
+paper's) or mu (p_nu(u_nu) + R_nu) = -mu sigma_nu (friction_law = "coulomb": Coulomb on the
+total normal pressure), and opposes the slip where it reaches the bound. The slip is u_tau
+(the paper's) or the step's u_tau - u_tau(t_{n-1}) (Coulomb's incremental law).
 
 Every function takes the array namespace `ops` it is evaluated in: UFL (the forms of
 contactvisco.fem.problem) or NUMPY (the node values of the contact table, one row per node,
@@ -87,12 +87,13 @@ def project_ball(z, radius, ops=UFL):
                         ops.divide(ops.times(radius, z), ops.maximum(norm, 1e-300)))
 
 
-def friction_radius(mu, p, R, coulomb):
-    """The friction ball's radius: mu p_nu (the paper's law), or mu (p_nu + R_nu) with
-    Coulomb's law on the total normal pressure (with g = 0: Signorini-Coulomb). p or R may be
-    None where the scene has no such term; None if there is no pressure at all."""
+def friction_radius(mu, p, R, friction_law):
+    """The friction ball's radius: mu p_nu (friction_law "compliance", the paper's), or
+    mu (p_nu + R_nu) ("coulomb": Coulomb's law on the total normal pressure; with g = 0:
+    Signorini-Coulomb). p or R may be None where the scene has no such term; None if there
+    is no pressure at all."""
     pressure = p
-    if coulomb and R is not None:
+    if friction_law == "coulomb" and R is not None:
         pressure = R if p is None else p + R
     return None if pressure is None else mu * pressure
 
@@ -103,13 +104,14 @@ def friction_force(lambda_tau, slip, nu, radius, r, ops=UFL):
     return project_ball(tangential_part(lambda_tau, nu, ops) - r * slip, radius, ops)
 
 
-def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, coulomb):
+def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, friction_law):
     """The law's quantities at u with normal nu (eqs 20-21): s_nu = u . nu - h (the
     penetration past the initial gap h), p_nu, R_nu, the normal force p_nu + R_nu, the
     friction radius, the slip and sigma_tau; None where the scene has no such term.
 
-    constants: r, g (None for no bound), stiffness (absent without compliance), friction
-    (the coefficient mu, absent without friction); UFL Constants or numbers."""
+    constants: r, g (None for no bound), stiffness (absent without compliance), mu (the
+    friction coefficient, absent without friction); UFL Constants or numbers. friction_law:
+    "compliance" or "coulomb" (friction_radius)."""
     s_nu = normal_part(u, nu, ops) - gap
     g = constants.get("g")
     p = (p_nu(s_nu, constants["stiffness"], g, ops) if "stiffness" in constants else None)
@@ -119,8 +121,8 @@ def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, cou
     moved = u if u_previous is None else u - u_previous
     slip = tangential_part(moved, nu, ops)
     radius = sigma_tau = None
-    if "friction" in constants:
-        radius = friction_radius(constants["friction"], p, R, coulomb)
+    if "mu" in constants:
+        radius = friction_radius(constants["mu"], p, R, friction_law)
         if lambda_tau is not None and radius is not None:
             sigma_tau = friction_force(lambda_tau, slip, nu, radius, constants["r"], ops)
     return {"s_nu": s_nu, "p_nu": p, "R_nu": R, "normal_force": normal_force,

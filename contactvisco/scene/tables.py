@@ -17,8 +17,9 @@ from contactvisco.errors import SceneError
 from contactvisco.model.material import dimension
 from contactvisco.model.memory import PARTS
 from contactvisco.model.memory_kernel import as_list
-from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
-                                      finite, integer, is_mesh_size, modulus, number_list)
+from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice, choices,
+                                      finite, integer, is_mesh_size, modulus, number_list,
+                                      one_of)
 
 
 #: Most cells a gmsh script may be asked for, estimated as (largest length / smallest size)^d.
@@ -28,8 +29,10 @@ MAX_SCRIPT_CELLS = 1e7
 MAX_BOX_CELLS = 1e8
 
 
-#: contact.friction: the friction ball's radius is mu p_nu(u_nu) or mu (p_nu(u_nu) + R_nu).
+#: contact.friction_law: the friction ball's radius is mu p_nu(u_nu) or mu (p_nu(u_nu) + R_nu).
 FRICTION_LAWS = ("compliance", "coulomb")
+#: contact.friction_law's value when the scene gives none.
+DEFAULT_FRICTION_LAW = "compliance"
 #: contact.slip: the friction law acts on u_tau or on u_tau - u_tau(t_{n-1}).
 SLIP_MEASURES = ("total", "increment")
 
@@ -355,7 +358,9 @@ class Contact(Table):
         "stiffness": Key(0.0, nonnegative, "a finite number >= 0"),
         "g": Key(math.inf),
         "mu": Key(0.0, nonnegative, "a finite number >= 0"),
-        "friction": choice("compliance", *FRICTION_LAWS),
+        # None: DEFAULT_FRICTION_LAW, filled in by normalize() (after the former name).
+        "friction_law": Key(None, one_of(*FRICTION_LAWS), choices(*FRICTION_LAWS)),
+        "friction": Key(None),              # the former name of friction_law, read as it
         "slip": choice("total", *SLIP_MEASURES),
         "augmentation": Key(None, lambda x: finite(x) and x > 0, "> 0 (and finite)"),
     }
@@ -370,6 +375,23 @@ class Contact(Table):
                 self.fail("g", f"contact.g must be a number >= 0 or inf, got {self['g']!r}")
         if self["augmentation"] is None:
             self["augmentation"] = self["stiffness"] or material["E"]
+        self._read_former_friction()
+
+    def _read_former_friction(self) -> None:
+        """contact.friction, the former name of contact.friction_law, read as friction_law
+        with the same values (and then dropped, so the scene holds friction_law only);
+        friction_law unset: DEFAULT_FRICTION_LAW."""
+        former = self.pop("friction", None)
+        if former is not None:
+            self.need(isinstance(former, str) and former in FRICTION_LAWS, "friction",
+                      f"contact.friction must be {choices(*FRICTION_LAWS)}, got {former!r}")
+            self.need(self["friction_law"] in (None, former), "friction",
+                      f"contact.friction is the former name of contact.friction_law: give "
+                      f"one of them, got friction = {former!r} and friction_law = "
+                      f"{self['friction_law']!r}")
+            self["friction_law"] = former
+        if self["friction_law"] is None:
+            self["friction_law"] = DEFAULT_FRICTION_LAW
 
     def rules(self, scene):
         names = self["boundary"]
@@ -388,11 +410,11 @@ class Contact(Table):
         self.need(self["stiffness"] > 0 or math.isfinite(g), "stiffness",
                   "contact.stiffness: a contact boundary needs a compliance stiffness > 0 or a "
                   "finite bound g")
-        self.need(self["mu"] == 0 or self["friction"] == "coulomb"
+        self.need(self["mu"] == 0 or self["friction_law"] == "coulomb"
                   or (self["stiffness"] > 0 and g > 0), "mu",
                   f"contact.mu = {self['mu']} has no effect: the friction bound mu p_nu(u_nu) "
                   "is zero without a compliance stiffness > 0 and a layer g > 0; set "
-                  "contact.mu = 0, or contact.friction = 'coulomb' for a bound mu times the "
+                  "contact.mu = 0, or contact.friction_law = 'coulomb' for a bound mu times the "
                   "total normal pressure")
 
 

@@ -9,7 +9,7 @@ lambda_i, and lambda_i enters only the rows of u_i. The Newton system of the cou
 is therefore made of one d x m, m x d and m x m block per node: B_i, C_i, D_i (m = 1, d or d + 1
 multiplier components). D_i is singular where a condition is active: lambda_i is then a
 reaction, and its equation a constraint on u_i (u_nu = g at a bound node, u_tau = 0 at a
-sticking one). D_i need not be symmetric: with Coulomb's law (contact.friction = "coulomb")
+sticking one). D_i need not be symmetric: with Coulomb's law (contact.friction_law = "coulomb")
 lambda_tau's ball has the radius mu (p_nu + R_nu), so a sliding node's lambda_tau rows depend
 on lambda_nu and not the other way round; the SVD below keeps the left (U_0) and right (V_0)
 null vectors apart, so the elimination holds for any D_i. With the SVD D_i = U S V^T split into range (r) and null (0) parts:
@@ -236,11 +236,11 @@ class NodalCondensation:
         self.problem = problem
         self.V = V = problem.V
         self.d = d = V.dofmap.index_map_bs
-        self.fields = [f for f in (problem.lambda_nu, problem.lambda_tau) if f is not None]
+        self.fields = list(problem.multipliers.values())
         self.bs = [f.function_space.dofmap.index_map_bs for f in self.fields]
         self.offsets = np.concatenate([[0], np.cumsum(self.bs)]).astype(int)
         self.m = int(self.offsets[-1])
-        nodes = problem.nodes
+        nodes = problem.contact.nodes
         self.own = nodes.nodes[nodes.owned]
         if V.dofmap.index_map.size_local != \
                 self.fields[0].function_space.dofmap.index_map.size_local:

@@ -7,22 +7,18 @@ caller's `on_step`.
 """
 from __future__ import annotations
 
-import math
 import pathlib
-import sys
 import time as clock
 from dataclasses import dataclass, field
 
 from dolfinx import fem
 from mpi4py import MPI
 
-from contactvisco.model.stability import stability_number
-from contactvisco.io import checkpoint
 from contactvisco.fem import geometry as geometry_module
-from contactvisco.io import output
-from contactvisco.io import parallel
-from contactvisco.io.lock import FolderLock
 from contactvisco.fem.problem import Problem, build
+from contactvisco.io import checkpoint, output, parallel
+from contactvisco.io.lock import FolderLock
+from contactvisco.solver import diagnosis, report
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure
 
@@ -134,7 +130,7 @@ class Run:
         self.scene, self.out, self.comm = scene, out, comm
         self.problem, self.snes, self.started = problem, snes, started
         self.setup_s = clock.perf_counter() - started
-        self.say = _printer(comm, progress)
+        self.say = report.printer(comm, progress)
         points = scene["output"]["probes"]
         self.probes = output.Probes(problem.geometry.mesh, points) if points else None
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
@@ -149,11 +145,11 @@ class Run:
         scene, problem, snes, comm = self.scene, self.problem, self.snes, self.comm
         t_end, steps = scene["time"]["T"], scene["time"]["steps"]
         k = t_end / steps
-        self._announce()
+        report.announce(scene, problem, snes, comm, self.setup_s, self.say, self.writer)
         result = Result(problem, linear_system=snes.system_kind,
                         linear_solver=snes.linear_solver())
-        observers = [self._recorder(result, keep_tables), *self._file_observers(k),
-                     self._progress(t_end)]
+        observers = [recorder(result, keep_tables), *self._file_observers(k),
+                     lambda record, table: self.say(report.progress_line(record, t_end))]
         if on_step is not None:
             observers.append(lambda record, table: on_step(record))
         t, count, table = 0.0, 0, None
@@ -164,8 +160,8 @@ class Run:
             if self.resumed and n * k <= t + 1e-12 * t_end:
                 continue                      # done before the restart
             try:
-                for state in advance(problem, snes, t, n * k, count == 0,
-                                     scene["solver"]["max_cuts"], self.say):
+                for state in advance(problem, snes, n * k, scene["solver"]["max_cuts"],
+                                     self.say):
                     table = output.contact_table(problem, comm)
                     record = self._record(count, state, table)
                     for observe in observers:
@@ -173,58 +169,21 @@ class Run:
                     t, count = state.t, count + 1
                     self._checkpoint(state, count)
             except StepFailed as failed:
-                raise self._failure(failed, table, count) from None
+                raise diagnosis.step_failure(problem, comm, failed.t_from, failed.t_to,
+                                             failed.cuts, failed.failure, table,
+                                             count) from None
         result.final = self._finish(table, t_end)
         return result
 
-    def _announce(self):
-        """The header line, the memory note and the time-rule warning."""
-        scene, problem, snes, comm = self.scene, self.problem, self.snes, self.comm
-        counts = problem.count_unknowns()
-        contact_nodes = problem.count_contact_nodes()
-        multipliers = ", ".join(name for name in counts if name != "u")
-        self.say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), {counts['u']} "
-                 f"displacement unknowns"
-                 + (f", {contact_nodes} contact nodes ({multipliers})" if contact_nodes else "")
-                 + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
-                 f"{self.setup_s:.2f} s")
-        history = problem.history
-        if history is not None and (history.direct or hasattr(history, "note")):
-            note = getattr(history, "note", None) or (
-                "memory: a general (table) kernel has no recursion: eq (19) is summed "
-                "directly, O(n) work and memory per step")
-            self.say(note)
-            if self.writer is not None:
-                self.writer.note("notes", note)
-        b = stability_number(scene)
-        if scene["time"]["rule"] == "paper" and b >= 1.0:
-            steps = scene["time"]["steps"]
-            warning = (f"warning: the paper's time rule is unstable here: k R(0) (1 + nu) / E "
-                       f"= {b:.3g} >= 1; use more steps (time.steps > {math.ceil(steps * b)}) "
-                       "or time.rule = 'trapezoid'")
-            if comm.rank == 0:
-                print(f"contactvisco: {warning}", file=sys.stderr, flush=True)
-            if self.writer is not None:
-                self.writer.note("warnings", warning)
-
     def _record(self, n, state: Accepted, table) -> dict:
         """The step record of steps.jsonl."""
-        snes = self.snes
-        probes = self.probes
+        snes, probes = self.snes, self.probes
         return {"step": n, "t": state.t, "newton_iterations": state.iterations,
                 "residual": snes.residuals[-1] if snes.residuals else 0.0,
                 "residual_history": snes.residuals, "wall_s": state.wall_s, "cuts": state.cuts,
                 "krylov_iterations": snes.krylov_iterations,
                 "status_counts": output.status_counts(table),
                 "probes": probes.values(self.problem.u, self.comm) if probes else []}
-
-    def _recorder(self, result: Result, keep_tables):
-        """Observer: the record (and the table) into the Result."""
-        def record_into_result(record, table):
-            result.steps.append(record)
-            if keep_tables:
-                result.tables.append(table)
-        return record_into_result
 
     def _file_observers(self, k) -> list:
         """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""
@@ -237,20 +196,6 @@ class Run:
                               self.scene["time"]["steps"], self.writer, self.say, self.resumed)
         return [writer, snapshots]
 
-    def _progress(self, t_end):
-        """Observer: one line per accepted state on rank 0."""
-        def progress(record, table):
-            krylov = record["krylov_iterations"]
-            cuts = record["cuts"]
-            self.say(f"step {record['step']:4d}  t = {record['t']:.4g}/{t_end:g}  Newton "
-                     f"{record['newton_iterations']:2d}  "
-                     + (f"Krylov {max(krylov):3d} max  " if krylov and max(krylov) > 1 else "")
-                     + f"|F| = {record['residual']:.2e}  "
-                     + " ".join(f"{key} {value}" for key, value in
-                                record["status_counts"].items())
-                     + f"  {record['wall_s']:.3f} s" + (f"  (cut x{2 ** cuts})" if cuts else ""))
-        return progress
-
     def _checkpoint(self, state: Accepted, count):
         """The checkpoint of the accepted state; then every rank stops here on a signal."""
         if self.out and self.scene["output"]["checkpoint"]:
@@ -258,18 +203,6 @@ class Run:
         signum = parallel.stop_requested(self.comm)
         if signum:                        # every rank stops after this same step
             raise parallel.Stopped(signum, count - 1, state.t)
-
-    def _failure(self, failed: StepFailed, table, count) -> NewtonFailure:
-        """The message of a step that failed for good; a body held by friction alone under
-        too large a tangential load is said so."""
-        err = failed.failure
-        limit = output.friction_limit(self.problem, self.comm, table)
-        cut_note = f" after {failed.cuts} cuts" if failed.cuts else ""
-        return NewtonFailure(
-            f"step to t = {failed.t_to:g} (from t = {failed.t_from:g}{cut_note}): "
-            + (f"{limit}; {err}" if limit else
-               f"{err}; {likely_cause(err, self.scene, count)}"),
-            err.reason, err.residuals)
 
     def _finish(self, table, t_end) -> dict:
         """The final record; the summary when writing."""
@@ -282,38 +215,46 @@ class Run:
                  "wall_s": clock.perf_counter() - self.started, "setup_s": self.setup_s}
         if writer is not None:
             writer.finish(final)
-        self.say(f"done in {final['wall_s']:.2f} s; at t = {t_end:g}: "
-                 + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
+        self.say(report.closing_line(final, t_end))
         return final
 
 
-def advance(problem, snes, t_from, t_to, first, max_cuts, say, cuts=0):
-    """Yield the accepted states that take the problem from t_from to t_to: one, or, when
-    Newton fails, those of the two halves (at most max_cuts halvings in a row; none on the
-    first state, which has no earlier state to fall back on). Each state is committed (the
-    history of eq 19 takes the exact step sizes) before it is yielded; a failure that may not
-    be cut raises StepFailed with the unknowns restored."""
+def recorder(result: Result, keep_tables):
+    """Observer: the record (and the table) into the Result."""
+    def record_into_result(record, table):
+        result.steps.append(record)
+        if keep_tables:
+            result.tables.append(table)
+    return record_into_result
+
+
+def advance(problem, snes, t_to, max_cuts, say, cuts=0):
+    """Yield the accepted states that take the problem from its committed time to t_to: one,
+    or, when Newton fails, those of the two halves (at most max_cuts halvings in a row; none
+    on the first state, which has no earlier state to fall back on). Each state is committed
+    (the history of eq 19 takes the exact step sizes) before it is yielded; a failure that
+    may not be cut raises StepFailed with the unknowns restored."""
     tick = clock.perf_counter()
-    k = t_to - t_from
+    t_from = problem.time.committed           # None: the first state, t_0
+    first = t_from is None
     saved = [f.x.array.copy() for f in problem.unknowns]
-    problem.set_time(t_to)
-    if not first:
-        problem.prepare(k)        # H from u_0 .. u_n (eq 19, any step sizes)
+    problem.time.stage(t_to)                  # H from u_0 .. u_n (eq 19, any step sizes)
     try:
         iterations = snes.solve()
     except NewtonFailure as err:
         for f, values in zip(problem.unknowns, saved):
             f.x.array[:] = values
         if first or cuts >= max_cuts:
-            raise StepFailed(t_from, t_to, cuts, err) from None
+            raise StepFailed(t_to if first else t_from, t_to, cuts, err) from None
         say(f"step to t = {t_to:.4g} failed (SNES reason {err.reason}); taking it in two "
             "halves")
-        middle = t_from + 0.5 * k
-        yield from advance(problem, snes, t_from, middle, first, max_cuts, say, cuts + 1)
-        yield from advance(problem, snes, middle, t_to, False, max_cuts, say, cuts + 1)
+        middle = t_from + 0.5 * (t_to - t_from)
+        yield from advance(problem, snes, middle, max_cuts, say, cuts + 1)
+        yield from advance(problem, snes, t_to, max_cuts, say, cuts + 1)
         return
-    problem.commit(None if first else k)
-    yield Accepted(t_to, None if first else k, iterations, clock.perf_counter() - tick, cuts)
+    problem.time.commit()
+    k = None if first else t_to - t_from
+    yield Accepted(t_to, k, iterations, clock.perf_counter() - tick, cuts)
 
 
 class FieldWriter:
@@ -328,9 +269,10 @@ class FieldWriter:
             problem = self.problem
             if "sigma" in self.names:
                 self.sigma.interpolate(problem.sigma_expression)
-            available = {"u": problem.u, "sigma": self.sigma, "history_stress": problem.H,
-                         "lambda_nu": problem.lambda_nu, "lambda_tau": problem.lambda_tau}
-            fields = [available[name] for name in self.names if available[name] is not None]
+            available = {"u": problem.u, "sigma": self.sigma,
+                         "history_stress": problem.memory and problem.memory.H,
+                         **problem.multipliers}
+            fields = [available[name] for name in self.names if available.get(name) is not None]
         self.writer.step(record, table, fields)
 
 
@@ -364,27 +306,3 @@ class Snapshots:
         if gathered is not None:
             self.taken.append((t,) + gathered)
             output.write_snapshots(self.path, self.taken)
-
-
-def likely_cause(err: NewtonFailure, scene: dict, step: int) -> str:
-    """A hint from the SNES reason and the scene."""
-    if err.reason == -3:
-        return ("likely cause: the linear solve failed; is the body held (Dirichlet conditions "
-                "or a contact law with stiffness) against every rigid motion?")
-    if err.reason == -4:
-        return ("likely cause: the residual became NaN or Inf; check expressions for "
-                "divisions by zero or overflow, and extreme parameter values")
-    if err.reason == -5:
-        hint = "likely cause: too large a step for the contact state to settle"
-        if step > 0 and scene["time"]["rule"] == "paper" and \
-                stability_number(scene) >= 1:
-            hint += " (the paper's time rule is unstable at this step: use 'trapezoid')"
-        return hint + "; try more time steps or raise -snes_max_it"
-    return "see the residual history"
-
-
-def _printer(comm, enabled):
-    def say(text):
-        if enabled and comm.rank == 0:
-            print(text, file=sys.stdout, flush=True)
-    return say

@@ -1,4 +1,4 @@
-"""Closed forms of Coulomb friction (contact.friction = "coulomb"), shared by the tests, the
+"""Closed forms of Coulomb friction (contact.friction_law = "coulomb"), shared by the tests, the
 benchmark and the demo.
 
 sliding_block(): a block (plane strain, nu = 0) pressed onto a rigid foundation (g = 0) by a
@@ -63,9 +63,9 @@ def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5
     raw : dict
         The scene, unresolved (as a TOML file would give it).
     exact : dict
-        The exact fields as numbers: ``{"ux": (a, b), "uy": c, "friction": f}`` meaning
-        ``u_tau = (a + b z) direction``, ``u_normal = c z`` (z the height), and the friction
-        force per unit area at every node.
+        The exact fields as numbers: ``{"ux": (a, b), "uy": c, "friction_force": f}``
+        meaning ``u_tau = (a + b z) direction``, ``u_normal = c z`` (z the height), and the
+        friction force per node.
     """
     E, H = 100.0, 0.5
     G = E / 2
@@ -84,20 +84,20 @@ def block_scene(regime: str, N: float = 10.0, mu: float = 0.4, load: float = 0.5
     if regime == "stick":
         top = {"boundary": "top", "value": [float(tau * c) for c in e] + [-N]}
         dirichlet = []
-        exact = {"ux": (0.0, tau / G), "uy": -N / E, "friction": tau}
+        exact = {"ux": (0.0, tau / G), "uy": -N / E, "friction_force": tau}
     else:
         U = 2 * tau * H / G
         top = {"boundary": "top", "value": [0.0] * (d - 1) + [-N]}
         dirichlet = [{"boundary": "top", "components": list(range(d - 1)),
                       "value": [float(U * c) for c in e]}]
-        exact = {"ux": (U - tau * H / G, tau / G), "uy": -N / E, "friction": tau}
+        exact = {"ux": (U - tau * H / G, tau / G), "uy": -N / E, "friction_force": tau}
     upper = [1.0] * (d - 1) + [H]
     raw = {"name": f"block-{regime}",
            "geometry": {"lower": [0.0] * d, "upper": upper, "cells": list(cells)},
            "material": {"model": "plane_strain" if d == 2 else "3d", "E": E, "nu": 0.0},
            "dirichlet": dirichlet,
            "traction": [top] + tractions,
-           "contact": {"boundary": "bottom", "g": 0.0, "mu": mu, "friction": "coulomb",
+           "contact": {"boundary": "bottom", "g": 0.0, "mu": mu, "friction_law": "coulomb",
                        "slip": slip},
            "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
     return raw, exact
@@ -136,7 +136,7 @@ def cattaneo_scene(h_contact: float, nu: float = 0.49, mu: float = 0.3, w: float
             "dirichlet": [{"boundary": "top", "components": "all",
                            "value": [f"{delta} * t", -w]}],
             "contact": {"boundary": "contact", "g": 0.0, "gap": "x[1]", "mu": mu,
-                        "friction": "coulomb", "slip": slip, "augmentation": 200.0},
+                        "friction_law": "coulomb", "slip": slip, "augmentation": 200.0},
             "time": {"T": 1.0, "steps": 1},
             "output": {"probes": []}}
 

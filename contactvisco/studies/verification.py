@@ -97,10 +97,9 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
     snes = BlockSNES(F, problem.J, problem.unknowns, problem.bcs, comm)
     T, N = scene["time"]["T"], steps
     for n in range(N + 1):
-        problem.set_time(n * T / N)
-        if n > 0:
-            problem.update_history()
+        problem.time.stage(n * T / N)
         snes.solve()
+        problem.time.commit()
     error = problem.u - U
     quadrature = {"quadrature_degree": 2 * degree + 4}
     l2 = fem.assemble_scalar(fem.form(ufl.inner(error, error) * ufl.dx(metadata=quadrature)))

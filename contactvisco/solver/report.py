@@ -1,0 +1,85 @@
+"""What a run prints: the start-up announcement (unknown counts, the memory note, the warning
+of an unstable time rule), one progress line per accepted state and the closing line. Lines
+go to stdout on rank 0; the warning goes to stderr, and notes and warnings also to the output
+folder's summary.json when a writer is given.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+from contactvisco.model.stability import stability_number
+
+#: The memory note of a kernel whose history has no recursion (and no note of its own).
+DIRECT_SUM_NOTE = ("memory: a general (table) kernel has no recursion: eq (19) is summed "
+                   "directly, O(n) work and memory per step")
+
+
+def printer(comm, enabled):
+    """say(text): print a line on rank 0 when enabled."""
+    def say(text):
+        if enabled and comm.rank == 0:
+            print(text, file=sys.stdout, flush=True)
+    return say
+
+
+def announce(scene, problem, snes, comm, setup_s, say, writer=None):
+    """The header line, the memory note and the time-rule warning."""
+    counts = problem.count_unknowns()
+    contact_nodes = problem.count_contact_nodes()
+    multipliers = ", ".join(name for name in counts if name != "u")
+    say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), {counts['u']} "
+        f"displacement unknowns"
+        + (f", {contact_nodes} contact nodes ({multipliers})" if contact_nodes else "")
+        + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
+        f"{setup_s:.2f} s")
+    note = memory_note(problem)
+    if note:
+        say(note)
+        if writer is not None:
+            writer.note("notes", note)
+    warning = time_rule_warning(scene)
+    if warning:
+        if comm.rank == 0:
+            print(f"contactvisco: {warning}", file=sys.stderr, flush=True)
+        if writer is not None:
+            writer.note("warnings", warning)
+
+
+def memory_note(problem) -> str | None:
+    """The history's own note (a fitted kernel's), or the note of a direct sum; None for a
+    recursion without a note or no memory."""
+    history = problem.memory and problem.memory.history
+    if history is None or not (history.direct or hasattr(history, "note")):
+        return None
+    return getattr(history, "note", None) or DIRECT_SUM_NOTE
+
+
+def time_rule_warning(scene) -> str | None:
+    """The warning of the paper's time rule at k R(0) (1 + nu) / E >= 1, else None."""
+    b = stability_number(scene)
+    if scene["time"]["rule"] != "paper" or b < 1.0:
+        return None
+    steps = scene["time"]["steps"]
+    return (f"warning: the paper's time rule is unstable here: k R(0) (1 + nu) / E "
+            f"= {b:.3g} >= 1; use more steps (time.steps > {math.ceil(steps * b)}) "
+            "or time.rule = 'trapezoid'")
+
+
+def progress_line(record: dict, t_end: float) -> str:
+    """The line of an accepted state: step, time, iterations, residual, node states, wall
+    time and the step cut that reached it."""
+    krylov = record["krylov_iterations"]
+    cuts = record["cuts"]
+    return (f"step {record['step']:4d}  t = {record['t']:.4g}/{t_end:g}  Newton "
+            f"{record['newton_iterations']:2d}  "
+            + (f"Krylov {max(krylov):3d} max  " if krylov and max(krylov) > 1 else "")
+            + f"|F| = {record['residual']:.2e}  "
+            + " ".join(f"{key} {value}" for key, value in record["status_counts"].items())
+            + f"  {record['wall_s']:.3f} s" + (f"  (cut x{2 ** cuts})" if cuts else ""))
+
+
+def closing_line(final: dict, t_end: float) -> str:
+    """The last line: the run's wall time and the node states at T."""
+    return (f"done in {final['wall_s']:.2f} s; at t = {t_end:g}: "
+            + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
