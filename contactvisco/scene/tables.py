@@ -17,9 +17,9 @@ from contactvisco.errors import SceneError
 from contactvisco.model.material import dimension
 from contactvisco.model.memory import PARTS
 from contactvisco.model.memory_kernel import as_list
-from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice, choices,
-                                      finite, integer, is_mesh_size, modulus, number_list,
-                                      one_of)
+from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
+                                      choices, finite, integer, is_mesh_size, modulus,
+                                      number_list, one_of)
 
 
 #: Most cells a gmsh script may be asked for, estimated as (largest length / smallest size)^d.
