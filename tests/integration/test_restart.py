@@ -6,15 +6,13 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import time
 
 import pytest
 from mpi4py import MPI
 
-from contactvisco.fem import compat
 from contactvisco.io.output import read_summary
-from fault_cases import alive
+from helpers import ENV, alive, cli_command, run_cli
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own (MPI) processes; run on one rank")
@@ -23,12 +21,11 @@ pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
 STEPS = 200
 SCENE = ["paper", "--set", "geometry.cells=[24, 24]", "--set", f"time.steps={STEPS}",
          "--set", "output.figures=false", "--quiet"]
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 
 
-def command(ranks, out, *extra):
-    base = [sys.executable, "-m", "contactvisco", "run", *SCENE, "--out", str(out), *extra]
-    return ([*compat.mpi_launcher(), "-n", str(ranks)] if ranks > 1 else []) + base
+def run(ranks, out, *extra):
+    """The scene run into `out` on `ranks` ranks, to its end."""
+    return run_cli("run", *SCENE, "--out", out, *extra, ranks=ranks, timeout=600)
 
 
 def last_step_rows(path):
@@ -41,11 +38,12 @@ def last_step_rows(path):
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
     reference = tmp_path / "reference"
-    subprocess.run(command(ranks, reference), check=True, env=ENV, timeout=600,
-                   capture_output=True)
+    uninterrupted = run(ranks, reference)
+    assert uninterrupted.returncode == 0, uninterrupted.stderr
     out = tmp_path / "killed"
-    proc = subprocess.Popen(command(ranks, out), env=ENV, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(cli_command(["run", *SCENE, "--out", out], ranks), env=ENV,
+                            start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
     deadline = time.time() + 300
     steps = 0
     while time.time() < deadline and proc.poll() is None:
@@ -72,8 +70,7 @@ def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
     _, rows = last_step_rows(out / "contact_nodes.csv")
     assert {int(r["step"]) for r in rows} >= set(range(done))
     # Restart and compare with the uninterrupted run.
-    restart = subprocess.run(command(ranks, out, "--restart"), env=ENV, timeout=600,
-                             capture_output=True, text=True)
+    restart = run(ranks, out, "--restart")
     assert restart.returncode == 0, restart.stderr
     final = read_summary(out)
     expected = read_summary(reference)
@@ -94,14 +91,12 @@ def test_restart_checks_the_scene_and_works_on_another_rank_count(tmp_path):
     out = tmp_path / "run"
     table = ["--set", "memory.kernel='table'", "--set", "memory.times=[0.0, 1.0]",
              "--set", "memory.values=[100.0, 50.0]"]
-    subprocess.run(command(1, out, *table), check=True, env=ENV, timeout=600,
-                   capture_output=True)
-    other = subprocess.run(command(1, out, "--restart", "--set", "contact.mu=0.3", *table),
-                           env=ENV, timeout=600, capture_output=True, text=True)
+    first = run(1, out, *table)
+    assert first.returncode == 0, first.stderr
+    other = run(1, out, "--restart", "--set", "contact.mu=0.3", *table)
     assert other.returncode == 2 and "scene differs" in other.stderr
     assert "contact.mu: 0.2 -> 0.3" in other.stderr      # the key that differs, and only it
     assert other.stderr.count("->") == 1
-    two = subprocess.run(command(2, out, "--restart", *table), env=ENV, timeout=600,
-                         capture_output=True, text=True)
+    two = run(2, out, "--restart", *table)
     assert two.returncode == 0, two.stderr
     assert read_summary(out)["final"]["t"] == 1.0

@@ -5,7 +5,9 @@ import pathlib
 
 import pytest
 
-PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "contactvisco"
+from helpers import ROOT
+
+PACKAGE = ROOT / "contactvisco"
 
 #: Floors from the ground up; solver and post stand side by side and do not import each other.
 FLOOR = {"errors": 0, "model": 1, "scene": 2, "fem": 3, "io": 4, "solver": 5, "post": 5,

@@ -1,7 +1,7 @@
 """A 3D block pressed and sheared on the layer: friction is a projection onto a disc, and the
 nodal vertex rule on triangular facets makes the conditions hold node by node."""
 import numpy as np
-from contact_checks import assert_contact_conditions
+from helpers import assert_contact_conditions
 from mpi4py import MPI
 
 from contactvisco.scene import loader as scene_module

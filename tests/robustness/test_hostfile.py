@@ -5,7 +5,6 @@ wrote its own checkpoint part, and the figure snapshots (a gather of the whole m
 are skipped above output.snapshot_max_nodes."""
 import csv
 import json
-import os
 import pathlib
 import shutil
 import subprocess
@@ -18,6 +17,7 @@ from mpi4py import MPI
 from contactvisco.fem import compat
 from contactvisco.io.h5read import check_xdmf
 from contactvisco.io.output import read_summary
+from helpers import mpi_env
 
 pytestmark = [
     pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
@@ -29,7 +29,8 @@ CELLS = (16, 12)
 # 221 nodes: above output.snapshot_max_nodes, so no rank gathers the whole mesh for figures.
 SCENE = ["paper", "--set", f"geometry.cells=[{CELLS[0]}, {CELLS[1]}]", "--set", "time.steps=4",
          "--set", "output.snapshot_max_nodes=100", "--quiet"]
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+# Two slots in the hostfile: the recipe must run without Open MPI's oversubscription.
+ENV = mpi_env(oversubscribe=False)
 VALUES = ("x", "y", "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound")
 
 

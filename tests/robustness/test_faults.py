@@ -10,8 +10,8 @@ import time
 import pytest
 from mpi4py import MPI
 
-from fault_cases import (EXIT_S, alive, check_folder, end, rank_pids, run, start, steps_done,
-                         vtk_read, wait_for)
+from helpers import (EXIT_S, alive, check_folder, end, rank_pids, run_paper, start_paper,
+                     steps_done, vtk_read, wait_for)
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own (MPI) processes; run on one rank")
@@ -25,7 +25,7 @@ def test_kill9_of_a_rank_keeps_every_completed_step(tmp_path, ranks, victim, at)
     """kill -9 of one real rank after `at` steps: the job ends, every completed step is in
     the files, and --restart completes the series once."""
     out = tmp_path / "run"
-    proc = start(ranks, out, STEPS)
+    proc = start_paper(ranks, out, STEPS)
     pids = rank_pids(out, proc, ranks)
     assert wait_for(out, proc, at), "the run ended before the kill"
     os.kill(pids[victim], signal.SIGKILL)
@@ -34,7 +34,7 @@ def test_kill9_of_a_rank_keeps_every_completed_step(tmp_path, ranks, victim, at)
     assert not any(alive(pid) for pid in pids), "a rank runs on"
     left = check_folder(out)
     assert left["records"] >= at
-    restarted = run(ranks, out, STEPS, 16, "--restart")
+    restarted = run_paper(ranks, out, STEPS, 16, "--restart")
     assert restarted.returncode == 0, restarted.stderr
     check_folder(out, complete_steps=STEPS + 1, k=K)
     if ranks == 1:             # the whole series as ParaView's XDMF reader sees it
@@ -49,11 +49,11 @@ def test_sigterm_stops_after_a_whole_step_and_a_second_run_is_refused(tmp_path, 
     ranks, one message), and --restart completes the series."""
     out = tmp_path / "run"
     steps = 400 if ranks == 1 else 150     # still running when the second run has started
-    proc = start(ranks, out, steps)
+    proc = start_paper(ranks, out, steps)
     pids = rank_pids(out, proc, ranks)
     assert wait_for(out, proc, 5)
     tick = time.time()
-    second = run(1, out, steps)
+    second = run_paper(1, out, steps)
     assert second.returncode == 2 and time.time() - tick < EXIT_S
     assert "in use by another run" in second.stderr and str(pids[0]) in second.stderr
     os.kill(pids[-1], signal.SIGTERM)
@@ -65,7 +65,7 @@ def test_sigterm_stops_after_a_whole_step_and_a_second_run_is_refused(tmp_path, 
     assert err.count("stopped by SIGTERM after step") == 1, err
     left = check_folder(out)
     assert left["checkpoint"] == left["records"] == left["fields"]   # the step was finished
-    restarted = run(ranks, out, steps, 16, "--restart")
+    restarted = run_paper(ranks, out, steps, 16, "--restart")
     assert restarted.returncode == 0, restarted.stderr
     check_folder(out, complete_steps=steps + 1, k=1.0 / steps)
 
@@ -74,11 +74,11 @@ def test_error_on_one_rank_ends_both(tmp_path):
     """A file only rank 0 writes cannot be opened (a folder in its place) while rank 1 waits
     in a collective: rank 0 prints the error once and aborts the job."""
     out = tmp_path / "run"
-    assert run(1, out, 3, 8).returncode == 0
+    assert run_paper(1, out, 3, 8).returncode == 0
     (out / "contact_nodes.csv").unlink()
     (out / "contact_nodes.csv").mkdir()
     tick = time.time()
-    proc = run(2, out, 3, 8, "--restart")
+    proc = run_paper(2, out, 3, 8, "--restart")
     assert proc.returncode != 0 and time.time() - tick < EXIT_S + 15   # start-up included
     assert proc.stderr.count("IsADirectoryError") == 1, proc.stderr
     assert "contact_nodes.csv" in proc.stderr
@@ -100,13 +100,13 @@ def small_disk(tmp_path):
 def test_full_disk_stops_cleanly_and_restarts_after_space_is_freed(small_disk, ranks):
     out = small_disk / "run"
     tick = time.time()
-    full = run(ranks, out, 40, 8)
+    full = run_paper(ranks, out, 40, 8)
     assert full.returncode == 1 and time.time() - tick < EXIT_S + 15
     assert full.stderr.count("No space left on device") == 1, full.stderr
     left = check_folder(out)
     assert 0 < left["records"] < 41
     subprocess.run(["mount", "-o", "remount,size=20m", str(small_disk)], check=True)
-    restarted = run(ranks, out, 40, 8, "--restart")
+    restarted = run_paper(ranks, out, 40, 8, "--restart")
     assert restarted.returncode == 0, restarted.stderr
     check_folder(out, complete_steps=41, k=1.0 / 40)
 
@@ -118,9 +118,9 @@ def test_earlier_files_need_overwrite_which_never_follows_a_symlink(tmp_path):
     out.mkdir()
     (out / "checkpoint").symlink_to(outside)
     (out / "notes.txt").write_text("not ours")
-    refused = run(1, out, 2, 4)
+    refused = run_paper(1, out, 2, 4)
     assert refused.returncode == 2 and "--overwrite" in refused.stderr
-    assert run(1, out, 2, 4, "--overwrite").returncode == 0
+    assert run_paper(1, out, 2, 4, "--overwrite").returncode == 0
     assert (outside / "data.txt").read_text() == "keep"
     assert (out / "notes.txt").read_text() == "not ours"
     assert not (out / "checkpoint").is_symlink()

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from contact_checks import assert_contact_conditions
+from helpers import assert_contact_conditions
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mpi4py import MPI

@@ -3,7 +3,7 @@ at their ends converge with the contact conditions holding; the one known failur
 with an augmentation parameter far above the stiffness where the body separates) stops with a
 clear message instead of a wrong answer."""
 import pytest
-from contact_checks import assert_contact_conditions
+from helpers import assert_contact_conditions
 from mpi4py import MPI
 
 from contactvisco.scene import loader as scene_module

@@ -14,9 +14,10 @@ from mpi4py import MPI
 import contactvisco
 from contactvisco import SceneError, load_scene, solve
 from contactvisco.scene import loader as scene_module
+from helpers import ROOT
 
 COMM = MPI.COMM_WORLD
-DEMOS = sorted((pathlib.Path(__file__).parents[1] / "demos").glob("*.py"))
+DEMOS = sorted((ROOT / "demos").glob("*.py"))
 CELLS = 8
 
 

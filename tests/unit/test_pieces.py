@@ -210,17 +210,15 @@ def test_three_ranks_split_the_contact_nodes():
     node-wise condensation runs across a partition boundary), and the answer is the 1-rank
     one: Newton counts, contact status and values to 1e-10 relative."""
     import json
-    import os
     import subprocess
     import sys
+
     from contactvisco.fem import compat
-    launcher = compat.mpi_launcher()
-    if not launcher:
+    from helpers import ENV, launcher
+    if not compat.mpi_launcher():
         pytest.skip("no MPI launcher found")
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
     script = f"KEYS = {RANK_KEYS!r}\nSETS = {RANK_SETS!r}\n" + RANKS_SCRIPT
-    proc = subprocess.run([*launcher, "-n", "3", sys.executable, "-c", script], env=env,
+    proc = subprocess.run([*launcher(3), sys.executable, "-c", script], env=ENV,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     three = json.loads(proc.stdout.strip().splitlines()[-1])

@@ -1,10 +1,10 @@
-"""Hostile input: a scene is data and never runs code, creates no file outside --out, and every
-value the model cannot use stops the run before solving with a message that names the value,
-where it came from and what is allowed. The command-line cases (exit codes) run on one rank."""
+"""Bad and hostile input: a scene is data and never runs code, creates no file outside --out,
+and every value the model cannot use stops the run before any assembly with a message that
+names the value, where it came from and what is allowed; what Newton cannot solve (a NaN, a
+step that will not converge) stops with the step named; the command line exits non-zero
+without a traceback. The command-line cases (exit codes) run on one rank."""
 import json
 import pathlib
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -13,17 +13,21 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contactvisco.model.stability import stability_number
 from contactvisco.errors import SceneError
 from contactvisco.fem import compat, geometry
-from contactvisco.scene import expressions
-from contactvisco.solver import newton as solver_module
 from contactvisco.fem import problem as problem_module
+from contactvisco.model.stability import stability_number
+from contactvisco.scene import expressions
 from contactvisco.scene import loader as scene_module
+from contactvisco.solver import newton as solver_module
+from contactvisco.solver.newton import NewtonFailure
+from contactvisco.solver.time_loop import simulate
+from helpers import run_cli
 
 COMM = MPI.COMM_WORLD
-SceneError = SceneError
 
+
+# ---- expressions: never run, refused at load and at build, evaluated like numpy ----
 
 def attacks(marker: pathlib.Path) -> list[str]:
     """Expressions that would run code or exhaust the machine if they were evaluated."""
@@ -124,7 +128,57 @@ def test_constant_expressions_that_overflow_or_turn_complex():
             scene_module.load("paper", [f"body_force.value=[0.0, '{text}']"])
 
 
+# ---- scene values: refused at load with the value, its origin and what is allowed ----
+
 SCENE_ERRORS = [  # (scene, overrides, words)
+    # values out of range, misspelled keys, wrong types (the paper scene)
+    ("paper", ["material.E=0"], "material.E must be > 0, got 0 (from --set material.E=0)"),
+    ("paper", ["material.E=-5"], "material.E must be > 0"),
+    ("paper", ["material.nu=1.0"], "material.nu must lie in (-1, 1.0) for plane_stress"),
+    ("paper", ["material.model='plane_strain'", "material.nu=0.5"],
+     "(-1, 0.5) for plane_strain"),
+    ("paper", ["material.model='shell'"],
+     "material.model must be plane_stress, plane_strain or 3d"),
+    ("paper", ["contact.g=-0.05"], "contact.g must be >= 0 (inf: no bound), got -0.05"),
+    ("paper", ["contact.mu=-0.2"], "contact.mu must be a finite number >= 0"),
+    ("paper", ["contact.stiffness=-1"], "contact.stiffness must be a finite number >= 0"),
+    ("paper", ["contact.augmentation=0"], "contact.augmentation must be > 0"),
+    ("paper", ["time.T=0"], "time.T must be > 0"),
+    ("paper", ["time.steps=0"], "time.steps must be an integer >= 1"),
+    ("paper", ["time.steps=2.5"], "time.steps must be an integer >= 1, got 2.5"),
+    ("paper", ["time.rule='euler'"], "time.rule must be paper or trapezoid"),
+    ("paper", ["contact.stifness=1"], "did you mean 'stiffness'"),
+    ("paper", ["materials.E=1"], "no scene key 'materials'"),
+    ("paper", ["geometry.cells=3"], "geometry.cells must be a list, got 3"),
+    ("paper", ["geometry.cells=[0, 4]"], "geometry.cells must be positive integers"),
+    ("paper", ["geometry.upper=[0.0, 1.0]"], "geometry.upper must exceed geometry.lower"),
+    ("paper", ["geometry.lower=[0, 0, 0]"],
+     "need 2 entries for material.model = 'plane_stress'"),
+    ("paper", ["material.E='stiff'"], "material.E must be > 0, got 'stiff'"),
+    ("paper", ["material.E=nan"], "material.E must be > 0, got nan"),
+    ("paper", ["traction=5"], "traction must be a list of tables"),
+    ("paper", ["traction.0.value=[0.0, -20.0, 1.0]"],
+     "traction[0].value must be a list of 2 components"),
+    ("paper", ["body_force.value=[1.0]"], "body_force.value must be a list of 2 components"),
+    ("paper", ["dirichlet.0.components=[2]"], "components 0..1 of a 2D displacement"),
+    ("paper", ["output.probes=[[0.5]]"],
+     "output.probes[0] must be a list of 2 finite numbers"),
+    ("paper", ["memory.kernel='powerlaw'"],
+     "memory.kernel must be none, constant, exponential, prony"),
+    ("paper", ["memory.kernel='exponential'", "memory.alpha=[1.0]", "memory.tau=[0.0]"],
+     "memory.tau must be > 0"),
+    ("paper", ["memory.kernel='table'", "memory.times=[0.0, 0.0]", "memory.values=[1.0, 2.0]"],
+     "memory.times must increase"),
+    ("paper", ["preset='quick'"], "unknown preset 'quick'"),
+    ("paper", ["discretization.degree=3"], "discretization.degree must be 1 or 2"),
+    ("paper", ["geometry.diagonal='up'"], "geometry.diagonal must be left, right, crossed"),
+    ("paper", ["output.fields=['u', 'strain']"], "output.fields must be a list of u, sigma"),
+    ("paper", ["contact.g=0"], "contact.mu = 0.2 has no effect"),
+    ("paper", ["body_force.value=[0.0, '-10 * y']"],
+     "body_force.value[1] = '-10 * y': the name 'y' is not allowed"),
+    ("paper", ["traction.0.value=[0.0, '-20 *']"],
+     "traction[0].value[1] = '-20 *' is not a valid expression"),
+    # paths, sizes, booleans posing as numbers, tables posing as values
     ("hertz", ["geometry.script='/tmp/evil'"], "not a path; got '/tmp/evil'"),
     ("hertz", ["geometry.script='../meshes/rectangle'"], "built-in mesh script"),
     ("hertz", ["geometry.script='refinement'"], "built-in mesh script"),
@@ -182,6 +236,8 @@ def test_scene_errors(name, overrides, words):
     assert words in str(err.value)
 
 
+# ---- files, boundaries, presets and tables: refused with the file, line or key named ----
+
 def test_geo_files_are_refused(tmp_path):
     scene = {"geometry": {"type": "gmsh", "file": str(tmp_path / "body.geo")}}
     with pytest.raises(SceneError, match="must be a gmsh .msh file.*can run commands"):
@@ -203,6 +259,57 @@ def test_a_large_file_that_is_no_mesh_is_refused_from_its_header(tmp_path):
     with pytest.raises(SceneError, match="not a gmsh .msh file \\(it does not start with "
                                          "\\$MeshFormat\\)"):
         geometry.build(scene, COMM)
+
+
+BUILD_ERRORS = [
+    (["contact.boundary='floor'"], "no boundary named 'floor'"),
+    (["traction.0.boundary='lid'"], "no boundary named 'lid'"),
+]
+
+
+@pytest.mark.parametrize("overrides, words", BUILD_ERRORS, ids=[o[0] for o, _ in BUILD_ERRORS])
+def test_build_errors(overrides, words):
+    scene = scene_module.load("paper", ["geometry.cells=[4, 4]"] + overrides)
+    with pytest.raises(SceneError) as err:
+        problem_module.build(scene, geometry.build(scene, COMM))
+    assert words in str(err.value)
+
+
+def test_missing_and_unreadable_mesh_files(tmp_path):
+    missing = scene_module.resolve({"geometry": {"type": "gmsh", "file": str(tmp_path / "no.msh")}})
+    with pytest.raises(SceneError, match="no mesh file"):
+        geometry.build(missing, COMM)
+    bad = tmp_path / "bad.msh"
+    if COMM.rank == 0:
+        bad.write_text("this is not a mesh\n")
+    path = COMM.bcast(str(bad), root=0)
+    broken = scene_module.resolve({"geometry": {"type": "gmsh", "file": path}})
+    if COMM.size == 1:     # tmp_path differs per rank; one rank suffices for reading a file
+        with pytest.raises(SceneError, match="cannot read mesh file"):
+            geometry.build(broken, COMM)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="writes a mesh with gmsh on one rank")
+def test_contact_boundary_inside_the_body(tmp_path):
+    import gmsh
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    occ = gmsh.model.occ
+    square = occ.addRectangle(0, 0, 0, 1, 1)
+    line = occ.addLine(occ.addPoint(0.2, 0.5, 0), occ.addPoint(0.8, 0.5, 0))
+    occ.fragment([(2, square)], [(1, line)])
+    occ.synchronize()
+    inner = [t for d, t in gmsh.model.getEntities(1)
+             if abs(gmsh.model.occ.getCenterOfMass(1, t)[1] - 0.5) < 1e-9]
+    gmsh.model.setPhysicalName(1, gmsh.model.addPhysicalGroup(1, inner), "inner")
+    gmsh.model.addPhysicalGroup(2, [t for _, t in gmsh.model.getEntities(2)])
+    gmsh.model.mesh.generate(2)
+    gmsh.write(str(tmp_path / "inner.msh"))
+    gmsh.finalize()
+    scene = scene_module.resolve({"geometry": {"type": "gmsh", "file": str(tmp_path / "inner.msh")},
+                                  "contact": {"boundary": "inner", "stiffness": 1.0}})
+    with pytest.raises(SceneError, match="facets inside the body"):
+        problem_module.build(scene, geometry.build(scene, COMM))
 
 
 def test_presets_do_not_launder_booleans(tmp_path):
@@ -277,6 +384,20 @@ def test_origin_follows_toml_tables(tmp_path):
         scene_module.load(str(path))
 
 
+def test_error_names_the_scene_file_line(tmp_path):
+    path = tmp_path / "mine.toml"
+    path.write_text('[material]\nmodel = "plane_strain"\nE = 100.0\nnu = 0.6\n')
+    with pytest.raises(SceneError, match=r"mine.toml, line 4: nu = 0.6"):
+        scene_module.load(str(path))
+
+
+def test_unreadable_scene_file(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("[material\nE = 1")
+    with pytest.raises(SceneError, match="broken.toml"):
+        scene_module.load(str(path))
+
+
 def test_probe_outside_the_body_is_named():
     scene = scene_module.load("paper", ["geometry.cells=[4, 4]",
                                         "output.probes=[[0.5, 0.5], [0.5, 1.25]]"])
@@ -289,6 +410,8 @@ def test_probe_outside_the_body_is_named():
                                           "output.probes=[[-0.5, 0.5]]"])
     geometry.build(rotated, COMM)                # inside once the body is rotated
 
+
+# ---- rigid motions: a body no condition holds is refused with the free motion named ----
 
 def build(name, overrides):
     scene = scene_module.load(name, overrides)
@@ -364,6 +487,47 @@ def test_friction_counts_as_a_tangential_restraint():
         assert np.allclose(u, [p["u"] for p in single["probes"]], rtol=1e-7, atol=1e-12)
 
 
+# ---- what Newton cannot solve: stopped with the step named, or cut and recovered ----
+
+def test_non_finite_residual_is_caught():
+    """A body force that divides by zero: Newton stops at once with the NaN named and the step
+    given, and no NaN result is accepted."""
+    scene = scene_module.load("paper", ["geometry.cells=[4, 4]", "time.steps=1",
+                                        "body_force.value=[0.0, '1 / (x[0] - x[0])']"])
+    with pytest.raises(NewtonFailure) as err:
+        simulate(scene, comm=COMM, progress=False)
+    assert "step to t = 0 (from t = 0)" in str(err.value) and "NaN or Inf" in str(err.value)
+
+
+def test_step_cutting_recovers():
+    """A moving load with 5 large steps needs up to 29 Newton iterations per step. With at most
+    8 allowed, failed steps are halved (up to 4 times in a row) and the run ends in the same
+    contact state as the uncut one; the memory uses the exact non-uniform weights. Run on one
+    rank (COMM_SELF): the iteration counts, and so where steps are cut, depend on the
+    partition, which is not reproducible between runs."""
+    base = ["geometry.parameters.h=0.1", "time.steps=5", "output.probes=[]"]
+    uncut = simulate(scene_module.load("ironing", base), comm=MPI.COMM_SELF, progress=False,
+                     keep_tables=True)
+    cut = simulate(scene_module.load("ironing", base + ["solver.petsc_options={snes_max_it=8}"]),
+                   comm=MPI.COMM_SELF, progress=False, keep_tables=True)
+    assert max(s["newton_iterations"] for s in uncut.steps) > 8
+    assert max(s["newton_iterations"] for s in cut.steps) <= 8
+    assert any(s["cuts"] > 0 for s in cut.steps) and len(cut.steps) > len(uncut.steps)
+    assert cut.steps[-1]["t"] == pytest.approx(1.0)
+    assert cut.steps[-1]["status_counts"] == uncut.steps[-1]["status_counts"]
+    a, b = cut.tables[-1], uncut.tables[-1]
+    assert abs(a["u_nu"] - b["u_nu"]).max() < 0.05 * abs(b["u_nu"]).max()
+
+
+def test_step_cutting_gives_up_with_a_clear_message():
+    scene = scene_module.load("ironing", ["geometry.parameters.h=0.1", "time.steps=5",
+                                          "solver.max_cuts=1",
+                                          "solver.petsc_options={snes_max_it=8}"])
+    with pytest.raises(NewtonFailure) as err:
+        simulate(scene, comm=MPI.COMM_SELF, progress=False)
+    assert "after 1 cuts" in str(err.value) and "residual history" in str(err.value)
+
+
 # ---- PETSc options of a scene: present in every solve, reported when no solver read them ----
 
 def direct_solver(petsc_options: str):
@@ -435,16 +599,17 @@ def test_failing_solve_leaves_no_options():
 
 # ---- the command line: exit codes and messages (one rank; each starts its own process) ----
 
-def cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "contactvisco", *args], capture_output=True,
-                          text=True, timeout=300, cwd=cwd)
-
-
+COARSE = ["--quiet", "--set", "geometry.cells=[4, 4]"]
 SMALL = ["--set", "geometry.cells=[4, 4]", "--set", "time.steps=2", "--quiet"]
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="starts its own processes; run on one rank")
 @pytest.mark.parametrize("args, code, words", [
+    (["run", "paper", *COARSE, "--set", "material.E=0"], 2, "material.E must be > 0"),
+    (["run", "paper", *COARSE, "--set", "body_force.value=[0.0, '1/(x[0]-x[0])']",
+      "--set", "time.steps=1"], 3, "NaN or Inf"),
+    (["run", "paper", *COARSE, "-snes_max_it", "1", "--set", "time.steps=1"], 3,
+     "likely cause"),
     (["run", "paper", "--set", "material.E=1e-320"], 2, "material.E must lie in"),
     (["run", "ironing", "--set", "geometry.parameters.h=0"], 2,
      "geometry.parameters.h must be a finite number > 0"),
@@ -478,7 +643,7 @@ def test_command_line(tmp_path, args, code, words):
     marker = tmp_path / "out"
     if "--out" not in args:
         args = args + ["--out", str(marker)]
-    proc = cli(*args, cwd=tmp_path)
+    proc = run_cli(*args, cwd=tmp_path)
     assert proc.returncode == code, proc.stderr
     assert words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
     if code == 0:
@@ -489,23 +654,32 @@ def test_command_line(tmp_path, args, code, words):
 def test_command_line_attack_runs_nothing(tmp_path):
     marker = tmp_path / "pwn"
     text = f"sin.__globals__['__builtins__']['__import__']('os').system('touch {marker}')"
-    proc = cli("run", "paper", "--set", f"traction.0.value=[0.0, {json.dumps(text)}]",
-               "--out", str(tmp_path / "out"), cwd=tmp_path)
+    proc = run_cli("run", "paper", "--set", f"traction.0.value=[0.0, {json.dumps(text)}]",
+                   "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert proc.returncode == 2 and "is not allowed" in proc.stderr, proc.stderr
     assert not marker.exists() and not (tmp_path / "out").exists()
-    proc = cli("run", "paper", "--set", "name='../escaped'", cwd=tmp_path / "..")
+    proc = run_cli("run", "paper", "--set", "name='../escaped'", cwd=tmp_path / "..")
     assert proc.returncode == 2 and "plain folder name" in proc.stderr
     assert not (tmp_path.parent / "escaped").exists()
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="starts its own processes; run on one rank")
+def test_output_folder_not_writable(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    proc = run_cli("run", "paper", "--out", str(blocker / "sub"))
+    assert proc.returncode == 2 and "is not writable" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own processes; run on one rank")
 def test_plot_on_cut_files(tmp_path):
     (tmp_path / "summary.json").write_text('{"scene": {"name": "paper", "contact": {"g": 0.')
-    proc = cli("plot", str(tmp_path))
+    proc = run_cli("plot", str(tmp_path))
     assert proc.returncode == 2 and "damaged or incomplete" in proc.stderr, proc.stderr
     assert "JSONDecodeError" in proc.stderr and "Traceback" not in proc.stderr
     (tmp_path / "summary.json").write_text('{"scene": {"contact": {"g": 0.05}}, "steps": []}')
     (tmp_path / "snapshots.npz").write_bytes(b"PK\x03\x04cut")
-    proc = cli("plot", str(tmp_path))
+    proc = run_cli("plot", str(tmp_path))
     assert proc.returncode == 2 and "BadZipFile" in proc.stderr, proc.stderr
     assert "Traceback" not in proc.stderr

@@ -15,9 +15,10 @@ from contactvisco.scene import loader as scene_module
 from contactvisco.studies import tradeoff
 from contactvisco.cli import main
 from contactvisco.solver.time_loop import simulate
+from helpers import ROOT
 
 COMM = MPI.COMM_WORLD
-DOCS = pathlib.Path(__file__).parents[1] / "docs" / "figures"
+DOCS = ROOT / "docs" / "figures"
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +49,7 @@ def test_docs_figures_match_the_program(paper_folder):
                                               committed(f"paper_{stem}"))
         assert not problems, f"docs/figures/paper_{stem}.png is stale (make figures): " \
                              f"{problems[:3]}"
-    results = pathlib.Path(__file__).parents[1] / "benchmarks" / "results"
+    results = ROOT / "benchmarks" / "results"
     from matplotlib.figure import Figure
     fig = tradeoff.draw(json.loads((results / "tradeoff_paper.json").read_text()), Figure())
     assert not figures.compare_signatures(figures.signature(fig), committed("tradeoff"))

@@ -20,7 +20,7 @@ from contactvisco.solver.time_loop import simulate
 from contactvisco.errors import SceneError
 from contactvisco.solver.newton import NewtonFailure
 
-from contact_checks import assert_contact_conditions
+from helpers import assert_contact_conditions
 
 
 def _run(raw_or_scene, comm=MPI.COMM_WORLD):

@@ -2,21 +2,19 @@
 with a message and no traceback. Subprocesses are started only on a single rank."""
 import csv
 import json
-import subprocess
-import sys
 
 import pytest
 from mpi4py import MPI
 
 from contactvisco.io.output import read_summary
+from helpers import run_cli
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own processes; run on one rank")
 
 
 def cli(*args):
-    return subprocess.run([sys.executable, "-m", "contactvisco", *args], capture_output=True,
-                          text=True, timeout=600)
+    return run_cli(*args, timeout=600)
 
 
 def test_run_writes_results(tmp_path):

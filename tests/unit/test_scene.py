@@ -99,10 +99,9 @@ def test_presets_scale_the_scene():
 
 def test_every_declared_key_is_documented():
     """docs/scenes.md has a row for every key the tables declare, under its table's heading."""
-    import pathlib
-
     from contactvisco.scene import tables
-    text = (pathlib.Path(__file__).parents[1] / "docs" / "scenes.md").read_text()
+    from helpers import ROOT
+    text = (ROOT / "docs" / "scenes.md").read_text()
     sections = {}
     for block in text.split("\n## ")[1:]:
         heading, _, body = block.partition("\n")

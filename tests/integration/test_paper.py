@@ -2,7 +2,7 @@
 convergence, the zone counts reported in the paper, and the equilibrium residual."""
 import numpy as np
 from dolfinx import fem
-from contact_checks import assert_contact_conditions
+from helpers import assert_contact_conditions
 
 from contactvisco.fem import compat
 

@@ -2,12 +2,13 @@
 environment) without error, at the small sizes CONTACTVISCO_QUICK selects, and the paper demo
 prints the paper's zone counts."""
 import os
-import pathlib
 
 import pytest
 from mpi4py import MPI
 
-DEMOS = sorted((pathlib.Path(__file__).parents[1] / "demos").glob("*.py"))
+from helpers import ROOT
+
+DEMOS = sorted((ROOT / "demos").glob("*.py"))
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts a Jupyter kernel; run on one rank")
