@@ -1,16 +1,30 @@
-"""Shared by the benchmarks: timing a scene and writing result tables."""
+"""Shared by the benchmarks (performance/, accuracy/, robustness/): timing a scene, its step
+statistics, and writing result tables to benchmarks/results/. Importing it also puts tests/
+on sys.path, so that a benchmark takes the harness it shares with the tests (the command line
+in a child process, the MPI launcher and environment, steps.jsonl, the fault cases) from
+tests/helpers.py. A script in a group folder finds this module with
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/
+
+Only the standard library is imported when it loads (contactvisco inside the functions), so
+accuracy/stacks.py, which needs no FEniCSx, runs under any Python."""
 import json
 import pathlib
 import statistics
+import sys
 import time
 
-from contactvisco.solver.time_loop import simulate
-
-RESULTS = pathlib.Path(__file__).parent / "results"
+BENCHMARKS = pathlib.Path(__file__).resolve().parent
+RESULTS = BENCHMARKS / "results"
+#: Scene files of the benchmarks (a user's scene for `contactvisco tradeoff`).
+SCENES = BENCHMARKS / "scenes"
+if str(BENCHMARKS.parent / "tests") not in sys.path:
+    sys.path.insert(0, str(BENCHMARKS.parent / "tests"))     # tests/helpers.py
 
 
 def timed_run(scene, comm, repeat=2):
     """Best of `repeat` runs (the first also compiles the forms): (seconds, result)."""
+    from contactvisco.solver.time_loop import simulate
     best = None
     for _ in range(repeat):
         tick = time.perf_counter()

@@ -163,6 +163,29 @@ def end(proc, timeout=EXIT_S) -> tuple[int, float]:
     return code, time.time() - tick
 
 
+
+def mount_tmpfs(folder, size: str = "400k") -> bool:
+    """A tmpfs of `size` mounted on the (empty) folder, to fill up: whether it could be
+    mounted (root only)."""
+    return subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)],
+                          capture_output=True).returncode == 0
+
+
+def grow_tmpfs(folder, size: str = "20m"):
+    """Space freed on a full tmpfs: its size raised in place."""
+    subprocess.run(["mount", "-o", f"remount,size={size}", str(folder)], check=True)
+
+
+def unmount(folder, check: bool = False):
+    subprocess.run(["umount", "-l", str(folder)], check=check)
+
+
+def block_rank0_file(out):
+    """A folder where a finished run's contact_nodes.csv was: the file only rank 0 writes
+    cannot be opened on --restart, while the other ranks wait in a collective."""
+    (pathlib.Path(out) / "contact_nodes.csv").unlink()
+    (pathlib.Path(out) / "contact_nodes.csv").mkdir()
+
 VTK_READ = """
 import sys, vtk
 reader = vtk.vtkXdmfReader()

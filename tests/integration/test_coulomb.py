@@ -112,7 +112,7 @@ def cattaneo():
 def test_cattaneo_mindlin_partial_slip(cattaneo):
     """The cylinder pressed, then pulled to Q ~ 0.44 mu P (nu = 0.49, contact mesh a/11): the
     stick zone's half-width c = a sqrt(1 - Q / (mu P)) and the force transmitted across the
-    contact within 7 % (measured 6.9 % and 6.7 %; benchmarks/coulomb.py refines), Hertz's
+    contact within 7 % (measured 6.9 % and 6.7 %; benchmarks/accuracy/coulomb.py refines), Hertz's
     pressure within 12 % (node-to-node noise), the slip zone at the bound."""
     r = cattaneo[0.49]
     assert 0.3 < r["load_ratio"] < 0.6

@@ -1,7 +1,7 @@
-"""A fast subset of benchmarks/extremes.py (the full table is in docs/extremes.md): parameters
-at their ends converge with the contact conditions holding; the one known failure (friction
-with an augmentation parameter far above the stiffness where the body separates) stops with a
-clear message instead of a wrong answer."""
+"""A fast subset of benchmarks/robustness/extremes.py (the full table is in docs/extremes.md):
+parameters at their ends converge with the contact conditions holding; the one known failure
+(friction with an augmentation parameter far above the stiffness where the body separates)
+stops with a clear message instead of a wrong answer."""
 import pytest
 from helpers import assert_contact_conditions
 from mpi4py import MPI

@@ -1,17 +1,17 @@
 """Faults on 1 and 2 ranks: kill -9 of a real rank process, SIGTERM, an error on one rank
 only, a full disk, a second run into a folder in use. Every run ends (2 ranks: within 30 s)
 with a clear message and a non-zero exit, leaves every completed step readable, and a restart
-completes the time series once. The whole campaign is benchmarks/reliability.py."""
+completes the time series once. The whole campaign is benchmarks/robustness/reliability.py."""
 import os
 import signal
-import subprocess
 import time
 
 import pytest
 from mpi4py import MPI
 
-from helpers import (EXIT_S, alive, check_folder, end, rank_pids, run_paper, start_paper,
-                     steps_done, vtk_read, wait_for)
+from helpers import (EXIT_S, alive, block_rank0_file, check_folder, end, grow_tmpfs,
+                     mount_tmpfs, rank_pids, run_paper, start_paper, steps_done, unmount,
+                     vtk_read, wait_for)
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own (MPI) processes; run on one rank")
@@ -75,8 +75,7 @@ def test_error_on_one_rank_ends_both(tmp_path):
     in a collective: rank 0 prints the error once and aborts the job."""
     out = tmp_path / "run"
     assert run_paper(1, out, 3, 8).returncode == 0
-    (out / "contact_nodes.csv").unlink()
-    (out / "contact_nodes.csv").mkdir()
+    block_rank0_file(out)
     tick = time.time()
     proc = run_paper(2, out, 3, 8, "--restart")
     assert proc.returncode != 0 and time.time() - tick < EXIT_S + 15   # start-up included
@@ -89,11 +88,10 @@ def small_disk(tmp_path):
     """A 400 kB tmpfs (root only)."""
     disk = tmp_path / "disk"
     disk.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(disk)],
-                      capture_output=True).returncode != 0:
+    if not mount_tmpfs(disk, "400k"):
         pytest.skip("cannot mount a tmpfs here (needs root)")
     yield disk
-    subprocess.run(["umount", "-l", str(disk)], check=True)
+    unmount(disk, check=True)
 
 
 @pytest.mark.parametrize("ranks", [1, 2])
@@ -105,7 +103,7 @@ def test_full_disk_stops_cleanly_and_restarts_after_space_is_freed(small_disk, r
     assert full.stderr.count("No space left on device") == 1, full.stderr
     left = check_folder(out)
     assert 0 < left["records"] < 41
-    subprocess.run(["mount", "-o", "remount,size=20m", str(small_disk)], check=True)
+    grow_tmpfs(small_disk, "20m")
     restarted = run_paper(ranks, out, 40, 8, "--restart")
     assert restarted.returncode == 0, restarted.stderr
     check_folder(out, complete_steps=41, k=1.0 / 40)

@@ -6,7 +6,6 @@ are skipped above output.snapshot_max_nodes."""
 import csv
 import json
 import pathlib
-import shutil
 import subprocess
 import sys
 

@@ -1,8 +1,8 @@
 """O(1) memory of the history recursion: for the constant and exponential kernels the state
 kept between steps (the sums P_i,n and the last strain parts of contactvisco/memory.py) has the
 same size after 5 and after 50 steps; the table kernel, summed directly, keeps every strain, so
-its state grows by one strain array per step. benchmarks/time_linearity.py times the same
-contrast. (The recursion equals the direct sum of eq (19): tests/test_memory.py.)"""
+its state grows by one strain array per step. benchmarks/performance/time_linearity.py times
+the same contrast. (The recursion equals the direct sum of eq (19): tests/unit/test_memory.py.)"""
 import math
 
 import numpy as np

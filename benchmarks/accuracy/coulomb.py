@@ -1,4 +1,4 @@
-"""Coulomb friction measured (run by hand: python benchmarks/coulomb.py; about 3 minutes).
+"""Coulomb friction measured (run by hand: python benchmarks/accuracy/coulomb.py; about 3 minutes).
 
 1. Cattaneo-Mindlin under refinement (contactvisco.studies.coulomb.cattaneo_mindlin): the cylinder
    at nu = 0.49 with contact mesh sizes a/5.6 .. a/44: errors of the stick-zone half-width c,
@@ -12,16 +12,20 @@
 Writes benchmarks/results/coulomb.{json,md}.
 """
 import math
+import pathlib
+import sys
 import time
 
 import numpy as np
-from common import write_results
 from mpi4py import MPI
 
 from contactvisco.scene import loader as scene_module
 from contactvisco.studies.coulomb import cattaneo_mindlin, cattaneo_scene
 from contactvisco.solver.time_loop import simulate
 from contactvisco.studies.verification import orders
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
 
 KEYS = ("h", "a", "a_over_h", "nu", "load_ratio", "c", "c_h", "c_error", "stick_centre", "q_error",
         "q_error_l2", "F_error", "p_error", "newton", "unknowns")

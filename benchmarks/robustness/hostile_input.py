@@ -1,5 +1,5 @@
 """Hostile and malformed input on the command line (run by hand:
-python benchmarks/hostile_input.py).
+python benchmarks/robustness/hostile_input.py).
 
 Each case runs `contactvisco` in a fresh working folder and records the exit code, whether a
 traceback was printed, whether any file appeared outside the output folder (or a marker file
@@ -8,12 +8,14 @@ benchmarks/results/hostile_input.md (and docs/reliability.md).
 """
 import json
 import pathlib
-import subprocess
 import sys
 import tempfile
 import time
 
-from common import write_results
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
+from helpers import run_cli  # noqa: E402
+
 
 SMALL = ["--set", "geometry.cells=[4, 4]", "--set", "time.steps=2", "--quiet"]
 MARKER = "PWNED"
@@ -119,8 +121,7 @@ def run_case(label, args):
                 args = args + ["--out", str(out)]
         before = {p for p in folder.rglob("*")}
         tick = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "contactvisco", *args], cwd=folder,
-                              capture_output=True, text=True, timeout=600)
+        proc = run_cli(*args, cwd=folder, timeout=600)
         seconds = time.perf_counter() - tick
         outside = [p for p in folder.rglob("*") if p not in before and out not in p.parents
                    and p != out]

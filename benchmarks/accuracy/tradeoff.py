@@ -2,7 +2,7 @@
 (benchmarks/scenes/strip_punch.toml), each recommendation checked against a reference finer
 than its ladder (one mesh level above the top, twice the largest step count):
 
-    python benchmarks/tradeoff.py [scene ...]
+    python benchmarks/accuracy/tradeoff.py [scene ...]
 
 Writes results/tradeoff_<scene>.json (the ladder, the recommendation, the check) and the table
 results/tradeoff_scenes.md. Targets and budgets per scene below: the ladder is the command's
@@ -14,13 +14,15 @@ import pathlib
 import sys
 import time
 
-from common import RESULTS
 from mpi4py import MPI
 
 from contactvisco.studies import tradeoff
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import RESULTS, SCENES, write_markdown  # noqa: E402
+
 COMM = MPI.COMM_WORLD
-USER = str(pathlib.Path(__file__).parent / "scenes" / "strip_punch.toml")
+USER = str(SCENES / "strip_punch.toml")
 #: scene: (target, measure, levels, coarsest, budget s, --set lines)
 CASES = {
     "paper": (0.05, "contact_pressure", 4, 0.25, 60, []),
@@ -79,8 +81,7 @@ def table():
             f"{rec['estimated_error']:.3g} | {check['error']:.3g} | "
             f"{'yes' if check['within_target'] else 'NO'} | {rec['wall_s']:.2f} | "
             f"`{' '.join(s for s in check['reference_set'] if 'quadrature' not in s)}` |")
-    (RESULTS / "tradeoff_scenes.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_markdown("tradeoff_scenes", lines)
 
 
 if __name__ == "__main__":

@@ -1,5 +1,6 @@
-"""The speed-accuracy grid behind the presets (run by hand: python benchmarks/tradeoff_grid.py;
-writes results/tradeoff.json, .md, .png). The per-scene ladder is benchmarks/tradeoff.py.
+"""The speed-accuracy grid behind the presets (run by hand:
+python benchmarks/accuracy/tradeoff_grid.py; writes results/tradeoff.json, .md, .png). The
+per-scene ladder is benchmarks/accuracy/tradeoff.py.
 
 1. Paper scene under refinement in space: 16..128 cells per side at k = 0.1, both time rules,
    against the 128 run of the same rule.
@@ -17,6 +18,7 @@ no set-up).
 """
 import json
 import math
+import pathlib
 import sys
 
 import matplotlib
@@ -24,13 +26,15 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from common import RESULTS  # noqa: E402
 from mpi4py import MPI  # noqa: E402
 
 from contactvisco.scene import loader as scene_module  # noqa: E402
 from contactvisco.solver.time_loop import simulate  # noqa: E402
 from contactvisco.solver.newton import NewtonFailure  # noqa: E402
 from contactvisco.studies.verification import hertz  # noqa: E402
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import RESULTS, write_markdown  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 
@@ -182,8 +186,7 @@ def save(out):
 def report(out):
     """results/tradeoff.md (printed too) and results/tradeoff.png."""
     lines = report_lines(out)
-    (RESULTS / "tradeoff.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_markdown("tradeoff", lines)
     report_figure(out)
 
 

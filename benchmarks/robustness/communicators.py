@@ -3,8 +3,8 @@ how many times it goes before MPI runs out of communicators (MPICH gives a proce
 Each problem holds a few communicators (its mesh's and index maps'); once it is collected they
 must be freed, so the count should reach the limit asked for.
 
-    python benchmarks/communicators.py [problem|solve] [N]
-    mpiexec -n 2 python benchmarks/communicators.py solve 1200
+    python benchmarks/robustness/communicators.py [problem|solve] [N]
+    mpiexec -n 2 python benchmarks/robustness/communicators.py solve 1200
 """
 import gc
 import sys

@@ -13,21 +13,25 @@ arrays (History.state()) at the end of the run, per rank.
 Also, without a mesh: the number of exponentials of the fit and its measured relative error
 against T/k and the tolerance (the count grows like log(T/k)).
 
-    python benchmarks/powerlaw_cost.py [--cells 8]
+    python benchmarks/performance/powerlaw_cost.py [--cells 8]
 """
 import argparse
 import json
 import math
+import pathlib
 import statistics
+import sys
 import time
 
 from mpi4py import MPI
 
-from common import RESULTS
 from contactvisco.model import kernels
 from contactvisco.scene import loader as scene_module
 from contactvisco.fem.problem import Problem
 from contactvisco.solver.time_loop import simulate
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
 
 K = 0.01
 KERNELS = {"power": ["memory.kernel='power'", "memory.alpha=100.0", "memory.tau=0.1",
@@ -122,9 +126,6 @@ def main():
 
 def write(rows, counts, cells, ranks):
     name = f"powerlaw_cost_np{ranks}"
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{name}.json").write_text(json.dumps({"runs": rows, "terms": counts},
-                                                     indent=1))
     head = " / ".join(f"step {w}" for w in WINDOWS)
     lines = [
         f"Paper scene, {cells} x {cells} cells, {ranks} rank(s), k = {K}, trapezoid rule, "
@@ -159,8 +160,7 @@ def write(rows, counts, cells, ranks):
     for c in counts:
         lines.append(f"| {c['beta']} | {c['tol']:g} | {' / '.join(map(str, c['terms']))} | "
                      f"{max(c['errors']):.1e} |")
-    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_results(name, {"runs": rows, "terms": counts}, lines)
 
 
 if __name__ == "__main__":

@@ -10,22 +10,25 @@
    at N = 2000 and N = 4000 steps (same T): wall time of the command and the ratio
    (target: 4000 steps at most 2.2 times 2000 steps).
 
-    python benchmarks/output_cost.py [--skip-runs]          (1 rank)
-    mpirun -n 2 python benchmarks/output_cost.py --skip-runs  (per-step part on 2 ranks)
+    python benchmarks/performance/output_cost.py [--skip-runs]            (1 rank)
+    mpirun -n 2 python benchmarks/performance/output_cost.py --skip-runs
+                                                  (the per-step part on 2 ranks)
 """
 import argparse
 import json
 import os
 import pathlib
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
 
 from mpi4py import MPI
 
-from common import RESULTS
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
+from helpers import run_cli  # noqa: E402
+
 
 STEPS = 200
 RUNS = (2000, 4000)
@@ -83,9 +86,8 @@ def per_step(comm, folder: pathlib.Path) -> dict:
 def end_to_end(steps: int, folder: pathlib.Path) -> dict:
     out = folder / f"run{steps}"
     tick = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "contactvisco", "run", "paper", "--set",
-                           "geometry.cells=[16, 16]", "--set", f"time.steps={steps}",
-                           "--quiet", "--out", str(out)], capture_output=True, text=True)
+    proc = run_cli("run", "paper", "--set", "geometry.cells=[16, 16]", "--set",
+                   f"time.steps={steps}", "--quiet", "--out", out, timeout=None)
     wall = time.perf_counter() - tick
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr)
@@ -109,15 +111,13 @@ def main():
         return
     shutil.rmtree(folder, ignore_errors=True)
     name = f"output_cost_np{comm.size}"
-    (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=1))
     lines = [f"# Output cost ({comm.size} rank(s))", "", "| per step | ms |", "|---|---|"]
     lines += [f"| {k} | {v * 1e3:.3f} |" for k, v in result["per_step_s"].items()]
     if "runs" in result:
         lines += ["", "| steps | wall s | output bytes |", "|---|---|---|"]
         lines += [f"| {r['steps']} | {r['wall_s']:.1f} | {r['bytes']} |" for r in result["runs"]]
         lines += ["", f"ratio 4000/2000: {result['ratio_4000_2000']:.2f} (target <= 2.2)"]
-    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_results(name, result, lines)
 
 
 if __name__ == "__main__":

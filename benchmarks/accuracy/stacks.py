@@ -4,29 +4,27 @@ run: Newton iterations per step, contact-node values of every step, probes and t
 zone counts. Writes results/stacks.{md,json}; exits 1 if any run differs by more than the
 tolerance (relative to each column's largest value).
 
-    python benchmarks/stacks.py [--scene paper] [--tolerance 1e-10]
+    python benchmarks/accuracy/stacks.py [--scene paper] [--tolerance 1e-10]
 
 Needs both environments (`make install` and `make STACK=pip install`). Uses only the standard
 library, so any Python runs it.
 """
 import argparse
 import csv
-import json
-import os
 import pathlib
 import shutil
 import subprocess
 import sys
 import tempfile
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-RESULTS = pathlib.Path(__file__).parent / "results"
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
+from helpers import ENV, ROOT, read_steps  # noqa: E402
+
 ROUTES = {
     "debian": (ROOT / ".venv/bin/contactvisco", [shutil.which("mpirun") or "mpirun"]),
     "pip": (ROOT / ".venv-pip/bin/contactvisco", [str(ROOT / ".venv-pip/bin/mpiexec")]),
 }
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
 def run(route: str, ranks: int, scene: str, folder: pathlib.Path) -> pathlib.Path:
@@ -41,8 +39,7 @@ def run(route: str, ranks: int, scene: str, folder: pathlib.Path) -> pathlib.Pat
 
 def read(out: pathlib.Path) -> dict:
     """Newton counts, probes and final counts (steps.jsonl) and the contact rows (CSV)."""
-    steps = [json.loads(line) for line in (out / "steps.jsonl").read_text().splitlines()
-             if line.strip()]
+    steps = read_steps(out)
     with open(out / "contact_nodes.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     return {"newton": [s["newton_iterations"] for s in steps],
@@ -104,10 +101,7 @@ def main():
         zones = "/".join(str(v) for v in row["final"].values())
         lines.append(f"| {row['route']} | {row['ranks']} | {' '.join(map(str, row['newton']))}"
                      f" | {zones} | {row['difference']:.1e} | {'yes' if row['agrees'] else 'NO'} |")
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "stacks.json").write_text(json.dumps(table, indent=1))
-    (RESULTS / "stacks.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_results("stacks", table, lines)
     shutil.rmtree(folder, ignore_errors=True)
     return 1 if failed else 0
 

@@ -9,21 +9,25 @@ iteration of the steps after t_0; the CPU time of the whole run per Newton itera
 kept, as it depends less on other jobs on a shared machine. Writes
 benchmarks/results/<out>.{json,md}.
 
-    python benchmarks/gamg.py --sizes 64 128 256 --variants direct default current sor ...
-    python benchmarks/gamg.py --one sor 128        # one configuration, in this process
-    python benchmarks/gamg.py --scene block3d --sizes 0.04 0.025 --variants direct current
+    python benchmarks/performance/gamg.py --sizes 64 128 256 \
+        --variants direct default current sor ...
+    python benchmarks/performance/gamg.py --one sor 128     # one configuration, in this process
+    python benchmarks/performance/gamg.py --scene block3d --sizes 0.04 0.025 \
+        --variants direct current
 
 --scene block3d runs the 3D block instead; its sizes are gmsh mesh sizes h (box3d).
 """
 import argparse
 import json
+import pathlib
 import subprocess
 import sys
 import time
 
-from common import write_results
-
 from contactvisco.solver.newton import GAMG_OPTIONS
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
 
 #: The GAMG options the variants change: the former solver.GAMG_OPTIONS (threshold 0.01, the
 #: interpolation reused, PETSc's default).

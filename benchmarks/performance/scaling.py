@@ -7,18 +7,22 @@ Newton iterations, Krylov iterations per Newton iteration, wall time, and the ti
 linear-elastic assembly + solve on the same mesh with the same linear solver (the floor a
 Newton iteration cannot go below). Writes benchmarks/results/scaling.{json,md}.
 
-    python benchmarks/scaling.py [--quick] [--only paper|block3d]
-    python benchmarks/scaling.py --one paper 128 direct     # one configuration (under mpirun)
+    python benchmarks/performance/scaling.py [--quick] [--only paper|block3d]
+    python benchmarks/performance/scaling.py --one paper 128 direct   # one configuration
+                                                          # (under mpirun)
 """
 import argparse
 import json
-import os
+import pathlib
 import resource
 import subprocess
 import sys
 import time
 
-from common import RESULTS, assemble_linear, write_markdown
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import RESULTS, assemble_linear, write_markdown  # noqa: E402
+from helpers import mpi_env  # noqa: E402
+
 
 PYTHON = sys.executable
 
@@ -147,7 +151,7 @@ def main():
         one(scene, float(size) if scene == "block3d" else int(size), solver, args.steps)
         return
     from contactvisco.fem import compat
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    env = mpi_env(oversubscribe=False)
     rows = []
     path = RESULTS / f"{args.out}.json"
     if path.exists():

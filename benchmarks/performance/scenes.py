@@ -1,13 +1,17 @@
 """Every built-in scene: unknowns, steps, Newton iterations and wall time, on the ranks it is
 started with (python for 1, mpirun -n 2 for 2).
 
-    python benchmarks/scenes.py
-    mpirun -n 2 python benchmarks/scenes.py
+    python benchmarks/performance/scenes.py
+    mpirun -n 2 python benchmarks/performance/scenes.py
 """
+import pathlib
+import sys
 from mpi4py import MPI
 
-from common import step_statistics, timed_run, write
 from contactvisco.scene import loader as scene_module
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import step_statistics, timed_run, write  # noqa: E402
 
 
 def main():

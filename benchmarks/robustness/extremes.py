@@ -1,4 +1,4 @@
-"""Stability at the extremes (run by hand: python benchmarks/extremes.py).
+"""Stability at the extremes (run by hand: python benchmarks/robustness/extremes.py).
 
 Each parameter is pushed to its ends on the paper scene (16 x 16, so the study stays fast) and
 on a scene where part of the contact boundary separates (the paper scene pulled up at its
@@ -6,9 +6,10 @@ right half). Every case either converges, recovers by step cutting, or stops wit
 The table goes to benchmarks/results/extremes.md (and docs/extremes.md).
 """
 import json
+import pathlib
+import sys
 import time
 
-from common import write_results
 from mpi4py import MPI
 
 from contactvisco.model.stability import stability_number
@@ -16,6 +17,9 @@ from contactvisco.errors import SceneError
 from contactvisco.scene import loader as scene_module
 from contactvisco.solver.time_loop import simulate
 from contactvisco.solver.newton import NewtonFailure
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
 
 # The study runs the paper's rule past its stability limit on purpose (marked in the table).
 BASE = ["geometry.cells=[16, 16]", "output.probes=[[1.0, 1.0], [1.0, 0.0]]",

@@ -12,20 +12,23 @@ With O(1) history work the loop time grows like N (ratio 1000/100 near 10) and t
 time per step is the same at step 10 and at step 1000. With the direct sum the history time
 at step n grows like n, and its total like N^2 (ratio near 100).
 
-    python benchmarks/time_linearity.py [--cells 16] [--repeat 2]
+    python benchmarks/performance/time_linearity.py [--cells 16] [--repeat 2]
 """
 import argparse
-import json
 import math
+import pathlib
 import statistics
+import sys
 import time
 
 from mpi4py import MPI
 
-from common import RESULTS
 from contactvisco.scene import loader as scene_module
 from contactvisco.fem.problem import Problem
 from contactvisco.solver.time_loop import simulate
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
 
 STEPS = (100, 1000)
 ALPHA, TAU = 100.0, 0.2
@@ -136,8 +139,6 @@ def main():
 
 def write(rows, cells, ranks):
     name = "time_linearity"
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{name}.json").write_text(json.dumps(rows, indent=1))
     n0, n1 = STEPS
     ms = 1e3
     lines = [
@@ -174,8 +175,7 @@ def write(rows, cells, ranks):
                 + "/".join(str(v) for v in x["final_status"].values()) + " |")
     lines += ["", "Kernels: " + "; ".join(f"{r['kernel']}: {r['description']}" for r in rows)
               + "."]
-    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_results(name, rows, lines)
 
 
 if __name__ == "__main__":

@@ -2,11 +2,12 @@
 on 1 and on 2 ranks, signals, a full disk, a folder in use, an error on one rank, damaged
 checkpoints. Each case records the exit code, how long the job took to end, what the folder
 held (step records, XDMF steps read back, checkpoint) and whether --restart completed the
-time series once (tests/fault_cases.check_folder checks every file).
+time series once (tests/helpers.check_folder checks every file).
 
-    python benchmarks/reliability.py --part kill1     # kill -9 campaign, 1 rank (~3 min)
-    python benchmarks/reliability.py --part kill2     # kill -9 campaign, 2 ranks (~5 min)
-    python benchmarks/reliability.py --part other     # signals, disk, folder, checkpoints
+    python benchmarks/robustness/reliability.py --part kill1  # kill -9, 1 rank (~3 min)
+    python benchmarks/robustness/reliability.py --part kill2  # kill -9, 2 ranks (~5 min)
+    python benchmarks/robustness/reliability.py --part other  # signals, disk, folder,
+                                                              # checkpoints
 
 Results: benchmarks/results/reliability_<part>.json and .md (one table row per case).
 """
@@ -17,15 +18,14 @@ import pathlib
 import random
 import shutil
 import signal
-import subprocess
 import sys
 import tempfile
 import time
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
-from common import RESULTS  # noqa: E402
-from fault_cases import (EXIT_S, alive, check_folder, end, rank_pids, run,  # noqa: E402
-                         start, wait_for)
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
+from helpers import (alive, block_rank0_file, check_folder, end, grow_tmpfs,  # noqa: E402
+                     mount_tmpfs, rank_pids, run_paper, start_paper, unmount, wait_for)
 
 STEPS = 60
 #: Steps completed before the kill (0: during set-up, before the first step is written).
@@ -41,10 +41,10 @@ def outcome(out, ranks, steps, code, seconds, note=""):
     except AssertionError as err:
         row.update(left_ok=False, left_error=str(err))
         return row
-    restart = run(ranks, out, steps, 16, "--restart")
+    restart = run_paper(ranks, out, steps, 16, "--restart")
     if restart.returncode == 2 and "no checkpoint" in restart.stderr:
         row["restart"] = "refused: no checkpoint (no step completed); rerun with --overwrite"
-        restart = run(ranks, out, steps, 16, "--overwrite")
+        restart = run_paper(ranks, out, steps, 16, "--overwrite")
     else:
         row["restart"] = f"exit {restart.returncode}"
     try:
@@ -61,7 +61,7 @@ def kill_campaign(ranks, root):
     for i, moment in enumerate(MOMENTS):
         out = root / f"kill{ranks}-{i}"
         victim = i % ranks
-        proc = start(ranks, out, STEPS)
+        proc = start_paper(ranks, out, STEPS)
         pids = rank_pids(out, proc, ranks)
         if moment and not wait_for(out, proc, moment):
             rows.append({"case": f"kill -9 rank {victim} after {moment} steps",
@@ -86,7 +86,7 @@ def signal_cases(root):
              (2, "rank 0", signal.SIGINT, 30)]
     for ranks, target, sig, moment in cases:
         out = root / f"sig-{ranks}-{target.replace(' ', '')}-{sig.name}"
-        proc = start(ranks, out, 200)
+        proc = start_paper(ranks, out, 200)
         pids = rank_pids(out, proc, ranks)
         wait_for(out, proc, moment)
         pid = proc.pid if target == "mpirun" else pids[-1 if target == "rank 1" else 0]
@@ -106,28 +106,27 @@ def disk_cases(root):
     for ranks in (1, 2):
         disk = root / f"disk{ranks}"
         disk.mkdir()
-        if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(disk)],
-                          capture_output=True).returncode != 0:
+        if not mount_tmpfs(disk, "400k"):
             rows.append({"case": f"full disk ({ranks} rank(s))", "note": "no tmpfs (not root)"})
             continue
         try:
             tick = time.time()
-            proc = run(ranks, disk / "run", 40, 8)
+            proc = run_paper(ranks, disk / "run", 40, 8)
             seconds = time.time() - tick
             row = {"case": f"full disk, 400 kB tmpfs ({ranks} rank(s))",
                    "exit": proc.returncode, "ended_s": round(seconds, 2),
                    "note": next((line[:120] for line in proc.stderr.splitlines()
                                  if line.startswith("contactvisco:")), "")}
             row.update(check_folder(disk / "run"), left_ok=True)
-            subprocess.run(["mount", "-o", "remount,size=20m", str(disk)], check=True)
-            restart = run(ranks, disk / "run", 40, 8, "--restart")
+            grow_tmpfs(disk, "20m")
+            restart = run_paper(ranks, disk / "run", 40, 8, "--restart")
             row["restart"] = f"exit {restart.returncode} after the disk was grown"
             check_folder(disk / "run", complete_steps=41, k=1 / 40)
             row["complete_after"] = restart.returncode == 0
         except AssertionError as err:
             row["error"] = str(err)
         finally:
-            subprocess.run(["umount", "-l", str(disk)])
+            unmount(disk)
         rows.append(row)
         print(json.dumps(row), flush=True)
     return rows
@@ -136,20 +135,20 @@ def disk_cases(root):
 def folder_cases(root):
     rows = []
     out = root / "busy"
-    proc = start(2, out, 400)
+    proc = start_paper(2, out, 400)
     pids = rank_pids(out, proc, 2)
     for ranks in (1, 2):
         tick = time.time()
-        second = run(ranks, out, 400)
+        second = run_paper(ranks, out, 400)
         rows.append({"case": f"second run ({ranks} rank(s)) into a folder in use",
                      "exit": second.returncode, "ended_s": round(time.time() - tick, 2),
                      "note": second.stderr.strip()[:160]})
     os.kill(pids[0], signal.SIGKILL)
     end(proc)
-    again = run(1, out, 400)
+    again = run_paper(1, out, 400)
     rows.append({"case": "new run into a folder with an earlier run's files (lock freed by "
                  "kill -9)", "exit": again.returncode, "note": again.stderr.strip()[:160]})
-    over = run(1, out, 4, 8, "--overwrite")
+    over = run_paper(1, out, 4, 8, "--overwrite")
     rows.append({"case": "--overwrite", "exit": over.returncode,
                  "note": "earlier files replaced"})
     for r in rows:
@@ -159,11 +158,10 @@ def folder_cases(root):
 
 def one_rank_error(root):
     out = root / "onerank"
-    run(1, out, 3, 8)
-    (out / "contact_nodes.csv").unlink()
-    (out / "contact_nodes.csv").mkdir()
+    run_paper(1, out, 3, 8)
+    block_rank0_file(out)
     tick = time.time()
-    proc = run(2, out, 3, 8, "--restart")
+    proc = run_paper(2, out, 3, 8, "--restart")
     row = {"case": "error on rank 0 only (its CSV cannot be opened), rank 1 in a collective",
            "exit": proc.returncode, "ended_s": round(time.time() - tick, 2),
            "note": f"messages: {proc.stderr.count('IsADirectoryError')}"}
@@ -175,21 +173,21 @@ def checkpoint_cases(root):
     """Damaged or edited checkpoints through the command line: exit 2 naming the file."""
     import test_checkpoint_checks as cases
     base = root / "ckpt"
-    assert run(1, base, 3, 4).returncode == 0
+    assert run_paper(1, base, 3, 4).returncode == 0
     rows = []
     for name, (damage, file, words) in sorted(cases.CASES.items()):
         target = root / f"ckpt-{name.replace(' ', '_')}"
         shutil.copytree(base, target)
         damage(target)
-        proc = run(1, target, 3, 4, "--restart")
+        proc = run_paper(1, target, 3, 4, "--restart")
         rows.append({"case": f"checkpoint: {name}", "exit": proc.returncode,
                      "note": proc.stderr.strip().replace(str(root), "")[:200],
                      "names_file": file in proc.stderr, "says_what": words in proc.stderr})
         print(json.dumps(rows[-1]), flush=True)
-    other = run(1, base, 3, 4, "--restart", "--set", "contact.mu=0.3")
+    other = run_paper(1, base, 3, 4, "--restart", "--set", "contact.mu=0.3")
     rows.append({"case": "restart with another scene", "exit": other.returncode,
                  "note": other.stderr.strip()[-120:]})
-    output_only = run(1, base, 3, 4, "--restart", "--set", "output.xdmf=false")
+    output_only = run_paper(1, base, 3, 4, "--restart", "--set", "output.xdmf=false")
     rows.append({"case": "restart with other output options", "exit": output_only.returncode,
                  "note": "allowed"})
     return rows
@@ -220,9 +218,7 @@ def main():
                     + one_rank_error(root) + checkpoint_cases(root))
     finally:
         shutil.rmtree(root, ignore_errors=True)
-    (RESULTS / f"reliability_{args.part}.json").write_text(json.dumps(rows, indent=1))
-    (RESULTS / f"reliability_{args.part}.md").write_text(table(rows))
-    print(table(rows))
+    write_results(f"reliability_{args.part}", rows, table(rows).splitlines())
 
 
 if __name__ == "__main__":

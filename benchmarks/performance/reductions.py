@@ -1,14 +1,18 @@
 """What each reduction of the model saves: the paper scene (64 x 64 by default) with the terms
 a simpler contact law does not need left out. Unknowns, Newton iterations and time per step.
 
-    python benchmarks/reductions.py [--cells 64]
+    python benchmarks/performance/reductions.py [--cells 64]
 """
 import argparse
+import pathlib
+import sys
 
 from mpi4py import MPI
 
-from common import step_statistics, timed_run, write
 from contactvisco.scene import loader as scene_module
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import step_statistics, timed_run, write  # noqa: E402
 
 VARIANTS = [
     ("full model (lambda_nu, lambda_tau, history)", []),

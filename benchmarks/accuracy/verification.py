@@ -1,4 +1,4 @@
-"""Measured convergence orders (run by hand: python benchmarks/verification.py).
+"""Measured convergence orders (run by hand: python benchmarks/accuracy/verification.py).
 
 Space: the manufactured solution (contactvisco.studies.verification.manufactured), P1 and P2 on
 4..64 cells per side, L2 and H1 errors at T. Time: the uniaxial closed form, both rules and
@@ -6,11 +6,15 @@ both kernels, 10..160 steps. Contact: Hertz at a/R = 0.024 with contact mesh siz
 Writes benchmarks/results/verification.{json,md}.
 """
 import math
+import pathlib
+import sys
 
-from common import write_results
 from mpi4py import MPI
 
 from contactvisco.studies.verification import hertz, manufactured, orders, uniaxial, uniaxial_exact
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
 
 
 def main():

@@ -4,12 +4,13 @@ For each mesh: Newton iterations per step, wall time per step and per Newton ite
 the cost of one linear-elastic assembly + MUMPS solve on the same mesh (the floor a Newton
 iteration cannot go below). Writes benchmarks/results/paper_scaling.{json,md}.
 
-    python benchmarks/paper_scaling.py [--sizes 32 64 128] [--repeat 3]
+    python benchmarks/performance/paper_scaling.py [--sizes 32 64 128] [--repeat 3]
 """
 import argparse
 import json
 import pathlib
 import statistics
+import sys
 import time
 
 import numpy as np
@@ -21,10 +22,9 @@ from petsc4py import PETSc
 from contactvisco.fem import compat, geometry
 from contactvisco.scene import loader as scene_module
 from contactvisco.model.material import elasticity, lame_constants, strain
-from common import RESULTS, assemble_linear, timed_run, write_markdown
 
-HERE = pathlib.Path(__file__).parent
-
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import assemble_linear, timed_run, write_results  # noqa: E402
 
 def linear_elastic_solve(scene, repeat):
     """Seconds for one assembly (matrix + vector) and one MUMPS factorization + solve of the
@@ -105,7 +105,6 @@ def measure(n, repeat, comm):
 def write(rows, ranks):
     """results/paper_scaling_np<ranks>.json and .md (rank 0)."""
     name = f"paper_scaling_np{ranks}"
-    (RESULTS / f"{name}.json").write_text(json.dumps(rows, indent=1))
     lines = ["| cells/side | system, solver | unknowns | Newton per step (t_0..t_10) | s/step | "
              "s/Newton it. | s/linear solve (MUMPS) | ratio | run s | final status "
              "(sep/compl/bound) |",
@@ -118,7 +117,7 @@ def write(rows, ranks):
                      f"{r['wall_per_step_s']:.3f} | {r['wall_per_newton_s']:.4f} | "
                      f"{r['linear_elastic_solve_s']:.4f} | {r['newton_over_linear']:.2f} | "
                      f"{r['run_s']:.2f} | {st['separated']}/{st['compliance']}/{st['bound']} |")
-    write_markdown(name, lines)
+    write_results(name, rows, lines)
 
 
 if __name__ == "__main__":

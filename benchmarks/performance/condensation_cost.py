@@ -5,8 +5,8 @@ sticking nodes occur); at that state one NodalCondensation.residual followed by 
 timed REPEAT times (after one warm-up evaluation) and the median and quartiles are written,
 with the Newton counts per step of the shipped paper scene (32 x 32, 10 steps).
 
-    python benchmarks/condensation_cost.py [--label NAME] [--repeat N] [--cells N]
-    python benchmarks/condensation_cost.py --compare OTHER_CHECKOUT [--rounds R]
+    python benchmarks/performance/condensation_cost.py [--label NAME] [--repeat N] [--cells N]
+    python benchmarks/performance/condensation_cost.py --compare OTHER_CHECKOUT [--rounds R]
 
 --compare times another checkout of the package (the folder holding its `contactvisco`)
 against this one on 1 rank, in alternating fresh processes (R rounds each), so that a change in
@@ -24,12 +24,15 @@ import time
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from common import write_results
 
 from contactvisco.fem import compat
 from contactvisco.scene import loader as scene_module
 from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.solver.time_loop import simulate
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
+from common import write_results  # noqa: E402
+from helpers import ROOT  # noqa: E402
 
 
 def evaluation_times(cells: int, repeat: int, comm) -> list[float]:
@@ -69,7 +72,7 @@ def measure(cells: int, repeat: int, comm) -> dict:
 
 def compare(other: str, rounds: int, cells: int, repeat: int):
     """Alternating runs of `other`'s package (before) and this checkout's (after)."""
-    here = str(pathlib.Path(__file__).resolve().parents[1])
+    here = str(ROOT)
     rows = {"before": [], "after": []}
     for _ in range(rounds):
         for label, path in (("before", other), ("after", here)):
