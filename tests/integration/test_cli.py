@@ -40,6 +40,7 @@ def test_run_writes_results(tmp_path):
         assert (out / name).stat().st_size > 0, name
 
 
+@pytest.mark.slow
 def test_plot_redraws_every_figure_from_the_files(tmp_path):
     """The run writes its figures from its own output files; `contactvisco plot` redraws
     them (including the pyvista stress rendering, drawn in a child process) after deletion."""

@@ -330,6 +330,7 @@ def test_restart_continues_the_slip_per_step(tmp_path_factory, monkeypatch):
     assert np.max(np.abs(a["slip_vector"])) > 1e-6       # the last step did slide
 
 
+@pytest.mark.mpi
 @pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="needs mpirun -n 2 or more")
 def test_ranks_agree_with_coulomb():
     """Signorini-Coulomb with slip per step (block, ironing strip, pulled cylinder): the

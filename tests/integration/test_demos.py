@@ -14,7 +14,12 @@ pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts a Jupyter kernel; run on one rank")
 
 
-@pytest.mark.parametrize("demo", DEMOS, ids=[d.stem for d in DEMOS])
+#: Over 10 s each (the 3D block; the paper scene at its full size).
+SLOW = ("block3d", "paper")
+
+
+@pytest.mark.parametrize("demo", [pytest.param(d, marks=pytest.mark.slow) if d.stem in SLOW
+                                  else d for d in DEMOS], ids=[d.stem for d in DEMOS])
 def test_demo_runs_as_notebook(demo, tmp_path, monkeypatch):
     monkeypatch.setitem(os.environ, "CONTACTVISCO_QUICK", "1")   # the kernel inherits it
     jupytext = pytest.importorskip("jupytext")

@@ -102,6 +102,7 @@ def test_units_and_nothing_clipped(paper_folder):
 @pytest.mark.skipif(COMM.size > 1, reason="the plot command on one rank of several would "
                     "initialize PETSc's options there alone, and PETSc's finalize then waits "
                     "for the other ranks; plotting has no parallel part")
+@pytest.mark.slow
 def test_plot_vector_output_and_times(paper_folder, tmp_path):
     folder = tmp_path / "copy"
     shutil.copytree(paper_folder, folder)

@@ -7,7 +7,8 @@ from mpi4py import MPI
 from contactvisco.scene import loader as scene_module
 from contactvisco.solver.time_loop import simulate
 
-pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="needs mpirun -n 2 or more")
+pytestmark = [pytest.mark.mpi,
+              pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="needs mpirun -n 2 or more")]
 
 KEYS = ("x", "u_nu", "u_tau", "reaction_nu", "reaction_tau", "lambda_nu")
 

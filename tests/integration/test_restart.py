@@ -14,8 +14,9 @@ from mpi4py import MPI
 from contactvisco.io.output import read_summary
 from helpers import ENV, alive, cli_command, run_cli
 
-pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
-                                reason="starts its own (MPI) processes; run on one rank")
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
+                                 reason="starts its own (MPI) processes; run on one rank")]
 
 # Enough steps that the run is still going when 20 are written (a step takes about 0.02 s).
 STEPS = 200
@@ -35,7 +36,7 @@ def last_step_rows(path):
     return [r for r in rows if int(r["step"]) == last], rows
 
 
-@pytest.mark.parametrize("ranks", [1, 2])
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
 def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
     reference = tmp_path / "reference"
     uninterrupted = run(ranks, reference)
@@ -85,6 +86,7 @@ def test_killed_run_restarts_to_the_same_answer(tmp_path, ranks):
         assert a["status"] == b["status"]
 
 
+@pytest.mark.mpi
 def test_restart_checks_the_scene_and_works_on_another_rank_count(tmp_path):
     """The checkpoint is keyed by position, so a 1-rank checkpoint restarts on 2 ranks; a
     restart with another scene is refused. A table kernel (direct sum) restarts too."""

@@ -23,6 +23,7 @@ def small_trade(tmp_path_factory):
     return result, out
 
 
+@pytest.mark.convergence
 def test_recommendation_meets_target_against_finer_reference(small_trade):
     result, _ = small_trade
     rec = result["recommended"]
@@ -37,6 +38,7 @@ def test_recommendation_meets_target_against_finer_reference(small_trade):
     assert check["error"] <= rec["estimated_error"]
 
 
+@pytest.mark.convergence
 def test_ladder_estimates_and_front(small_trade):
     result, _ = small_trade
     rows = result["ladder"]

@@ -6,6 +6,8 @@ from mpi4py import MPI
 
 from contactvisco.studies.verification import hertz, manufactured, orders
 
+pytestmark = pytest.mark.convergence
+
 THEORY = {1: {"L2": 2.0, "H1": 1.0}, 2: {"L2": 3.0, "H1": 2.0}}
 
 

@@ -20,7 +20,10 @@ STEPS = 60
 K = 1.0 / STEPS
 
 
-@pytest.mark.parametrize("ranks, victim, at", [(1, 0, 7), (2, 1, 12), (2, 0, 25)])
+@pytest.mark.slow
+@pytest.mark.parametrize("ranks, victim, at", [
+    (1, 0, 7), pytest.param(2, 1, 12, marks=pytest.mark.mpi),
+    pytest.param(2, 0, 25, marks=pytest.mark.mpi)])
 def test_kill9_of_a_rank_keeps_every_completed_step(tmp_path, ranks, victim, at):
     """kill -9 of one real rank after `at` steps: the job ends, every completed step is in
     the files, and --restart completes the series once."""
@@ -42,7 +45,8 @@ def test_kill9_of_a_rank_keeps_every_completed_step(tmp_path, ranks, victim, at)
         assert seen is None or seen == (STEPS + 1, 1.0, 17 * 17, 17 * 17)
 
 
-@pytest.mark.parametrize("ranks", [1, 2])
+@pytest.mark.slow
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
 def test_sigterm_stops_after_a_whole_step_and_a_second_run_is_refused(tmp_path, ranks):
     """While a run holds its folder a second run into it stops at once (exit 2, naming the
     holder); SIGTERM to one rank stops every rank after the same step (exit 143 from the
@@ -70,6 +74,8 @@ def test_sigterm_stops_after_a_whole_step_and_a_second_run_is_refused(tmp_path, 
     check_folder(out, complete_steps=steps + 1, k=1.0 / steps)
 
 
+@pytest.mark.mpi
+@pytest.mark.slow
 def test_error_on_one_rank_ends_both(tmp_path):
     """A file only rank 0 writes cannot be opened (a folder in its place) while rank 1 waits
     in a collective: rank 0 prints the error once and aborts the job."""
@@ -94,7 +100,8 @@ def small_disk(tmp_path):
     unmount(disk, check=True)
 
 
-@pytest.mark.parametrize("ranks", [1, 2])
+@pytest.mark.parametrize("ranks", [
+    1, pytest.param(2, marks=[pytest.mark.mpi, pytest.mark.slow])])
 def test_full_disk_stops_cleanly_and_restarts_after_space_is_freed(small_disk, ranks):
     out = small_disk / "run"
     tick = time.time()

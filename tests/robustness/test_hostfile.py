@@ -19,6 +19,7 @@ from contactvisco.io.output import read_summary
 from helpers import mpi_env
 
 pytestmark = [
+    pytest.mark.mpi, pytest.mark.slow,
     pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                        reason="starts its own (MPI) processes; run on one rank"),
     pytest.mark.skipif(not compat.mpi_launcher(), reason="no MPI launcher"),

@@ -48,6 +48,7 @@ def displacement_norm(problem) -> float:
     return float(np.sqrt(COMM.allreduce(float(u @ u), op=MPI.SUM)))
 
 
+@pytest.mark.slow
 def test_many_runs_leak_no_options_and_no_problems():
     scenes = {False: small(False), True: small(True)}
     before = our_options()

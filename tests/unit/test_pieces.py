@@ -203,6 +203,8 @@ RANK_KEYS = ("x", "u_nu", "u_tau", "lambda_nu", "reaction_tau", "status")
 RANK_SETS = ["geometry.cells=[48, 6]"]
 
 
+@pytest.mark.mpi
+@pytest.mark.slow
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                     reason="starts its own 3 MPI processes; run on one rank")
 def test_three_ranks_split_the_contact_nodes():

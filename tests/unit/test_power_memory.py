@@ -95,6 +95,7 @@ def test_fitted_fractional_history_against_direct(rule):
         direct.commit(eps, k)
 
 
+@pytest.mark.convergence
 @pytest.mark.parametrize("kernel", ["fractional", "power"])
 @pytest.mark.parametrize("rule", ["paper", "trapezoid"])
 def test_uniaxial_creep_closed_form_and_order(kernel, rule):
@@ -157,6 +158,7 @@ def test_paper_scene_fitted_against_direct_sum(kernel, rule):
         [s["status_counts"] for s in runs["direct"].steps]
 
 
+@pytest.mark.mpi
 @pytest.mark.skipif(COMM.size == 1, reason="needs mpirun -n 2 or more")
 @pytest.mark.parametrize("kernel, rule", [("power", "paper"), ("fractional", "trapezoid")])
 def test_ranks_agree(kernel, rule):

@@ -18,6 +18,7 @@ def top_displacement(kernel, rule, T, steps):
     return uniaxial(kernel, rule, T, steps)
 
 
+@pytest.mark.convergence
 @pytest.mark.parametrize("kernel", KERNELS)
 @pytest.mark.parametrize("rule", ["paper", "trapezoid"])
 def test_second_order_in_time(kernel, rule):
