@@ -35,6 +35,37 @@ def timed_run(scene, comm, repeat=2):
     return best
 
 
+class HistoryClock:
+    """Wall time of every Problem.commit and Problem.prepare call (the history update of
+    eq (19)), in call order, from its creation on: it wraps both methods of
+    contactvisco.fem.problem.Problem for the rest of the process."""
+
+    def __init__(self):
+        from contactvisco.fem.problem import Problem
+        self.calls = {"commit": [], "prepare": []}
+        for name, record in self.calls.items():
+            original = getattr(Problem, name)
+
+            def timed(problem, k, original=original, record=record):
+                tick = time.perf_counter()
+                original(problem, k)
+                record.append(time.perf_counter() - tick)
+            setattr(Problem, name, timed)
+
+    def reset(self):
+        for record in self.calls.values():
+            record.clear()
+
+    def per_step(self, N=None):
+        """History seconds of steps 1..N: prepare(k) before the solve, commit(k) after it.
+        Step 0 commits eps_0 only and is left out, like its solve. With N, no step may have
+        been cut."""
+        commit, prepare = self.calls["commit"], self.calls["prepare"]
+        if N is not None:
+            assert len(commit) == N + 1 and len(prepare) == N, "a step was cut"
+        return [p + c for p, c in zip(prepare, commit[1:])]
+
+
 def step_statistics(result):
     steps = result.steps
     iterations = [s["newton_iterations"] for s in steps]

@@ -27,11 +27,10 @@ from mpi4py import MPI
 
 from contactvisco.model import kernels
 from contactvisco.scene import loader as scene_module
-from contactvisco.fem.problem import Problem
 from contactvisco.solver.time_loop import simulate
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
-from common import write_results  # noqa: E402
+from common import HistoryClock, write_results  # noqa: E402
 
 K = 0.01
 KERNELS = {"power": ["memory.kernel='power'", "memory.alpha=100.0", "memory.tau=0.1",
@@ -40,25 +39,6 @@ KERNELS = {"power": ["memory.kernel='power'", "memory.alpha=100.0", "memory.tau=
                           "memory.beta=0.5"]}
 RUNS = {"soe": 10000, "direct": 2000}
 WINDOWS = (10, 100, 1000, 2000, 10000)
-
-
-class HistoryClock:
-    """Wall time of every Problem.commit and Problem.prepare call, in call order."""
-
-    def __init__(self):
-        self.calls = {"commit": [], "prepare": []}
-        for name in self.calls:
-            original = getattr(Problem, name)
-
-            def timed(problem, k, original=original, record=self.calls[name]):
-                tick = time.perf_counter()
-                original(problem, k)
-                record.append(time.perf_counter() - tick)
-            setattr(Problem, name, timed)
-
-    def per_step(self):
-        commit, prepare = self.calls["commit"], self.calls["prepare"]
-        return [p + c for p, c in zip(prepare, commit[1:])]
 
 
 def window(values, end):
@@ -73,8 +53,7 @@ def one_run(kernel, summation, cells, clock):
                                         "time.rule='trapezoid'", f"time.T={N * K}",
                                         f"time.steps={N}", f"memory.summation='{summation}'",
                                         "memory.tolerance=1e-6"] + KERNELS[kernel])
-    for calls in clock.calls.values():
-        calls.clear()
+    clock.reset()
     tick = time.perf_counter()
     result = simulate(scene, comm=MPI.COMM_WORLD, progress=False)
     total = time.perf_counter() - tick

@@ -24,11 +24,10 @@ import time
 from mpi4py import MPI
 
 from contactvisco.scene import loader as scene_module
-from contactvisco.fem.problem import Problem
 from contactvisco.solver.time_loop import simulate
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
-from common import write_results  # noqa: E402
+from common import HistoryClock, write_results  # noqa: E402
 
 STEPS = (100, 1000)
 ALPHA, TAU = 100.0, 0.2
@@ -45,36 +44,6 @@ KERNELS = {
               ["memory.kernel='table'", f"memory.times={TABLE_TIMES}",
                f"memory.values={TABLE_VALUES}"]),
 }
-
-
-class HistoryClock:
-    """Wall time of every Problem.commit and Problem.prepare call, in call order."""
-
-    def __init__(self):
-        self.commit: list[float] = []
-        self.prepare: list[float] = []
-        for name in ("commit", "prepare"):
-            self._wrap(name)
-
-    def _wrap(self, name):
-        original = getattr(Problem, name)
-        record = getattr(self, name)
-
-        def timed(problem, k):
-            tick = time.perf_counter()
-            original(problem, k)
-            record.append(time.perf_counter() - tick)
-        setattr(Problem, name, timed)
-
-    def reset(self):
-        self.commit.clear()
-        self.prepare.clear()
-
-    def per_step(self, N):
-        """History seconds of steps 1..N: prepare(k) before the solve, commit(k) after it.
-        Step 0 commits eps_0 only and is left out, like its solve."""
-        assert len(self.commit) == N + 1 and len(self.prepare) == N, "a step was cut"
-        return [p + c for p, c in zip(self.prepare, self.commit[1:])]
 
 
 def one_run(scene, clock):
