@@ -257,6 +257,33 @@ def check_folder(out, complete_steps=None, k=None) -> dict:
             "checkpoint": checkpoint}
 
 
+# ---- linear algebra at a solved state ----
+
+def mumps_lu(A, comm):
+    """A KSP that solves with the matrix A by MUMPS's LU factorization alone."""
+    from petsc4py import PETSc
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    return ksp
+
+
+def condensed_at(problem):
+    """The displacement-only Newton system at the problem's present state:
+    (NodalCondensation, x), x the displacement as a PETSc vector with its ghost values."""
+    from petsc4py import PETSc
+
+    from contactvisco.fem import compat
+    from contactvisco.solver.condensed import NodalCondensation
+    system = NodalCondensation(problem)
+    x = compat.petsc_vector(problem.u).copy()
+    # copy() copies the owned values only: the lifting reads the ghosts too.
+    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    return system, x
+
+
 # ---- the discrete contact conditions ----
 
 def assert_contact_conditions(table, g, tol=1e-10, prescribed_tangential=None,

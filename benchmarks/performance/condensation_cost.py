@@ -22,17 +22,13 @@ import sys
 import time
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
-
-from contactvisco.fem import compat
 from contactvisco.scene import loader as scene_module
-from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.solver.time_loop import simulate
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
 from common import write_results  # noqa: E402
-from helpers import ROOT  # noqa: E402
+from helpers import ROOT, condensed_at  # noqa: E402
 
 
 def evaluation_times(cells: int, repeat: int, comm) -> list[float]:
@@ -40,9 +36,7 @@ def evaluation_times(cells: int, repeat: int, comm) -> list[float]:
                                         "time.steps=2"])
     scene["output"]["probes"] = []
     problem = simulate(scene, comm=comm, progress=False).problem
-    system = NodalCondensation(problem)
-    x = compat.petsc_vector(problem.u).copy()
-    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    system, x = condensed_at(problem)
     b = x.duplicate()
     times = []
     for i in range(repeat + 1):

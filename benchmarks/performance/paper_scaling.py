@@ -25,6 +25,7 @@ from contactvisco.model.material import elasticity, lame_constants, strain
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
 from common import assemble_linear, timed_run, write_results  # noqa: E402
+from helpers import mumps_lu  # noqa: E402
 
 def linear_elastic_solve(scene, repeat):
     """Seconds for one assembly (matrix + vector) and one MUMPS factorization + solve of the
@@ -44,11 +45,7 @@ def linear_elastic_solve(scene, repeat):
     for _ in range(repeat):
         tick = time.perf_counter()
         A, b = assemble_linear(a, L, bcs)
-        ksp = PETSc.KSP().create(mesh.comm)
-        ksp.setOperators(A)
-        ksp.setType("preonly")
-        ksp.getPC().setType("lu")
-        ksp.getPC().setFactorSolverType("mumps")
+        ksp = mumps_lu(A, mesh.comm)
         x = b.duplicate()
         ksp.solve(b, x)
         times.append(time.perf_counter() - tick)

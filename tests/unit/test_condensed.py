@@ -19,6 +19,7 @@ from contactvisco.scene import loader as scene_module
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.condensed import NodalCondensation, eliminate, node_blocks, recover
 from contactvisco.solver.time_loop import simulate
+from helpers import condensed_at
 
 
 def _dense_and_condensed(rng, n, d, m, kinds):
@@ -143,9 +144,7 @@ def test_node_blocks_are_the_coupled_jacobian(label):
     scene = scene_module.load(name, sets)
     scene["output"]["probes"] = []
     problem = simulate(scene, comm=comm, progress=False).problem
-    system = NodalCondensation(problem)
-    x = compat.petsc_vector(problem.u).copy()
-    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    system, x = condensed_at(problem)
     system.residual(x, x.duplicate())
     B, C, D = system.local_blocks()
     K = _coupled_node_blocks(system, problem.bcs)

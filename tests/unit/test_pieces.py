@@ -19,6 +19,7 @@ from contactvisco.scene import loader as scene_module
 from contactvisco.solver.condensed import replace_rows
 from contactvisco.solver.time_loop import simulate
 from contactvisco.errors import SceneError
+from helpers import condensed_at, mumps_lu
 
 SMALL = ["geometry.cells=[8, 8]", "time.T=0.2", "time.steps=2"]
 
@@ -69,15 +70,6 @@ def test_row_replacement_checks_the_pattern():
         replace_rows(A, np.array([[2, 3]], dtype=PETSc.IntType), P[1:], L[1:])
 
 
-def _lu(A, comm):
-    ksp = PETSc.KSP().create(comm)
-    ksp.setOperators(A)
-    ksp.setType("preonly")
-    ksp.getPC().setType("lu")
-    ksp.getPC().setFactorSolverType("mumps")
-    return ksp
-
-
 def _coupled_step(problem, comm):
     """The Newton step (du, dl) of the assembled coupled system at the current state, as
     arrays over the owned dofs of u and of each multiplier."""
@@ -88,7 +80,7 @@ def _coupled_step(problem, comm):
         block._residual(None, block.x, block.b)
         block._jacobian(None, block.x, block.A, block.A)
         step = block.b.duplicate()
-        _lu(block.A, comm).solve(block.b, step)
+        mumps_lu(block.A, comm).solve(block.b, step)
         step.scale(-1.0)
         out, offset = [], 0
         for f in problem.unknowns:
@@ -104,17 +96,13 @@ def _coupled_step(problem, comm):
 def _condensed_step(problem, comm):
     """The step of the condensed system: J_red du = -F_red, dl recovered node by node.
     Returns du (owned dofs), dl (owned contact nodes, m columns) and the nodes' nullities."""
-    from contactvisco.fem import compat
-    from contactvisco.solver.condensed import NodalCondensation, recover
-    system = NodalCondensation(problem)
-    x = compat.petsc_vector(problem.u).copy()
-    # copy() copies the owned values only: the lifting reads the ghosts too.
-    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    from contactvisco.solver.condensed import recover
+    system, x = condensed_at(problem)
     b = x.duplicate()
     system.residual(x, b)
     system.jacobian()
     du = b.duplicate()
-    _lu(system.J_red, comm).solve(b, du)
+    mumps_lu(system.J_red, comm).solve(b, du)
     du.scale(-1.0)
     Jdu = system.J_contact.createVecLeft()
     system.J_contact.mult(du, Jdu)
