@@ -27,7 +27,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: install demo test test-serial test-parallel benchmark benchmark-scaling \
+.PHONY: install demo test test-serial test-parallel test-fast benchmark benchmark-scaling \
         benchmark-reliability clean apt-packages compare-stacks figures notebook docs
 
 install: $(VENV)/.installed
@@ -69,6 +69,8 @@ endif
 demo: install
 	$(VENV)/bin/contactvisco run paper --out results/paper$(if $(filter pip,$(STACK)),-pip)
 
+# Every test (tests/unit, tests/integration, tests/robustness; markers mpi, slow and
+# convergence select nothing here), on 1 rank and on $(NP).
 test: test-serial test-parallel
 
 # A deadlock between ranks must fail the run, not hang it.
@@ -80,30 +82,41 @@ test-serial: install
 test-parallel: install
 	timeout $(TEST_TIMEOUT) $(MPIRUN) $(PY) -m pytest -q --color=no tests
 
-# Benchmarks write their tables to benchmarks/results/ (run by hand; not part of the tests).
+# The tests that take under about 10 s each, on 1 rank.
+test-fast: install
+	timeout $(TEST_TIMEOUT) $(PY) -m pytest -q -m "not slow" tests
+
+# Benchmarks write their tables to benchmarks/results/ (run by hand; not part of the tests;
+# benchmarks/README.md).
+BENCH := benchmarks
 benchmark: install
-	cd benchmarks && ../$(PY) paper_scaling.py && ../$(PY) reductions.py && \
-	  ../$(PY) scenes.py && $(MPIRUN) ../$(PY) scenes.py && ../$(PY) verification.py && \
-	  ../$(PY) tradeoff.py && ../$(PY) extremes.py && ../$(PY) time_linearity.py
+	$(PY) $(BENCH)/performance/paper_scaling.py && $(PY) $(BENCH)/performance/reductions.py && \
+	  $(PY) $(BENCH)/performance/scenes.py && $(MPIRUN) $(PY) $(BENCH)/performance/scenes.py && \
+	  $(PY) $(BENCH)/accuracy/verification.py && $(PY) $(BENCH)/accuracy/tradeoff.py && \
+	  $(PY) $(BENCH)/robustness/extremes.py && $(PY) $(BENCH)/performance/time_linearity.py
 
 # Size, solver and rank scaling (about an hour on 2 cores; each configuration its own mpirun).
 benchmark-scaling: install
-	cd benchmarks && ../$(PY) scaling.py
+	$(PY) $(BENCH)/performance/scaling.py
 
 # Faults (kill -9 campaigns on 1 and 2 ranks, signals, full disk, damaged checkpoints; about
 # 10 minutes) and the cost of the per-step output: docs/reliability.md.
 benchmark-reliability: install
-	cd benchmarks && ../$(PY) output_cost.py && $(MPIRUN) ../$(PY) output_cost.py --skip-runs && \
-	  ../$(PY) reliability.py --part kill1 && ../$(PY) reliability.py --part kill2 && \
-	  ../$(PY) reliability.py --part other
+	$(PY) $(BENCH)/performance/output_cost.py && \
+	  $(MPIRUN) $(PY) $(BENCH)/performance/output_cost.py --skip-runs && \
+	  $(PY) $(BENCH)/robustness/reliability.py --part kill1 && \
+	  $(PY) $(BENCH)/robustness/reliability.py --part kill2 && \
+	  $(PY) $(BENCH)/robustness/reliability.py --part other
 
-# Both routes give the paper scene's answer to 1e-10 on 1 and 2 ranks (benchmarks/stacks.py).
+# Both routes give the paper scene's answer to 1e-10 on 1 and 2 ranks
+# (benchmarks/accuracy/stacks.py).
 compare-stacks:
 	$(MAKE) STACK=debian install
 	$(MAKE) STACK=pip install
-	python3 benchmarks/stacks.py
+	python3 $(BENCH)/accuracy/stacks.py
 
-# The figures of README.md and docs/ with their signatures (tests/test_figures.py checks them).
+# The figures of README.md and docs/ with their signatures (tests/integration/test_figures.py
+# checks them).
 figures: install
 	$(PY) docs/make_figures.py
 
@@ -117,7 +130,7 @@ notebook: install
 # The documentation (docs/, Sphinx + MyST + numpydoc from Debian's packages), built offline
 # into build/docs with the Debian route's Python, so that autodoc imports the package; every
 # warning (a broken internal link or anchor included) fails it. Then the relative file links
-# of README.md and docs/*.md (tests/test_docs_links.py).
+# of README.md and docs/*.md (tests/unit/test_docs_links.py).
 DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3-sphinx-rtd-theme
 
 docs:
@@ -130,7 +143,7 @@ docs:
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	fi
 	.venv/bin/python -m sphinx -W --keep-going -n -b html docs build/docs
-	.venv/bin/python -m pytest -q tests/test_docs_links.py
+	.venv/bin/python -m pytest -q tests/unit/test_docs_links.py
 	@echo "documentation: build/docs/index.html"
 
 clean:

@@ -1,16 +1,30 @@
-"""Shared by the benchmarks: timing a scene and writing result tables."""
+"""Shared by the benchmarks (performance/, accuracy/, robustness/): timing a scene, its step
+statistics, and writing result tables to benchmarks/results/. Importing it also puts tests/
+on sys.path, so that a benchmark takes the harness it shares with the tests (the command line
+in a child process, the MPI launcher and environment, steps.jsonl, the fault cases) from
+tests/helpers.py. A script in a group folder finds this module with
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/
+
+Only the standard library is imported when it loads (contactvisco inside the functions), so
+accuracy/stacks.py, which needs no FEniCSx, runs under any Python."""
 import json
 import pathlib
 import statistics
+import sys
 import time
 
-from contactvisco.solver.time_loop import simulate
-
-RESULTS = pathlib.Path(__file__).parent / "results"
+BENCHMARKS = pathlib.Path(__file__).resolve().parent
+RESULTS = BENCHMARKS / "results"
+#: Scene files of the benchmarks (a user's scene for `contactvisco tradeoff`).
+SCENES = BENCHMARKS / "scenes"
+if str(BENCHMARKS.parent / "tests") not in sys.path:
+    sys.path.insert(0, str(BENCHMARKS.parent / "tests"))     # tests/helpers.py
 
 
 def timed_run(scene, comm, repeat=2):
     """Best of `repeat` runs (the first also compiles the forms): (seconds, result)."""
+    from contactvisco.solver.time_loop import simulate
     best = None
     for _ in range(repeat):
         tick = time.perf_counter()
@@ -19,6 +33,37 @@ def timed_run(scene, comm, repeat=2):
         if best is None or seconds < best[0]:
             best = (seconds, result)
     return best
+
+
+class HistoryClock:
+    """Wall time of every TimeState.record and TimeState.prepare call (the history update of
+    eq (19)), in call order, from its creation on: it wraps both methods of
+    contactvisco.fem.problem.TimeState for the rest of the process."""
+
+    def __init__(self):
+        from contactvisco.fem.problem import TimeState
+        self.calls = {"record": [], "prepare": []}
+        for name, record in self.calls.items():
+            original = getattr(TimeState, name)
+
+            def timed(state, k, original=original, record=record):
+                tick = time.perf_counter()
+                original(state, k)
+                record.append(time.perf_counter() - tick)
+            setattr(TimeState, name, timed)
+
+    def reset(self):
+        for record in self.calls.values():
+            record.clear()
+
+    def per_step(self, N=None):
+        """History seconds of steps 1..N: prepare(k) before the solve, record(k) after it.
+        Step 0 records eps_0 only and is left out, like its solve. With N, no step may have
+        been cut."""
+        record, prepare = self.calls["record"], self.calls["prepare"]
+        if N is not None:
+            assert len(record) == N + 1 and len(prepare) == N, "a step was cut"
+        return [p + c for p, c in zip(prepare, record[1:])]
 
 
 def step_statistics(result):

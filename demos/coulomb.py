@@ -88,7 +88,7 @@ plt.show()
 # one. The transmitted force $\sum_{x_i \le x} w_i q_i$ is compared with the same sum of the
 # closed form (relative to $Q$): the nodal tractions of P1 carry node-to-node noise at
 # $\nu = 0.49$ (nearly incompressible plane strain locks), their partial sums much less.
-# `benchmarks/coulomb.py` refines the mesh to $a/44$.
+# `benchmarks/accuracy/coulomb.py` refines the mesh to $a/44$.
 
 # %%
 for nu, r in results.items():

@@ -57,7 +57,7 @@ plt.show()
 # %% [markdown]
 # ## Against the closed form
 # The half-width is taken midway between the last node in contact and the next; the pressure
-# at the centre is the nodal value. `benchmarks/verification.py` refines the contact mesh.
+# at the centre is the nodal value. `benchmarks/accuracy/verification.py` refines the contact mesh.
 
 # %%
 summary = hertz(scene=scene)

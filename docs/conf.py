@@ -108,7 +108,7 @@ def percent_to_myst(text: str, name: str) -> str:
     figures = DEMO_FIGURES.get(name)
     if figures:
         out.append("## Its figures\n\nAs committed in `docs/figures/` (drawn by "
-                   "`make figures`, checked by `tests/test_figures.py`):")
+                   "`make figures`, checked by `tests/integration/test_figures.py`):")
         out.extend(f"![{caption}](../figures/{stem}.png)" for stem, caption in figures)
     return "\n\n".join(out) + "\n"
 

@@ -1,12 +1,12 @@
 """Redraw the figures of README.md and docs/ (`make figures`), each with its signature
 (docs/figures/<name>.json: texts and data, see contactvisco.post.figures.signature), which
-tests/test_figures.py compares with what the program draws now.
+tests/integration/test_figures.py compares with what the program draws now.
 
     python docs/make_figures.py [--only paper]
 
 Runs: the paper scene as shipped (paper_*), the Hertz scene (hertz_*), the 3D block
 (block3d_*); the trade-off figure is redrawn from benchmarks/results/tradeoff_paper.json
-(measured by benchmarks/tradeoff.py; wall times are not repeatable, so it is not rerun here).
+(measured by benchmarks/accuracy/tradeoff.py; wall times are not repeatable, so it is not rerun here).
 """
 import json
 import pathlib

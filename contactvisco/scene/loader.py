@@ -27,7 +27,7 @@ DEFAULTS: dict = Scene.defaults()
 
 #: Speed-accuracy presets, relative to the scene's own discretization: mesh refines the mesh
 #: (box cells times mesh; gmsh sizes h, h_* divided by mesh), steps multiplies time.steps.
-#: Chosen from the measured trade-off (benchmarks/tradeoff.py, README): on the built-in scenes
+#: Chosen from the measured trade-off (benchmarks/accuracy/tradeoff.py, README): on the built-in scenes
 #: the space error dominates (the time error at the scenes' own k is 20-50 times smaller), so
 #: no preset refines time; P2 is faster per error on the paper scene but its Newton diverges
 #: on pure Signorini contact (Hertz), so every preset stays P1 with exact nodal conditions.

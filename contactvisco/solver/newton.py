@@ -71,7 +71,7 @@ ITERATIVE_OPTIONS = {
 #: with the rigid motions as near-nullspace. Each Jacobian has other constraint rows (other
 #: active contact nodes) than the first, so the prolongation is rebuilt for every Jacobian
 #: instead of being reused; the aggregation threshold is the one chosen in docs/scaling.md
-#: (benchmarks/gamg.py).
+#: (benchmarks/performance/gamg.py).
 GAMG_OPTIONS = {
     "ksp_type": "gmres",
     "ksp_gmres_restart": 100,

@@ -1,0 +1,34 @@
+"""Every demo in demos/ runs as a notebook (jupytext -> nbclient, a kernel from this
+environment) without error, at the small sizes CONTACTVISCO_QUICK selects, and the paper demo
+prints the paper's zone counts."""
+import os
+
+import pytest
+from mpi4py import MPI
+
+from helpers import ROOT
+
+DEMOS = sorted((ROOT / "demos").glob("*.py"))
+
+pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
+                                reason="starts a Jupyter kernel; run on one rank")
+
+
+#: Over 10 s each (the 3D block; the paper scene at its full size).
+SLOW = ("block3d", "paper")
+
+
+@pytest.mark.parametrize("demo", [pytest.param(d, marks=pytest.mark.slow) if d.stem in SLOW
+                                  else d for d in DEMOS], ids=[d.stem for d in DEMOS])
+def test_demo_runs_as_notebook(demo, tmp_path, monkeypatch):
+    monkeypatch.setitem(os.environ, "CONTACTVISCO_QUICK", "1")   # the kernel inherits it
+    jupytext = pytest.importorskip("jupytext")
+    nbclient = pytest.importorskip("nbclient")
+    notebook = jupytext.read(demo)
+    client = nbclient.NotebookClient(notebook, timeout=600, kernel_name="python3",
+                                     resources={"metadata": {"path": str(tmp_path)}})
+    client.execute()
+    text = "".join(out.get("text", "") for cell in notebook.cells if cell.cell_type == "code"
+                   for out in cell.get("outputs", []))
+    if demo.stem == "paper":
+        assert "{'separated': 1, 'compliance': 13, 'bound': 19}" in text

@@ -1,0 +1,163 @@
+"""The figures: the committed docs figures match what the program draws now (their
+signatures: texts and data), every axis carries units, no text leaves the figure, vector
+output, --times, and step records read from either output layout."""
+import json
+import pathlib
+import shutil
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from mpi4py import MPI
+
+from contactvisco.post import figures
+from contactvisco.scene import loader as scene_module
+from contactvisco.studies import tradeoff
+from contactvisco.cli import main
+from contactvisco.solver.time_loop import simulate
+from helpers import ROOT
+
+COMM = MPI.COMM_WORLD
+DOCS = ROOT / "docs" / "figures"
+
+
+@pytest.fixture(scope="module")
+def paper_folder(tmp_path_factory):
+    """The paper scene as shipped (as docs/make_figures.py runs it), in a folder every rank
+    names alike."""
+    folder = pathlib.Path(COMM.bcast(str(tmp_path_factory.mktemp("paper")), root=0))
+    scene = scene_module.load("paper")
+    scene["output"].update(xdmf=False, checkpoint=False)
+    simulate(scene, folder, progress=False)
+    COMM.barrier()
+    return folder
+
+
+def committed(stem):
+    path = DOCS / f"{stem}.json"
+    assert path.exists(), f"{path} missing: run make figures"
+    return json.loads(path.read_text())
+
+
+def test_docs_figures_match_the_program(paper_folder):
+    if COMM.rank != 0:
+        return                                        # the figures are drawn on rank 0
+    drawn = dict(figures.build_all(paper_folder))
+    for stem in ("contact_displacements", "contact_reactions", "deformed_mesh", "stress",
+                 "probes"):
+        problems = figures.compare_signatures(figures.signature(drawn[stem]),
+                                              committed(f"paper_{stem}"))
+        assert not problems, f"docs/figures/paper_{stem}.png is stale (make figures): " \
+                             f"{problems[:3]}"
+    results = ROOT / "benchmarks" / "results"
+    from matplotlib.figure import Figure
+    fig = tradeoff.draw(json.loads((results / "tradeoff_paper.json").read_text()), Figure())
+    assert not figures.compare_signatures(figures.signature(fig), committed("tradeoff"))
+
+
+def test_signature_sees_a_changed_label(paper_folder):
+    if COMM.rank != 0:
+        return
+    drawn = dict(figures.build_all(paper_folder))["contact_reactions"]
+    before = figures.signature(drawn)
+    drawn.axes[0].set_ylabel("traction")
+    assert figures.compare_signatures(figures.signature(drawn), before)
+    line = drawn.axes[0].get_lines()[0]
+    line.set_ydata(np.asarray(line.get_ydata()) * 1.01)
+    assert any("numbers" in p for p in figures.compare_signatures(
+        figures.signature(drawn), before))
+
+
+def _texts(fig):
+    return [t for t in fig.findobj(lambda a: hasattr(a, "get_text") and
+                                   hasattr(a, "get_window_extent"))
+            if t.get_visible() and t.get_text().strip()]
+
+
+def test_units_and_nothing_clipped(paper_folder):
+    if COMM.rank != 0:
+        return
+    with figures.matplotlib.rc_context(figures.STYLE):
+        for stem, fig in figures.build_all(paper_folder):
+            renderer = FigureCanvasAgg(fig).get_renderer()
+            fig.draw(renderer)
+            # Everything drawn (tick labels in view, titles, legends, colour-bar labels)
+            # inside the canvas to 0.05 in (the saved files' tight box takes that in): the
+            # figure keeps its column width and nothing is cut at the edge.
+            drawn, canvas = fig.get_tightbbox(renderer), fig.bbox_inches
+            assert drawn.x0 >= -0.05 and drawn.y0 >= -0.05 and \
+                drawn.x1 <= canvas.x1 + 0.05 and drawn.y1 <= canvas.y1 + 0.05, \
+                f"{stem}: drawn {drawn} beyond the canvas {canvas}"
+            for text in _texts(fig):      # and no text longer than the figure is tall/wide
+                e = text.get_window_extent(renderer)
+                assert e.width <= fig.bbox.width and e.height <= fig.bbox.height, \
+                    f"{stem}: '{text.get_text()}' larger than the figure"
+            for ax in fig.axes:
+                for text in (ax.get_xlabel(), ax.get_ylabel()):
+                    if text:
+                        assert "[" in text and "]" in text, f"{stem}: no unit in '{text}'"
+            assert fig.get_size_inches()[0] <= figures.PAGE + 1e-9
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="the plot command on one rank of several would "
+                    "initialize PETSc's options there alone, and PETSc's finalize then waits "
+                    "for the other ranks; plotting has no parallel part")
+@pytest.mark.slow
+def test_plot_vector_output_and_times(paper_folder, tmp_path):
+    folder = tmp_path / "copy"
+    shutil.copytree(paper_folder, folder)
+    assert main(["plot", str(folder), "--format", "svg", "--times", "0.1", "1",
+                 "--dpi", "50"]) == 0
+    svg = (folder / "stress_t0.1.svg").read_text()
+    assert "x [m]" in svg and "N/m²" in svg and "1-99th percentile" in svg
+    assert (folder / "contact_reactions_t0.1.svg").exists()
+    assert (folder / "contact_reactions_t1.svg").exists()
+    assert main(["plot", str(folder), "--format", "pdf"]) == 0
+    assert (folder / "stress.pdf").read_bytes()[:5] == b"%PDF-"
+    assert main(["plot", str(folder), "--dpi", "0"]) == 2
+
+
+def test_step_records_from_either_layout(paper_folder, tmp_path):
+    """summary.json with the steps in it, or a small summary and steps.jsonl."""
+    if COMM.rank != 0:
+        return
+    steps = figures.step_records(paper_folder)                  # from steps.jsonl
+    assert [s["step"] for s in steps] == list(range(len(steps))) and len(steps) > 1
+    folder = tmp_path / "summary_with_steps"                    # the earlier layout
+    shutil.copytree(paper_folder, folder)
+    summary = json.loads((folder / "summary.json").read_text())
+    summary["steps"] = steps
+    (folder / "summary.json").write_text(json.dumps(summary))
+    (folder / "steps.jsonl").unlink()
+    assert figures.step_records(folder) == steps
+    cut = tmp_path / "cut"
+    shutil.copytree(paper_folder, cut)
+    with open(cut / "steps.jsonl", "a") as f:
+        f.write('{"step": 99, "t"')                             # a line cut by a hard stop
+    assert figures.step_records(cut) == steps
+    a = dict(figures.build_all(paper_folder))["probes"]
+    b = dict(figures.build_all(folder))["probes"]
+    assert not figures.compare_signatures(figures.signature(b), figures.signature(a))
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="may start a rendering process; run on one rank")
+def test_pyvista_rendering_shows_the_colour_range():
+    """Two tetrahedra with values 0 and 1 on the colour range (-1, 1): the picture holds
+    viridis' middle and last colours and not its first (in this process or in the child
+    process, whichever render.in_process_safe() picks on this stack)."""
+    pytest.importorskip("pyvista")
+    from matplotlib import colormaps
+
+    from contactvisco.post import render
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], float)
+    cells = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+    images = render.images(points, cells, np.zeros_like(points), np.array([0.0, 1.0]),
+                           (-1.0, 1.0), [("iso", None), ("face", [0.0, 0.0, -1.0])])
+    assert images is not None and len(images) == 2
+    rgb = np.concatenate([image[..., :3].reshape(-1, 3) for image in images]).astype(float)
+    assert np.mean(np.all(rgb > 250, axis=1)) > 0.3               # a white background
+    for end, present in ((0.0, False), (0.5, True), (1.0, True)):
+        # lighting scales brightness: compare the colour's direction
+        target = np.array(colormaps["viridis"](end)[:3]) * 255
+        cosine = rgb @ target / (np.linalg.norm(rgb, axis=1) * np.linalg.norm(target) + 1e-12)
+        assert (np.mean(cosine > 0.98) > 0.001) == present, f"viridis({end})"
