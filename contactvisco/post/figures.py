@@ -23,7 +23,8 @@ from matplotlib.figure import Figure
 from matplotlib.collections import LineCollection
 from matplotlib.patches import Rectangle
 
-from contactvisco.io.output import STATUSES, read_summary
+from contactvisco.fem.contact_state import STATUSES
+from contactvisco.io.output import read_summary
 
 ZONE_COLOURS = {"separated": "#dddddd", "compliance": "#9ecae1", "bound": "#fdae6b"}
 COLUMN = 3.35        # inches: one journal column (8.5 cm)

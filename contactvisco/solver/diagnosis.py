@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from contactvisco.io import output
+from contactvisco.fem import contact_state
 from contactvisco.model.stability import stability_number
 from contactvisco.solver.newton import NewtonFailure
 
@@ -53,7 +53,7 @@ def friction_limit(problem, comm, previous) -> str | None:
     if problem.contact is None or problem.contact.lambda_tau is None or problem.bcs_u:
         return None
     known = previous is not None
-    previous = previous if known else output.contact_table(problem, comm)  # weights, normals
+    previous = previous if known else contact_state.contact_table(problem, comm)  # weights, normals
     w = previous["weight"] * (np.maximum(previous["reaction_nu"], 0.0) if known else 1.0)
     normal = np.sum(w[:, None] * previous["normal"], axis=0)
     if not np.linalg.norm(normal) > 0:

@@ -14,7 +14,9 @@ from dataclasses import dataclass, field
 from dolfinx import fem
 from mpi4py import MPI
 
+from contactvisco.fem import contact_state
 from contactvisco.fem import geometry as geometry_module
+from contactvisco.fem.probes import Probes
 from contactvisco.fem.problem import Problem, build
 from contactvisco.io import checkpoint, output, parallel
 from contactvisco.io.lock import FolderLock
@@ -61,7 +63,7 @@ class Result:
         entry per contact node of the whole mesh (on every rank), sorted by position: ``x``,
         ``u_nu``, ``u_tau``, ``p_nu``, ``lambda_nu``, ``reaction_nu``, ``reaction_tau``,
         ``status`` (0 separated, 1 compliance, 2 bound), ... (see
-        ``contactvisco.io.output.contact_table``); None entries when the scene has no
+        ``contactvisco.fem.contact_state.contact_table``); None entries when the scene has no
         contact."""
         return self.tables
 
@@ -132,7 +134,7 @@ class Run:
         self.setup_s = clock.perf_counter() - started
         self.say = report.printer(comm, progress)
         points = scene["output"]["probes"]
-        self.probes = output.Probes(problem.geometry.mesh, points) if points else None
+        self.probes = Probes(problem.geometry.mesh, points) if points else None
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
         opts = scene["output"]
         self.writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
@@ -162,7 +164,7 @@ class Run:
             try:
                 for state in advance(problem, snes, n * k, scene["solver"]["max_cuts"],
                                      self.say):
-                    table = output.contact_table(problem, comm)
+                    table = contact_state.contact_table(problem, comm)
                     record = self._record(count, state, table)
                     for observe in observers:
                         observe(record, table)
@@ -182,7 +184,7 @@ class Run:
                 "residual": snes.residuals[-1] if snes.residuals else 0.0,
                 "residual_history": snes.residuals, "wall_s": state.wall_s, "cuts": state.cuts,
                 "krylov_iterations": snes.krylov_iterations,
-                "status_counts": output.status_counts(table),
+                "status_counts": contact_state.status_counts(table),
                 "probes": probes.values(self.problem.u, self.comm) if probes else []}
 
     def _file_observers(self, k) -> list:
@@ -210,7 +212,7 @@ class Run:
         if table is None and writer is not None and writer.last_record:
             counts = writer.last_record["status_counts"]     # nothing left after a restart
         else:
-            counts = output.status_counts(table)
+            counts = contact_state.status_counts(table)
         final = {"t": t_end, "status_counts": counts,
                  "wall_s": clock.perf_counter() - self.started, "setup_s": self.setup_s}
         if writer is not None:
