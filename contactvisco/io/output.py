@@ -34,7 +34,11 @@ class Writer:
     are appended and flushed (a cut last line is ignored by read_summary), the fields of step
     n go to solution/step-n.h5 (closed before the step is listed), and solution.xdmf lists a
     step only once its file is complete (xdmf_index). Per step the work is O(1) in the number of
-    steps: nothing already written is rewritten."""
+    steps: nothing already written is rewritten.
+
+    One class for the four files because their consistency is one guarantee: a restart cuts
+    all of them back to the same step (restart_count), which a writer per file could not do
+    without sharing that state."""
 
     def __init__(self, folder, problem, comm, xdmf=True, restart_count=None):
         """restart_count: continue the files of an earlier run after its first
