@@ -4,12 +4,27 @@ so no text is drawn here):
 
     images(points, cells, displacement, values, clim, views, edges)
 
-Where it runs. With Debian's DOLFINx 0.5 loaded first, VTK 9.7 (pyvista 0.49 wheel) aborts in
-vtkRenderer::Render (std::bad_alloc, signal 6); importing VTK before DOLFINx, or rendering
-before DOLFINx is loaded, works, and so do all four orders with the PyPI DOLFINx 0.11 wheels.
-So the rendering runs in this process unless DOLFINx 0.5 is loaded and VTK is not, and then in
-a child process (`python -m contactvisco.post.render IN.npz OUT.npz`), whose abort cannot take the
-run with it.
+Import order: none is needed. Import contactvisco, dolfinx and pyvista in any order (as long
+as contactvisco comes before pyvista, or pyvista before dolfinx).
+
+Why there was one. Debian's DOLFINx 0.5 sets the dlopen flags to RTLD_GLOBAL on import and
+leaves them so, which makes libdolfinx_real.so's copies of libstdc++ templates global. VTK's
+wheel (9.7, built with the old std::string ABI) instantiates the same templates; where the
+mangled name does not carry the ABI (std::__detail::_Scanner<char>, the std::regex scanner,
+which holds a std::string), VTK loaded after DOLFINx bound to DOLFINx's new-ABI copy, and the
+first regex VTK compiles (vtkScalarBarActor's tick format, vtk::is_printf_format) read a
+std::string of the other layout: std::bad_alloc, abort (signal 6), seen with LD_DEBUG=bindings.
+VTK loaded first bound to its own copies, hence "import pyvista first". The PyPI DOLFINx 0.11
+wheels do not make their libraries global and never aborted.
+
+The fix. `import contactvisco` installs a finder (contactvisco.post.vtk_guard, standard
+library only) that opens every vtkmodules extension with RTLD_DEEPBIND | RTLD_LOCAL: VTK's
+libraries resolve their symbols in themselves and their dependencies before the global scope,
+whatever was loaded before. The one order it cannot mend is VTK loaded after DOLFINx 0.5
+without contactvisco imported first (e.g. `import dolfinx, pyvista` and only then
+contactvisco): there `images` renders in a child process (`python -m contactvisco.post.render
+IN.npz OUT.npz`), whose abort cannot take the caller with it; a picture drawn by the caller's
+own pyvista calls in that process can still abort.
 """
 from __future__ import annotations
 
@@ -19,10 +34,15 @@ import tempfile
 
 import numpy as np
 
+from contactvisco.post import vtk_guard
+
 
 def in_process_safe() -> bool:
-    """False exactly in the measured failing case: DOLFINx < 0.10 loaded, VTK not yet."""
-    if "vtkmodules.vtkRenderingCore" in sys.modules or "dolfinx" not in sys.modules:
+    """False only where VTK may hold DOLFINx 0.5's template copies: DOLFINx < 0.10 loaded and
+    VTK's core module loaded without contactvisco's finder (vtk_guard)."""
+    if "dolfinx" not in sys.modules or "vtkmodules.vtkCommonCore" not in sys.modules:
+        return True                 # not loaded yet: the finder of `import contactvisco` will
+    if vtk_guard.loaded_here():
         return True
     version = getattr(sys.modules["dolfinx"], "__version__", "0.0")
     return tuple(int(p) for p in version.split(".")[:2] if p.isdigit()) >= (0, 10)
