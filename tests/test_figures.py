@@ -115,6 +115,38 @@ def test_plot_vector_output_and_times(paper_folder, tmp_path):
     assert main(["plot", str(folder), "--dpi", "0"]) == 2
 
 
+@pytest.mark.skipif(COMM.size > 1, reason="the plot command runs on one rank")
+def test_plot_at_a_time_without_a_snapshot(paper_folder, tmp_path, capsys):
+    """--times 0.5 on the paper run (snapshots at 0.1 and T = 1, contact tables at every
+    step): the contact figures at 0.5, the stress map and deformed mesh at the nearest
+    snapshot 0.1 with the time in their names, titles and printed lines; the figures at T
+    are left as they were."""
+    folder = tmp_path / "copy"
+    shutil.copytree(paper_folder, folder)
+    assert main(["plot", str(folder), "--dpi", "40"]) == 0
+    at_T = {p.name: p.read_bytes() for p in folder.glob("*.png")}
+    assert {"stress.png", "contact_reactions.png", "deformed_mesh.png"} <= set(at_T)
+    capsys.readouterr()
+    assert main(["plot", str(folder), "--times", "0.5", "--dpi", "40"]) == 0
+    printed = capsys.readouterr().out
+    assert "no snapshot at t = 0.5" in printed and "nearest, t = 0.1" in printed
+    assert "no contact table" not in printed                   # 0.5 is a step
+    names = {p.name for p in folder.glob("*.png")} - set(at_T)
+    assert names == {"stress_t0.1.png", "deformed_mesh_t0.1.png", "contact_reactions_t0.5.png",
+                     "contact_displacements_t0.5.png"}, names
+    assert {p.name: p.read_bytes() for p in folder.glob("*.png") if p.name in at_T} == at_T
+    drawn = dict(figures.build_all(folder, times=[0.5]))
+    assert "t = 0.1 s" in drawn["stress_t0.1"].axes[0].get_title()
+    assert "nearest" in drawn["stress_t0.1"].axes[0].get_title()
+    assert "0.5 asked" in drawn["deformed_mesh_t0.1"].axes[0].get_title()
+    title = drawn["contact_reactions_t0.5"].axes[0].get_title()
+    assert title.startswith("t = 0.5 s") and "nearest" not in title
+    notes = []
+    drawn = dict(figures.build_all(folder, times=[0.1, 1.0], notes=notes))
+    assert not notes and {"stress_t0.1", "stress_t1", "contact_reactions_t1"} <= set(drawn)
+    assert all("nearest" not in ax.get_title() for fig in drawn.values() for ax in fig.axes)
+
+
 def test_step_records_from_either_layout(paper_folder, tmp_path):
     """summary.json with the steps in it, or a small summary and steps.jsonl."""
     if COMM.rank != 0:
