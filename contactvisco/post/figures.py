@@ -34,6 +34,8 @@ STYLE = {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labels
          "savefig.pad_inches": 0.03, "svg.fonttype": "none", "pdf.fonttype": 42}
 # (SVG text stays text and PDF fonts TrueType: labels remain editable and searchable)
 PERCENTILES = (1.0, 99.0)   # the colour range of stress maps
+SLENDER = 0.45       # height/width under which a 2D body's panels are stacked, page-wide
+PANEL_MIN = 1.3      # inches: the least height of a stacked panel (its y label fits beside)
 
 
 # --- reading a run ------------------------------------------------------------------------
@@ -215,23 +217,61 @@ def _asked(asked) -> str:
 # --- 2D meshes and stress -------------------------------------------------------------------
 
 
+def _aspect(points: np.ndarray, *moved: np.ndarray) -> float:
+    """Height over width of the box around a 2D body and its deformed shapes."""
+    span = np.ptp(np.vstack([points[:, :2], *(m[:, :2] for m in moved)]), axis=0)
+    return float(span[1] / span[0]) if span[0] > 0 else 1.0
+
+
+def _strip_panels(rows: int, aspect: float, below: float):
+    """Figure size and panel height for `rows` page-wide panels of a slender body stacked one
+    above the other, with `below` inches under them (colour bar, legend). A panel is at least
+    PANEL_MIN tall (the body then sits in a wider y-range: adjustable="datalim"), so that an
+    axis label fits beside it."""
+    panel = max((PAGE - 0.6) * aspect * 1.08, PANEL_MIN)
+    return (PAGE, rows * (panel + 0.45) + below), panel
+
+
+def _under(ax, fig, inches: float):
+    """A transform for placing a legend `inches` below the bottom of `ax` (under its tick
+    labels and x label), whatever the axes' height."""
+    from matplotlib.transforms import offset_copy
+    return offset_copy(ax.transAxes, fig=fig, y=-inches, units="inches")
+
+
 def deformed_meshes(data, indices, units, scale: float = 1.0, asked=None):
-    """Figure 2: the deformed mesh at the chosen snapshots over the undeformed mesh (2D)."""
+    """Figure 2: the deformed mesh at the chosen snapshots over the undeformed mesh (2D), the
+    panels side by side, or stacked for a slender body (height < SLENDER x width)."""
+    from matplotlib.lines import Line2D
     points, cells = data["points"], data["cells"]
     n = len(indices)
-    width = COLUMN if n == 1 else PAGE
-    fig = Figure(figsize=(width, width / n * 1.05 + 0.25), layout="constrained")
-    axes = fig.subplots(1, n, squeeze=False)[0]
-    for ax, i in zip(axes, indices):
-        ax.triplot(points[:, 0], points[:, 1], cells, color="0.8", lw=0.3)
-        moved = points + scale * data["displacements"][i]
-        ax.triplot(moved[:, 0], moved[:, 1], cells, color="C0", lw=0.35)
-        ax.set_aspect("equal")
+    moved = {i: points + scale * data["displacements"][i] for i in indices}
+    aspect = _aspect(points, *moved.values())
+    slender = aspect < SLENDER
+    if slender:
+        size, _ = _strip_panels(n, aspect, 0.55)
+    else:
+        width = COLUMN if n == 1 else PAGE
+        size = (width, width / n * 1.05 + 0.55)
+    fig = Figure(figsize=size, layout="constrained")
+    axes = fig.subplots(n, 1, squeeze=False)[:, 0] if slender else \
+        fig.subplots(1, n, squeeze=False)[0]
+    for k, (ax, i) in enumerate(zip(axes, indices)):
+        ax.triplot(points[:, 0], points[:, 1], cells, color="0.75", lw=0.3)
+        ax.triplot(moved[i][:, 0], moved[i][:, 1], cells, color="C0", lw=0.35)
+        ax.set_aspect("equal", adjustable="datalim" if slender else "box")
         ax.set_title(_time_text(float(data["times"][i]), units)
                      + ("" if scale == 1 else f" (displacement x{scale:g})")
                      + _asked((asked or {}).get(i)))
-        ax.set_xlabel(label("x", "length", units))
+        if not slender or k == n - 1:
+            ax.set_xlabel(label("x", "length", units))
         ax.set_ylabel(label("y", "length", units))
+    key = axes[-1] if slender else axes[0]
+    key.legend([Line2D([], [], color="0.75", lw=1.0), Line2D([], [], color="C0", lw=1.0)],
+               ["undeformed", "deformed" + ("" if scale == 1 else f" (x{scale:g})")],
+               loc="upper center" if slender else "upper left",
+               bbox_to_anchor=(0.5 if slender else 0.0, 0.0),
+               bbox_transform=_under(key, fig, 0.36), ncol=2, frameon=False)
     return fig
 
 
@@ -299,9 +339,15 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False, a
     moved = points + data["displacements"][index]
     box = zoom_box(points, contact_zone(table))
     panels = 2 if box is not None else 1
-    fig = Figure(figsize=(COLUMN if panels == 1 else PAGE,
-                          COLUMN * 0.95 if panels == 1 else 3.2), layout="constrained")
-    axes = fig.subplots(1, panels, squeeze=False)[0]
+    aspect = _aspect(points, moved)
+    slender = aspect < SLENDER           # a strip: panels stacked, colour bar underneath
+    if slender:
+        size, _ = _strip_panels(panels, aspect, 0.85 if note else 0.7)
+    else:
+        size = (COLUMN if panels == 1 else PAGE, COLUMN * 0.95 if panels == 1 else 3.2)
+    fig = Figure(figsize=size, layout="constrained")
+    axes = fig.subplots(panels, 1, squeeze=False)[:, 0] if slender else \
+        fig.subplots(1, panels, squeeze=False)[0]
     outline = boundary_edges(cells)
     for panel, ax in enumerate(axes):
         mesh = ax.tripcolor(moved[:, 0], moved[:, 1], cells, facecolors=values, cmap="viridis",
@@ -309,7 +355,7 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False, a
                             linewidth=0.1 if edges else 0.0, antialiased=edges,
                             rasterized=len(cells) > 20000)
         ax.add_collection(LineCollection(points[outline], colors="k", linewidths=0.6))
-        ax.set_aspect("equal")
+        ax.set_aspect("equal", adjustable="datalim" if slender else "box")
         ax.set_xlabel(label("x", "length", units))
         ax.set_ylabel(label("y", "length", units))
         if panel == 1:
@@ -320,7 +366,11 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False, a
                                         edgecolor="C3", lw=0.9))
         else:
             ax.set_title(f"{t_text}; black: undeformed outline{_asked(asked)}")
-    bar = fig.colorbar(mesh, ax=list(axes), shrink=0.9, extend=_extend(values, lo, hi))
+    if slender:
+        bar = fig.colorbar(mesh, ax=list(axes), location="bottom", shrink=0.7, aspect=40,
+                           extend=_extend(values, lo, hi))
+    else:
+        bar = fig.colorbar(mesh, ax=list(axes), shrink=0.9, extend=_extend(values, lo, hi))
     bar.set_label(bar_label)
     return fig
 
@@ -474,14 +524,58 @@ def probe_histories(steps: list, units: dict):
         series = np.array([[math.nan] * d if record["probes"][j]["u"] is None
                             else record["probes"][j]["u"] for record in steps], dtype=float)
         text = "(" + ", ".join(f"{c:g}" for c in probe["x"]) + ")"
+        # Each probe its own marker and line style (open markers after the first): series
+        # that coincide over a time span stay visible one over the other.
+        # (markers grow with j, so an earlier one shows inside a later open one)
+        style = dict(marker="os^Dv<>"[j % 7], ls=("-", "--", ":", "-.")[j % 4],
+                     ms=2.2 + 0.9 * (j % 4), lw=0.9, color=f"C{j % 10}", mfc=None if j == 0 else "none", mew=0.7,
+                     zorder=3 + j)
         for i in range(d):
-            axes[i].plot(times, series[:, i], "o-", ms=2, lw=0.9, label=text)
+            axes[i].plot(times, series[:, i], label=text, **style)
     for i, ax in enumerate(axes):
         ax.set_xlabel(label("t", "time", units))
         ax.set_ylabel(label(f"$u_{'xyz'[i]}$", "length", units))
         ax.axhline(0.0, color="k", lw=0.5)
     axes[-1].legend(loc="center left", bbox_to_anchor=(1.02, 0.5), title="probe at",
                     frameon=False)
+    return fig
+
+
+def cattaneo_mindlin_figure(results: dict, traction) -> Figure:
+    """The tangential traction of a cylinder pressed and then pulled on a plane, against
+    Cattaneo (1938) and Mindlin (1949), one panel per Poisson ratio.
+
+    results: {nu: the dict of contactvisco.studies.coulomb.cattaneo_mindlin}; traction:
+    its closed form q(x, a, c, p0, mu) (studies.coulomb.cattaneo_traction; passed in, since
+    post stands below studies). Nodes that stick: filled; that slip: open; separated: grey;
+    dashed: the slip limit mu p of Hertz's pressure; dotted: the closed-form stick zone."""
+    with matplotlib.rc_context(STYLE):
+        return _cattaneo_mindlin(results, traction)
+
+
+def _cattaneo_mindlin(results, traction):
+    fig = Figure(figsize=(PAGE, 2.7), layout="constrained")
+    axes = fig.subplots(1, len(results), squeeze=False, sharey=True)[0]
+    for ax, (nu, r) in zip(axes, results.items()):
+        a, c, p0, mu = r["a"], r["c"], r["p0"], r.get("mu", 0.3)
+        xs = np.linspace(-1.2 * a, 1.2 * a, 241)
+        ax.plot(xs / a, traction(xs, a, c, p0, mu) / (mu * p0), "k-", lw=0.9,
+                label="Cattaneo-Mindlin")
+        ax.plot(xs / a, np.sqrt(np.maximum(0.0, 1 - (xs / a) ** 2)), "k--", lw=0.7,
+                label="$\\mu p$ (Hertz)")
+        stick, touching = np.asarray(r["stick"]), np.asarray(r["p"]) > 0
+        slip = touching & ~stick
+        x, q = np.asarray(r["x"]) / a, np.asarray(r["q"]) / (mu * p0)
+        ax.plot(x[stick], q[stick], "o", color="C0", ms=2.5, label="stick")
+        ax.plot(x[slip], q[slip], "o", mfc="none", color="C1", ms=2.5, mew=0.7, label="slip")
+        ax.plot(x[~touching], q[~touching], ".", color="0.6", ms=2.5, label="separated")
+        for sign in (-1, 1):
+            ax.axvline(sign * c / a, color="k", ls=":", lw=0.7)
+        ax.set_title(f"$\\nu$ = {nu:g}\n(a/h = {r['a_over_h']:.0f}, "
+                     f"Q/($\\mu$P) = {r['load_ratio']:.2f})")
+        ax.set_xlabel("x / a [-]")
+    axes[0].set_ylabel("$q / (\\mu p_0)$ [-]")
+    axes[-1].legend(loc="center left", bbox_to_anchor=(1.02, 0.5), frameon=False)
     return fig
 
 

@@ -1,6 +1,7 @@
-"""Off-screen pyvista renderings of the deformed body coloured by a cell field, with the
-undeformed edges in black, as RGB arrays (figures.py frames them with titles and a colour bar,
-so no text is drawn here):
+"""Off-screen pyvista renderings of the deformed body coloured by a cell field (unlit: the
+colours are the colour bar's), with the undeformed edges in black and an x-y-z triad in the
+lower left corner, as RGB arrays (figures.py frames them with titles and a colour bar: the
+triad's x, y, z are the only text drawn here):
 
     images(points, cells, displacement, values, clim, views, edges)
 
@@ -98,10 +99,14 @@ def _render(points, cells, displacement, values, clim, views, kinds, edges):
     for kind_name, direction in zip(kinds, views):
         plotter = pyvista.Plotter(off_screen=True, window_size=(900, 800))
         plotter.set_background("white")
+        # lighting=False: every face shows its value's colour as on the colour bar (shading
+        # would darken faces turned from the light into other values' colours); the black
+        # undeformed edges and the triad give the shape and the orientation.
         plotter.add_mesh(deformed, scalars="value", cmap="viridis", clim=list(clim),
                          show_edges=edges, edge_color="dimgray", line_width=0.3,
-                         show_scalar_bar=False)
+                         show_scalar_bar=False, lighting=False)
         plotter.add_mesh(outline, color="black", line_width=1.5)
+        plotter.add_axes(color="black", line_width=3, viewport=(0.0, 0.0, 0.26, 0.26))
         if str(kind_name) == "face":
             centre = np.array(deformed.center)
             plotter.camera.focal_point = centre
