@@ -33,8 +33,6 @@
 # resultants.
 
 # %%
-import matplotlib.pyplot as plt
-
 from contactvisco import cattaneo_mindlin, cattaneo_traction, quick
 
 h = 0.005 if quick() else 0.0025          # mesh size at the contact (a / 11 or a / 22)
@@ -53,12 +51,10 @@ for nu, r in results.items():
 # tractions of a sticking zone (reactions, not a law) show it.
 
 # %%
-from IPython.display import display
+from contactvisco.post.figures import cattaneo_mindlin_figure
+from contactvisco.post.notebook import show_figure
 
-from contactvisco.post.figures import STYLE, cattaneo_mindlin_figure
-
-with plt.rc_context({**STYLE, "figure.dpi": 140}):     # 7 in at 140 dpi inline
-    display(cattaneo_mindlin_figure(results, cattaneo_traction))
+show_figure(cattaneo_mindlin_figure(results, cattaneo_traction))
 
 # %% [markdown]
 # ## Against the closed form
