@@ -126,9 +126,9 @@ def test_units_and_nothing_clipped(scene, request):
     lies inside the canvas and inside what savefig keeps of it (STYLE crops to the tight box
     plus pad_inches, a box in which matplotlib counts an axis label only by its middle: a
     label longer than its axes is cut there), and fits the figure."""
+    folder = request.getfixturevalue(f"{scene}_folder")    # a collective run: every rank
     if COMM.rank != 0:
         return
-    folder = request.getfixturevalue(f"{scene}_folder")
     with figures.matplotlib.rc_context(figures.STYLE):
         pad = figures.matplotlib.rcParams["savefig.pad_inches"]
         for stem, fig in figures.build_all(folder):
