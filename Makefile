@@ -120,12 +120,16 @@ compare-stacks:
 figures: install
 	$(PY) docs/make_figures.py
 
-# The demos as notebooks in JupyterLab, on a kernel of this environment.
+# The demos as notebooks in JupyterLab, on a kernel of this environment (the demos declare
+# none: they open on contactvisco-$(STACK)); root needs --allow-root. What the demos write
+# goes to demos/results/, which git ignores.
 notebook: install
 	$(PY) -m pip install -q $(if $(filter debian,$(STACK)),-c constraints.txt) jupyterlab jupytext
 	$(PY) -m ipykernel install --user --name contactvisco-$(STACK) \
 	  --display-name "contactvisco ($(STACK))"
-	$(VENV)/bin/jupyter lab demos/
+	$(VENV)/bin/jupyter lab demos/ \
+	  --MappingKernelManager.default_kernel_name=contactvisco-$(STACK) \
+	  $$([ "$$(id -u)" = 0 ] && echo --allow-root)
 
 # The documentation (docs/, Sphinx + MyST + numpydoc from Debian's packages), built offline
 # into build/docs with the Debian route's Python, so that autodoc imports the package; every

@@ -29,6 +29,13 @@ import logging as _logging
 if _util.find_spec("dolfinx_solver") is not None:
     import dolfinx_solver  # noqa: F401
 
+# VTK's compiled modules (pyvista) open their shared objects with their own symbols first, so
+# that a library loaded before them (Debian's DOLFINx 0.5) cannot abort a rendering
+# (contactvisco/post/render.py); this imports nothing but the standard library.
+from contactvisco.post import vtk_guard as _vtk_guard
+
+_vtk_guard.install()
+
 # A JIT compile of a form makes setuptools' distutils lower the root logger to INFO and log
 # every compiler command line; keep those out of the user's console.
 _logging.getLogger().addFilter(

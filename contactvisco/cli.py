@@ -65,7 +65,9 @@ def _parser():
                       help="file format of the figures (default png)")
     plot.add_argument("--dpi", type=int, default=300, help="resolution of raster output")
     plot.add_argument("--times", type=float, nargs="+", default=None, metavar="T",
-                      help="draw the snapshots nearest these times (default: all)")
+                      help="draw the figures at these times, each named with the time it "
+                      "shows (stress_t0.5.png); where no state was kept at a time, the "
+                      "nearest is drawn and said (default: the figures at T)")
     plot.add_argument("--edges", action="store_true", help="draw the mesh edges on the "
                       "stress map")
     trade = sub.add_parser("tradeoff", help="error against wall time over a ladder of "
@@ -291,13 +293,16 @@ def _plot(args):
     import zipfile
     from contactvisco.post.figures import draw_all
     try:
+        notes = []
         paths = draw_all(folder, fmt=args.format, dpi=args.dpi, times=args.times,
-                         edges=args.edges)
+                         edges=args.edges, notes=notes)
     except (ValueError, KeyError, IndexError, OSError, EOFError,
             zipfile.BadZipFile) as err:          # damaged or cut files
         print(f"contactvisco: cannot draw the figures of {folder}: its files are damaged or "
               f"incomplete ({type(err).__name__}: {err})", file=sys.stderr)
         return 2
+    for note in notes:
+        print(f"contactvisco: {note}")
     for path in paths:
         print(path)
     return 0

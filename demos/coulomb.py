@@ -4,10 +4,6 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
-#   kernelspec:
-#     display_name: Python 3
-#     language: python
-#     name: python3
 # ---
 
 # %% [markdown]
@@ -37,9 +33,6 @@
 # resultants.
 
 # %%
-import matplotlib.pyplot as plt
-import numpy as np
-
 from contactvisco import cattaneo_mindlin, cattaneo_traction, quick
 
 h = 0.005 if quick() else 0.0025          # mesh size at the contact (a / 11 or a / 22)
@@ -58,29 +51,10 @@ for nu, r in results.items():
 # tractions of a sticking zone (reactions, not a law) show it.
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
-for ax, (nu, r) in zip(axes, results.items()):
-    a, c, p0, mu = r["a"], r["c"], r["p0"], 0.3
-    xs = np.linspace(-1.2 * a, 1.2 * a, 400)
-    ax.plot(xs / a, cattaneo_traction(xs, a, c, p0, mu) / (mu * p0), "k-",
-            label="Cattaneo-Mindlin")
-    ax.plot(xs / a, np.sqrt(np.maximum(0, 1 - (xs / a) ** 2)), "k--", lw=0.8,
-            label=r"$\mu p$ (Hertz)")
-    stick, touching = r["stick"], r["p"] > 0
-    slip = touching & ~stick
-    ax.plot(r["x"][stick] / a, r["q"][stick] / (mu * p0), "o", color="C0", ms=4,
-            label="stick")
-    ax.plot(r["x"][slip] / a, r["q"][slip] / (mu * p0), "o", mfc="none", color="C1",
-            ms=4, label="slip")
-    ax.plot(r["x"][~touching] / a, r["q"][~touching] / (mu * p0), ".", color="0.6",
-            label="separated")
-    for sign in (-1, 1):
-        ax.axvline(sign * c / a, color="k", ls=":", lw=0.8)
-    ax.set_title(rf"$\nu$ = {nu}")
-    ax.set_xlabel("x / a")
-axes[0].set_ylabel(r"$q / (\mu p_0)$")
-axes[0].legend(fontsize=8)
-plt.show()
+from contactvisco.post.figures import cattaneo_mindlin_figure
+from contactvisco.post.notebook import show_figure
+
+show_figure(cattaneo_mindlin_figure(results, cattaneo_traction))
 
 # %% [markdown]
 # ## Against the closed form

@@ -4,10 +4,6 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
-#   kernelspec:
-#     display_name: Python 3
-#     language: python
-#     name: python3
 # ---
 
 # %% [markdown]
@@ -44,7 +40,7 @@ p0 = 2 * P / (np.pi * a)
 table = result.contact[-1]
 x, p = table["x"][:, 0], table["reaction_nu"]
 near = x < 2 * a
-fig, ax = plt.subplots(figsize=(6.4, 4))
+fig, ax = plt.subplots(figsize=(6.4, 4), dpi=130)     # dpi: legible inline
 xs = np.linspace(0, a, 200)
 ax.plot(xs, p0 * np.sqrt(1 - (xs / a) ** 2), "k-", label="Hertz")
 ax.plot(x[near], p[near], "o", ms=4, label="contactvisco (nodal pressure)")

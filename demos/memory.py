@@ -4,10 +4,6 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
-#   kernelspec:
-#     display_name: Python 3
-#     language: python
-#     name: python3
 # ---
 
 # %% [markdown]
@@ -52,7 +48,7 @@ for alpha in alphas:
 # $\alpha k (1+\nu)/E < 1$, i.e. $\alpha < 770$ here (a run warns beyond).
 
 # %%
-fig, ax = plt.subplots(figsize=(6.4, 4))
+fig, ax = plt.subplots(figsize=(6.4, 4), dpi=130)     # dpi: legible inline
 for alpha, result in runs.items():
     t = [s["t"] for s in result.steps]
     uy = [s["probes"][0]["u"][1] for s in result.steps]

@@ -4,10 +4,6 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
-#   kernelspec:
-#     display_name: Python 3
-#     language: python
-#     name: python3
 # ---
 
 # %% [markdown]
@@ -75,18 +71,27 @@ result = solve(scene, mesh=domain, facet_tags=facet_tags, boundaries=boundaries,
 # part into a pyvista grid (warped by 5 u here, so that the contact zone shows).
 
 # %%
-import pyvista  # noqa: E402
+import pathlib  # noqa: E402
 
-pyvista.OFF_SCREEN = True
+import pyvista  # noqa: E402
+from IPython.display import Image, display  # noqa: E402
+
 grid = pyvista_grid(result.u)
-plotter = pyvista.Plotter(off_screen=True, window_size=(700, 500))
-# No scalar bar: VTK's wheel aborts formatting its labels in a process that has loaded
-# PETSc (a libstdc++ clash); the colours are |u|.
-plotter.add_mesh(grid.warp_by_vector("u", factor=5.0), scalars="u", show_edges=True,
-                 show_scalar_bar=False)
+grid["|u|"] = np.linalg.norm(grid["u"], axis=1)
+plotter = pyvista.Plotter(off_screen=True, window_size=(900, 650))
+plotter.set_background("white")
+plotter.add_mesh(grid.warp_by_vector("u", factor=5.0), scalars="|u|", show_edges=True,
+                 lighting=False,
+                 scalar_bar_args={"title": "magnitude of u", "color": "black",
+                                  "vertical": True, "position_x": 0.84, "position_y": 0.15,
+                                  "height": 0.7, "width": 0.08})
 plotter.view_xy()
+plotter.camera.zoom(0.9)
 if MPI.COMM_WORLD.size == 1:
-    plotter.screenshot("own_mesh_u.png")
+    picture = pathlib.Path("results/own_mesh_u.png")     # results/: ignored by git
+    picture.parent.mkdir(exist_ok=True)
+    plotter.screenshot(picture)
+    display(Image(filename=str(picture), width=600))
 plotter.close()
 print("largest |u|:", np.abs(result.u.x.array).max())
 

@@ -4,10 +4,6 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
-#   kernelspec:
-#     display_name: Python 3
-#     language: python
-#     name: python3
 # ---
 
 # %% [markdown]
@@ -45,7 +41,7 @@ print(f"exponential kernel matching at t = 1: tau_e = {tau_e:.4f}")
 
 # %%
 t = np.geomspace(1e-3, T, 200)
-fig, ax = plt.subplots(figsize=(6.4, 4))
+fig, ax = plt.subplots(figsize=(6.4, 4), dpi=130)     # dpi: legible inline
 ax.loglog(t, alpha * (1 + t / tau) ** -beta, label=fr"power, $\tau = {tau}$, $\beta = {beta}$")
 ax.loglog(t, alpha * np.exp(-t / tau_e), label=fr"exponential, $\tau_e = {tau_e:.3f}$")
 ax.axvline(1.0, color="gray", lw=0.8, ls=":")
@@ -84,7 +80,7 @@ for name, memory in kernels.items():
 # keeps stiffening the body, its deflection keeps shrinking and nodes keep leaving the bound.
 
 # %%
-fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=90)   # ~1000 px wide inline
 for name, style in (("power", "-"), ("exponential", "--")):
     steps_ = runs[name].steps
     times = [s["t"] for s in steps_]

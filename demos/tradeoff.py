@@ -4,10 +4,6 @@
 #     text_representation:
 #       extension: .py
 #       format_name: percent
-#   kernelspec:
-#     display_name: Python 3
-#     language: python
-#     name: python3
 # ---
 
 # %% [markdown]
@@ -40,7 +36,7 @@ print("\n".join(tradeoff.summary_lines(result)))
 # other, so the front runs along the mesh levels at the fewest steps.
 
 # %%
-fig = plt.figure()
+fig = plt.figure(dpi=130)     # dpi: legible inline
 tradeoff.draw(result, fig)
 plt.show()
 

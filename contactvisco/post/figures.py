@@ -35,6 +35,8 @@ STYLE = {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "xtick.labels
          "savefig.pad_inches": 0.03, "svg.fonttype": "none", "pdf.fonttype": 42}
 # (SVG text stays text and PDF fonts TrueType: labels remain editable and searchable)
 PERCENTILES = (1.0, 99.0)   # the colour range of stress maps
+SLENDER = 0.45       # height/width under which a 2D body's panels are stacked, page-wide
+PANEL_MIN = 1.3      # inches: the least height of a stacked panel (its y label fits beside)
 
 
 # --- reading a run ------------------------------------------------------------------------
@@ -102,90 +104,175 @@ def contact_tables(path: pathlib.Path) -> dict:
 
 
 def draw_all(folder, fmt: str = "png", dpi: int = 300, times=None,
-             edges: bool = False) -> list[pathlib.Path]:
+             edges: bool = False, notes: list | None = None) -> list[pathlib.Path]:
     """Every figure the files in `folder` allow, saved as `fmt`; returns the paths written.
-    times: the snapshot and contact times to draw (nearest available; default: the
-    snapshots for the deformed mesh, T for the rest)."""
+    times: see build_all (figures at requested times carry the time in their file name, so
+    they never replace the figures at T); notes: a list that receives the lines saying where
+    a figure is drawn at another time than the one requested."""
     folder = pathlib.Path(folder)
     written = []
     with matplotlib.rc_context(STYLE):
-        for name, fig in build_all(folder, times, edges):
+        for name, fig in build_all(folder, times, edges, notes):
             path = folder / f"{name}.{fmt}"
             fig.savefig(path, dpi=dpi)
             written.append(path)
     return written
 
 
-def build_all(folder, times=None, edges: bool = False) -> list[tuple[str, Figure]]:
-    """(file stem, Figure) of every figure of a run folder (not saved)."""
+def build_all(folder, times=None, edges: bool = False,
+              notes: list | None = None) -> list[tuple[str, Figure]]:
+    """(file stem, Figure) of every figure of a run folder (not saved).
+
+    times None: the figures at T (stress, contact profiles or map) under their plain names,
+    the deformed mesh at every snapshot, the probe histories. times given: the stress maps,
+    contact figures and deformed mesh at those times, named with the time drawn
+    (stress_t0.5, contact_reactions_t0.5, deformed_mesh_t0.1_1); where the files hold no
+    state at a requested time (snapshots are taken at output.figure_times and T only) the
+    nearest one is drawn, its title says so and a line is appended to `notes`. The probe
+    histories span all times and are drawn only without `times`."""
     folder = pathlib.Path(folder)
     summary = json.loads((folder / "summary.json").read_text())
     scene = summary["scene"]
     units = units_of(scene)
+    notes = [] if notes is None else notes
+    requested = None if not times else sorted({float(t) for t in times})
     out = []
     with matplotlib.rc_context(STYLE):
         tables = contact_tables(folder / "contact_nodes.csv")
         snapshots = folder / "snapshots.npz"
         if snapshots.exists():
             data = dict(np.load(snapshots))
-            chosen = _nearest(data["times"], times)
+            available = np.asarray(data["times"], dtype=float)
+            if requested is None:
+                chosen = list(range(len(available)))
+                asked = {}
+            else:
+                drawn = "stress map" + (" and deformed mesh" if data["points"].shape[1] == 2
+                                        else "")
+                asked = _matches(available, requested, "snapshot", drawn, notes)
+                chosen = sorted(asked)
             if data["points"].shape[1] == 2:
-                out.append(("deformed_mesh", deformed_meshes(data, chosen, units)))
-            for i in (chosen if times else chosen[-1:]):
-                t = float(data["times"][i])
-                stem = "stress" if not times or len(times) == 1 else f"stress_t{t:g}"
+                stem = "deformed_mesh" if requested is None else \
+                    "deformed_mesh_t" + "_".join(f"{available[i]:g}" for i in chosen)
+                out.append((stem, deformed_meshes(data, chosen, units, asked=asked)))
+            for i in (chosen if requested else chosen[-1:]):
+                t = float(available[i])
+                stem = "stress" if requested is None else f"stress_t{t:g}"
                 table = tables[min(tables, key=lambda time: abs(time - t))] if tables else None
-                fig = stress_map(data, i, units, table, edges)
+                fig = stress_map(data, i, units, table, edges, asked=asked.get(i))
                 if fig is not None:
                     out.append((stem, fig))
         if tables:
             g = float(scene["contact"]["g"])
-            keys = sorted(tables)
-            picks = [keys[-1]] if not times else sorted(
-                {keys[int(np.argmin(np.abs(np.array(keys) - t)))] for t in times})
-            for t in picks:
-                suffix = "" if len(picks) == 1 else f"_t{t:g}"
+            keys = np.array(sorted(tables))
+            if requested is None:
+                picks = {len(keys) - 1: None}
+            else:
+                picks = _matches(keys, requested, "contact table", "contact figures", notes)
+            for k in sorted(picks):
+                t = float(keys[k])
+                suffix = "" if requested is None else f"_t{t:g}"
                 if tables[t]["x"].shape[1] == 2:
-                    for name, fig in contact_profiles(tables[t], t, g, units):
+                    for name, fig in contact_profiles(tables[t], t, g, units, picks[k]):
                         out.append((name + suffix, fig))
                 else:
-                    out.append(("contact_status" + suffix, contact_map(tables[t], t, units)))
+                    out.append(("contact_status" + suffix,
+                                contact_map(tables[t], t, units, picks[k])))
         steps = step_records(folder)
-        if any(step["probes"] for step in steps):
+        if requested is None and any(step["probes"] for step in steps):
             out.append(("probes", probe_histories(steps, units)))
     return out
 
 
-def _nearest(available, times) -> list[int]:
-    """Indices of the available times nearest to the requested ones (all when None)."""
-    if not times:
-        return list(range(len(available)))
-    return sorted({int(np.argmin(np.abs(np.asarray(available) - t))) for t in times})
+def _matches(available, requested, what: str, drawn: str, notes: list) -> dict:
+    """{index of the available time nearest each requested time: the requested times it
+    stands for that it is not equal to (None when it is exactly one of them)}; a note for
+    every requested time drawn at another."""
+    available = np.asarray(available, dtype=float)
+    tolerance = 1e-9 * max(1.0, float(np.max(np.abs(available))))
+    out = {}
+    for t in requested:
+        i = int(np.argmin(np.abs(available - t)))
+        out.setdefault(i, [])
+        if abs(available[i] - t) > tolerance:
+            out[i].append(t)
+            notes.append(f"no {what} at t = {t:g}: {drawn} drawn at the nearest, "
+                         f"t = {available[i]:g} (available: "
+                         + ", ".join(f"{a:g}" for a in available[:12])
+                         + (", ..." if len(available) > 12 else "") + ")")
+    return {i: (ts or None) for i, ts in out.items()}
 
 
 def _time_text(t: float, units: dict) -> str:
     return f"t = {t:g}" + (f" {units['time']}" if units["time"] else "")
 
 
+def _asked(asked) -> str:
+    """The title line of a figure drawn at another time than the requested ones."""
+    if not asked:
+        return ""
+    return "\n(nearest state kept to the t = " + ", ".join(f"{a:g}" for a in asked) + \
+        " asked)"
+
+
 # --- 2D meshes and stress -------------------------------------------------------------------
 
 
-def deformed_meshes(data, indices, units, scale: float = 1.0):
-    """Figure 2: the deformed mesh at the chosen snapshots over the undeformed mesh (2D)."""
+def _aspect(points: np.ndarray, *moved: np.ndarray) -> float:
+    """Height over width of the box around a 2D body and its deformed shapes."""
+    span = np.ptp(np.vstack([points[:, :2], *(m[:, :2] for m in moved)]), axis=0)
+    return float(span[1] / span[0]) if span[0] > 0 else 1.0
+
+
+def _strip_panels(rows: int, aspect: float, below: float):
+    """Figure size and panel height for `rows` page-wide panels of a slender body stacked one
+    above the other, with `below` inches under them (colour bar, legend). A panel is at least
+    PANEL_MIN tall (the body then sits in a wider y-range: adjustable="datalim"), so that an
+    axis label fits beside it."""
+    panel = max((PAGE - 0.6) * aspect * 1.08, PANEL_MIN)
+    return (PAGE, rows * (panel + 0.45) + below), panel
+
+
+def _under(ax, fig, inches: float):
+    """A transform for placing a legend `inches` below the bottom of `ax` (under its tick
+    labels and x label), whatever the axes' height."""
+    from matplotlib.transforms import offset_copy
+    return offset_copy(ax.transAxes, fig=fig, y=-inches, units="inches")
+
+
+def deformed_meshes(data, indices, units, scale: float = 1.0, asked=None):
+    """Figure 2: the deformed mesh at the chosen snapshots over the undeformed mesh (2D), the
+    panels side by side, or stacked for a slender body (height < SLENDER x width)."""
+    from matplotlib.lines import Line2D
     points, cells = data["points"], data["cells"]
     n = len(indices)
-    width = COLUMN if n == 1 else PAGE
-    fig = Figure(figsize=(width, width / n * 1.05 + 0.25), layout="constrained")
-    axes = fig.subplots(1, n, squeeze=False)[0]
-    for ax, i in zip(axes, indices):
-        ax.triplot(points[:, 0], points[:, 1], cells, color="0.8", lw=0.3)
-        moved = points + scale * data["displacements"][i]
-        ax.triplot(moved[:, 0], moved[:, 1], cells, color="C0", lw=0.35)
-        ax.set_aspect("equal")
+    moved = {i: points + scale * data["displacements"][i] for i in indices}
+    aspect = _aspect(points, *moved.values())
+    slender = aspect < SLENDER
+    if slender:
+        size, _ = _strip_panels(n, aspect, 0.55)
+    else:
+        width = COLUMN if n == 1 else PAGE
+        size = (width, width / n * 1.05 + 0.55)
+    fig = Figure(figsize=size, layout="constrained")
+    axes = fig.subplots(n, 1, squeeze=False)[:, 0] if slender else \
+        fig.subplots(1, n, squeeze=False)[0]
+    for k, (ax, i) in enumerate(zip(axes, indices)):
+        ax.triplot(points[:, 0], points[:, 1], cells, color="0.75", lw=0.3)
+        ax.triplot(moved[i][:, 0], moved[i][:, 1], cells, color="C0", lw=0.35)
+        ax.set_aspect("equal", adjustable="datalim" if slender else "box")
         ax.set_title(_time_text(float(data["times"][i]), units)
-                     + ("" if scale == 1 else f" (displacement x{scale:g})"))
-        ax.set_xlabel(label("x", "length", units))
+                     + ("" if scale == 1 else f" (displacement x{scale:g})")
+                     + _asked((asked or {}).get(i)))
+        if not slender or k == n - 1:
+            ax.set_xlabel(label("x", "length", units))
         ax.set_ylabel(label("y", "length", units))
+    key = axes[-1] if slender else axes[0]
+    key.legend([Line2D([], [], color="0.75", lw=1.0), Line2D([], [], color="C0", lw=1.0)],
+               ["undeformed", "deformed" + ("" if scale == 1 else f" (x{scale:g})")],
+               loc="upper center" if slender else "upper left",
+               bbox_to_anchor=(0.5 if slender else 0.0, 0.0),
+               bbox_transform=_under(key, fig, 0.36), ncol=2, frameon=False)
     return fig
 
 
@@ -235,7 +322,7 @@ def zoom_box(points: np.ndarray, zone: np.ndarray | None, fraction: float = 0.15
     return lo, lo + 2 * half
 
 
-def stress_map(data, index: int, units: dict, table=None, edges: bool = False):
+def stress_map(data, index: int, units: dict, table=None, edges: bool = False, asked=None):
     """The deformed body coloured by the von Mises stress (2D: matplotlib, with a zoomed
     second panel on a small contact zone; 3D: pyvista views of the body and of the contact
     face)."""
@@ -247,14 +334,21 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False):
         bar_label += "\n" + note
     t_text = _time_text(float(data["times"][index]), units)
     if data["points"].shape[1] == 3:
-        return _stress_3d(data, index, (lo, hi), bar_label, t_text, table, edges)
+        return _stress_3d(data, index, (lo, hi), bar_label, t_text, table, edges,
+                          _asked(asked))
     points, cells = data["points"], data["cells"]
     moved = points + data["displacements"][index]
     box = zoom_box(points, contact_zone(table))
     panels = 2 if box is not None else 1
-    fig = Figure(figsize=(COLUMN if panels == 1 else PAGE,
-                          COLUMN * 0.95 if panels == 1 else 3.2), layout="constrained")
-    axes = fig.subplots(1, panels, squeeze=False)[0]
+    aspect = _aspect(points, moved)
+    slender = aspect < SLENDER           # a strip: panels stacked, colour bar underneath
+    if slender:
+        size, _ = _strip_panels(panels, aspect, 0.85 if note else 0.7)
+    else:
+        size = (COLUMN if panels == 1 else PAGE, COLUMN * 0.95 if panels == 1 else 3.2)
+    fig = Figure(figsize=size, layout="constrained")
+    axes = fig.subplots(panels, 1, squeeze=False)[:, 0] if slender else \
+        fig.subplots(1, panels, squeeze=False)[0]
     outline = boundary_edges(cells)
     for panel, ax in enumerate(axes):
         mesh = ax.tripcolor(moved[:, 0], moved[:, 1], cells, facecolors=values, cmap="viridis",
@@ -262,7 +356,7 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False):
                             linewidth=0.1 if edges else 0.0, antialiased=edges,
                             rasterized=len(cells) > 20000)
         ax.add_collection(LineCollection(points[outline], colors="k", linewidths=0.6))
-        ax.set_aspect("equal")
+        ax.set_aspect("equal", adjustable="datalim" if slender else "box")
         ax.set_xlabel(label("x", "length", units))
         ax.set_ylabel(label("y", "length", units))
         if panel == 1:
@@ -272,8 +366,12 @@ def stress_map(data, index: int, units: dict, table=None, edges: bool = False):
             axes[0].add_patch(Rectangle(box[0], *(box[1] - box[0]), fill=False,
                                         edgecolor="C3", lw=0.9))
         else:
-            ax.set_title(f"{t_text}; black: undeformed outline")
-    bar = fig.colorbar(mesh, ax=list(axes), shrink=0.9, extend=_extend(values, lo, hi))
+            ax.set_title(f"{t_text}; black: undeformed outline{_asked(asked)}")
+    if slender:
+        bar = fig.colorbar(mesh, ax=list(axes), location="bottom", shrink=0.7, aspect=40,
+                           extend=_extend(values, lo, hi))
+    else:
+        bar = fig.colorbar(mesh, ax=list(axes), shrink=0.9, extend=_extend(values, lo, hi))
     bar.set_label(bar_label)
     return fig
 
@@ -297,7 +395,7 @@ def contact_face_view(points: np.ndarray, table) -> np.ndarray:
     return view
 
 
-def _stress_3d(data, index, clim, bar_label, t_text, table, edges):
+def _stress_3d(data, index, clim, bar_label, t_text, table, edges, asked_line=""):
     """Two pyvista views (isometric, and the contact face from outside) in one figure with a
     matplotlib colour bar and titles (no text inside the rendering to clip)."""
     from matplotlib import cm, colors
@@ -312,7 +410,7 @@ def _stress_3d(data, index, clim, bar_label, t_text, table, edges):
     fig = Figure(figsize=(PAGE, 3.0), layout="constrained")
     axes = fig.subplots(1, 2)
     face = "xyz"[int(np.argmax(np.abs(view)))]
-    titles = (f"{t_text}; black: undeformed edges",
+    titles = (f"{t_text}; black: undeformed edges{asked_line}",
               f"contact face, seen from {'+' if view.max() > 0 else '-'}{face}")
     for ax, image, title in zip(axes, images, titles):
         ax.imshow(image)
@@ -341,7 +439,7 @@ def _shade_zones(ax, s, status):
         done.add(name)
 
 
-def contact_profiles(table, t: float, g: float, units: dict):
+def contact_profiles(table, t: float, g: float, units: dict, asked=None):
     """Figures 3 and 4: reactions and displacements of the contact nodes at time t (2D); the
     axis is cut to the contact zone where that is small (Hertz)."""
     order = np.argsort(table["x"][:, 0])
@@ -384,7 +482,8 @@ def contact_profiles(table, t: float, g: float, units: dict):
         counts = {st: int(np.sum(table["status"] == i)) for i, st in enumerate(STATUSES)}
         ax.set_title(f"{_time_text(t, units)}: "
                      + ", ".join(f"{count} {st}" for st, count in counts.items())
-                     + ("\n(axis cut to the contact zone)" if window is not None else ""))
+                     + ("\n(axis cut to the contact zone)" if window is not None else "")
+                     + _asked(asked))
         ax.set_xlabel(label("x along the contact boundary", "length", units))
         ax.set_ylabel(ylabel)
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.3), ncol=3, frameon=False,
@@ -393,7 +492,7 @@ def contact_profiles(table, t: float, g: float, units: dict):
     return out
 
 
-def contact_map(table, t: float, units: dict):
+def contact_map(table, t: float, units: dict, asked=None):
     """The contact nodes of a 3D run in the plane of the contact face, coloured by status,
     with the normal reaction as marker size."""
     fig = Figure(figsize=(COLUMN, 3.3), layout="constrained")
@@ -409,7 +508,8 @@ def contact_map(table, t: float, units: dict):
     ax.set_aspect("equal")
     ax.set_xlabel(label("xyz"[a], "length", units))
     ax.set_ylabel(label("xyz"[b], "length", units))
-    ax.set_title(f"contact nodes at {_time_text(t, units)}\n(marker area: normal reaction)")
+    ax.set_title(f"contact nodes at {_time_text(t, units)}\n(marker area: normal reaction)"
+                 + _asked(asked))
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, frameon=False)
     return fig
 
@@ -425,14 +525,58 @@ def probe_histories(steps: list, units: dict):
         series = np.array([[math.nan] * d if record["probes"][j]["u"] is None
                             else record["probes"][j]["u"] for record in steps], dtype=float)
         text = "(" + ", ".join(f"{c:g}" for c in probe["x"]) + ")"
+        # Each probe its own marker and line style (open markers after the first): series
+        # that coincide over a time span stay visible one over the other.
+        # (markers grow with j, so an earlier one shows inside a later open one)
+        style = dict(marker="os^Dv<>"[j % 7], ls=("-", "--", ":", "-.")[j % 4],
+                     ms=2.2 + 0.9 * (j % 4), lw=0.9, color=f"C{j % 10}", mfc=None if j == 0 else "none", mew=0.7,
+                     zorder=3 + j)
         for i in range(d):
-            axes[i].plot(times, series[:, i], "o-", ms=2, lw=0.9, label=text)
+            axes[i].plot(times, series[:, i], label=text, **style)
     for i, ax in enumerate(axes):
         ax.set_xlabel(label("t", "time", units))
         ax.set_ylabel(label(f"$u_{'xyz'[i]}$", "length", units))
         ax.axhline(0.0, color="k", lw=0.5)
     axes[-1].legend(loc="center left", bbox_to_anchor=(1.02, 0.5), title="probe at",
                     frameon=False)
+    return fig
+
+
+def cattaneo_mindlin_figure(results: dict, traction) -> Figure:
+    """The tangential traction of a cylinder pressed and then pulled on a plane, against
+    Cattaneo (1938) and Mindlin (1949), one panel per Poisson ratio.
+
+    results: {nu: the dict of contactvisco.studies.coulomb.cattaneo_mindlin}; traction:
+    its closed form q(x, a, c, p0, mu) (studies.coulomb.cattaneo_traction; passed in, since
+    post stands below studies). Nodes that stick: filled; that slip: open; separated: grey;
+    dashed: the slip limit mu p of Hertz's pressure; dotted: the closed-form stick zone."""
+    with matplotlib.rc_context(STYLE):
+        return _cattaneo_mindlin(results, traction)
+
+
+def _cattaneo_mindlin(results, traction):
+    fig = Figure(figsize=(PAGE, 2.7), layout="constrained")
+    axes = fig.subplots(1, len(results), squeeze=False, sharey=True)[0]
+    for ax, (nu, r) in zip(axes, results.items()):
+        a, c, p0, mu = r["a"], r["c"], r["p0"], r.get("mu", 0.3)
+        xs = np.linspace(-1.2 * a, 1.2 * a, 241)
+        ax.plot(xs / a, traction(xs, a, c, p0, mu) / (mu * p0), "k-", lw=0.9,
+                label="Cattaneo-Mindlin")
+        ax.plot(xs / a, np.sqrt(np.maximum(0.0, 1 - (xs / a) ** 2)), "k--", lw=0.7,
+                label="$\\mu p$ (Hertz)")
+        stick, touching = np.asarray(r["stick"]), np.asarray(r["p"]) > 0
+        slip = touching & ~stick
+        x, q = np.asarray(r["x"]) / a, np.asarray(r["q"]) / (mu * p0)
+        ax.plot(x[stick], q[stick], "o", color="C0", ms=2.5, label="stick")
+        ax.plot(x[slip], q[slip], "o", mfc="none", color="C1", ms=2.5, mew=0.7, label="slip")
+        ax.plot(x[~touching], q[~touching], ".", color="0.6", ms=2.5, label="separated")
+        for sign in (-1, 1):
+            ax.axvline(sign * c / a, color="k", ls=":", lw=0.7)
+        ax.set_title(f"$\\nu$ = {nu:g}\n(a/h = {r['a_over_h']:.0f}, "
+                     f"Q/($\\mu$P) = {r['load_ratio']:.2f})")
+        ax.set_xlabel("x / a [-]")
+    axes[0].set_ylabel("$q / (\\mu p_0)$ [-]")
+    axes[-1].legend(loc="center left", bbox_to_anchor=(1.02, 0.5), frameon=False)
     return fig
 
 

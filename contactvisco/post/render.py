@@ -1,15 +1,31 @@
-"""Off-screen pyvista renderings of the deformed body coloured by a cell field, with the
-undeformed edges in black, as RGB arrays (figures.py frames them with titles and a colour bar,
-so no text is drawn here):
+"""Off-screen pyvista renderings of the deformed body coloured by a cell field (unlit: the
+colours are the colour bar's), with the undeformed edges in black and an x-y-z triad in the
+lower left corner, as RGB arrays (figures.py frames them with titles and a colour bar: the
+triad's x, y, z are the only text drawn here):
 
     images(points, cells, displacement, values, clim, views, edges)
 
-Where it runs. With Debian's DOLFINx 0.5 loaded first, VTK 9.7 (pyvista 0.49 wheel) aborts in
-vtkRenderer::Render (std::bad_alloc, signal 6); importing VTK before DOLFINx, or rendering
-before DOLFINx is loaded, works, and so do all four orders with the PyPI DOLFINx 0.11 wheels.
-So the rendering runs in this process unless DOLFINx 0.5 is loaded and VTK is not, and then in
-a child process (`python -m contactvisco.post.render IN.npz OUT.npz`), whose abort cannot take the
-run with it.
+Import order: none is needed. Import contactvisco, dolfinx and pyvista in any order (as long
+as contactvisco comes before pyvista, or pyvista before dolfinx).
+
+Why there was one. Debian's DOLFINx 0.5 sets the dlopen flags to RTLD_GLOBAL on import and
+leaves them so, which makes libdolfinx_real.so's copies of libstdc++ templates global. VTK's
+wheel (9.7, built with the old std::string ABI) instantiates the same templates; where the
+mangled name does not carry the ABI (std::__detail::_Scanner<char>, the std::regex scanner,
+which holds a std::string), VTK loaded after DOLFINx bound to DOLFINx's new-ABI copy, and the
+first regex VTK compiles (vtkScalarBarActor's tick format, vtk::is_printf_format) read a
+std::string of the other layout: std::bad_alloc, abort (signal 6), seen with LD_DEBUG=bindings.
+VTK loaded first bound to its own copies, hence "import pyvista first". The PyPI DOLFINx 0.11
+wheels do not make their libraries global and never aborted.
+
+The fix. `import contactvisco` installs a finder (contactvisco.post.vtk_guard, standard
+library only) that opens every vtkmodules extension with RTLD_DEEPBIND | RTLD_LOCAL: VTK's
+libraries resolve their symbols in themselves and their dependencies before the global scope,
+whatever was loaded before. The one order it cannot mend is VTK loaded after DOLFINx 0.5
+without contactvisco imported first (e.g. `import dolfinx, pyvista` and only then
+contactvisco): there `images` renders in a child process (`python -m contactvisco.post.render
+IN.npz OUT.npz`), whose abort cannot take the caller with it; a picture drawn by the caller's
+own pyvista calls in that process can still abort.
 """
 from __future__ import annotations
 
@@ -19,10 +35,15 @@ import tempfile
 
 import numpy as np
 
+from contactvisco.post import vtk_guard
+
 
 def in_process_safe() -> bool:
-    """False exactly in the measured failing case: DOLFINx < 0.10 loaded, VTK not yet."""
-    if "vtkmodules.vtkRenderingCore" in sys.modules or "dolfinx" not in sys.modules:
+    """False only where VTK may hold DOLFINx 0.5's template copies: DOLFINx < 0.10 loaded and
+    VTK's core module loaded without contactvisco's finder (vtk_guard)."""
+    if "dolfinx" not in sys.modules or "vtkmodules.vtkCommonCore" not in sys.modules:
+        return True                 # not loaded yet: the finder of `import contactvisco` will
+    if vtk_guard.loaded_here():
         return True
     version = getattr(sys.modules["dolfinx"], "__version__", "0.0")
     return tuple(int(p) for p in version.split(".")[:2] if p.isdigit()) >= (0, 10)
@@ -78,10 +99,14 @@ def _render(points, cells, displacement, values, clim, views, kinds, edges):
     for kind_name, direction in zip(kinds, views):
         plotter = pyvista.Plotter(off_screen=True, window_size=(900, 800))
         plotter.set_background("white")
+        # lighting=False: every face shows its value's colour as on the colour bar (shading
+        # would darken faces turned from the light into other values' colours); the black
+        # undeformed edges and the triad give the shape and the orientation.
         plotter.add_mesh(deformed, scalars="value", cmap="viridis", clim=list(clim),
                          show_edges=edges, edge_color="dimgray", line_width=0.3,
-                         show_scalar_bar=False)
+                         show_scalar_bar=False, lighting=False)
         plotter.add_mesh(outline, color="black", line_width=1.5)
+        plotter.add_axes(color="black", line_width=3, viewport=(0.0, 0.0, 0.26, 0.26))
         if str(kind_name) == "face":
             centre = np.array(deformed.center)
             plotter.camera.focal_point = centre

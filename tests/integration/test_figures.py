@@ -33,6 +33,17 @@ def paper_folder(tmp_path_factory):
     return folder
 
 
+@pytest.fixture(scope="module")
+def ironing_folder(tmp_path_factory):
+    """The ironing scene as shipped: a strip six times longer than high."""
+    folder = pathlib.Path(COMM.bcast(str(tmp_path_factory.mktemp("ironing")), root=0))
+    scene = scene_module.load("ironing")
+    scene["output"].update(xdmf=False, checkpoint=False)
+    simulate(scene, folder, progress=False)
+    COMM.barrier()
+    return folder
+
+
 def committed(stem):
     path = DOCS / f"{stem}.json"
     assert path.exists(), f"{path} missing: run make figures"
@@ -55,6 +66,25 @@ def test_docs_figures_match_the_program(paper_folder):
     assert not figures.compare_signatures(figures.signature(fig), committed("tradeoff"))
 
 
+def test_cattaneo_mindlin_figure_matches_the_program():
+    """docs/figures/coulomb_cattaneo_mindlin.png is drawn by figures.cattaneo_mindlin_figure
+    (the code demos/coulomb.py draws with) from the node values make figures kept: redrawn
+    from them now, its signature is the committed one."""
+    if COMM.rank != 0:
+        return
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("make_figures",
+                                                  DOCS.parent / "make_figures.py")
+    make_figures = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_figures)
+    fig = make_figures.cattaneo_from_runs(make_figures.RUNS)
+    problems = figures.compare_signatures(figures.signature(fig),
+                                          committed("coulomb_cattaneo_mindlin"))
+    assert not problems, f"docs/figures/coulomb_cattaneo_mindlin.png is stale: {problems[:3]}"
+    titles = [ax.get_title() for ax in fig.axes]
+    assert titles[0].startswith("$\\nu$ = 0.49") and titles[1].startswith("$\\nu$ = 0.3")
+
+
 def test_signature_sees_a_changed_label(paper_folder):
     if COMM.rank != 0:
         return
@@ -74,28 +104,53 @@ def _texts(fig):
             if t.get_visible() and t.get_text().strip()]
 
 
-def test_units_and_nothing_clipped(paper_folder):
+def _drawn_texts(fig):
+    """_texts without the tick labels matplotlib keeps but does not draw (outside the view)."""
+    kept, made = set(), set()
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            for tick in axis.get_major_ticks() + axis.get_minor_ticks():
+                made.update({id(tick.label1), id(tick.label2)})
+            for tick in axis._update_ticks():
+                kept.update({id(tick.label1), id(tick.label2)})
+    return [t for t in _texts(fig) if id(t) not in made or id(t) in kept]
+
+
+def _inside(box, area, slack=0.01):
+    return box.x0 >= area.x0 - slack and box.y0 >= area.y0 - slack and \
+        box.x1 <= area.x1 + slack and box.y1 <= area.y1 + slack
+
+
+@pytest.mark.parametrize("scene", ["paper", "ironing"])
+def test_units_and_nothing_clipped(scene, request):
+    """Every text of every figure (tick labels, titles, axis and colour-bar labels, legends)
+    lies inside the canvas and inside what savefig keeps of it (STYLE crops to the tight box
+    plus pad_inches, a box in which matplotlib counts an axis label only by its middle: a
+    label longer than its axes is cut there), and fits the figure."""
+    folder = request.getfixturevalue(f"{scene}_folder")    # a collective run: every rank
     if COMM.rank != 0:
         return
     with figures.matplotlib.rc_context(figures.STYLE):
-        for stem, fig in figures.build_all(paper_folder):
+        pad = figures.matplotlib.rcParams["savefig.pad_inches"]
+        for stem, fig in figures.build_all(folder):
             renderer = FigureCanvasAgg(fig).get_renderer()
             fig.draw(renderer)
-            # Everything drawn (tick labels in view, titles, legends, colour-bar labels)
-            # inside the canvas to 0.05 in (the saved files' tight box takes that in): the
-            # figure keeps its column width and nothing is cut at the edge.
-            drawn, canvas = fig.get_tightbbox(renderer), fig.bbox_inches
-            assert drawn.x0 >= -0.05 and drawn.y0 >= -0.05 and \
-                drawn.x1 <= canvas.x1 + 0.05 and drawn.y1 <= canvas.y1 + 0.05, \
-                f"{stem}: drawn {drawn} beyond the canvas {canvas}"
-            for text in _texts(fig):      # and no text longer than the figure is tall/wide
+            inches = fig.dpi_scale_trans.inverted()
+            kept = fig.get_tightbbox(renderer).padded(pad)
+            canvas = fig.bbox_inches
+            for text in _drawn_texts(fig):
                 e = text.get_window_extent(renderer)
+                box = e.transformed(inches)
+                assert _inside(box, canvas) and _inside(box, kept), \
+                    f"{scene} {stem}: '{text.get_text()}' at {box} beyond the canvas " \
+                    f"{canvas} or the saved box {kept}"
                 assert e.width <= fig.bbox.width and e.height <= fig.bbox.height, \
                     f"{stem}: '{text.get_text()}' larger than the figure"
             for ax in fig.axes:
                 for text in (ax.get_xlabel(), ax.get_ylabel()):
                     if text:
-                        assert "[" in text and "]" in text, f"{stem}: no unit in '{text}'"
+                        assert "[" in text and "]" in text or "(model units)" in text, \
+                            f"{stem}: no unit in '{text}'"
             assert fig.get_size_inches()[0] <= figures.PAGE + 1e-9
 
 
@@ -115,6 +170,38 @@ def test_plot_vector_output_and_times(paper_folder, tmp_path):
     assert main(["plot", str(folder), "--format", "pdf"]) == 0
     assert (folder / "stress.pdf").read_bytes()[:5] == b"%PDF-"
     assert main(["plot", str(folder), "--dpi", "0"]) == 2
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="the plot command runs on one rank")
+def test_plot_at_a_time_without_a_snapshot(paper_folder, tmp_path, capsys):
+    """--times 0.5 on the paper run (snapshots at 0.1 and T = 1, contact tables at every
+    step): the contact figures at 0.5, the stress map and deformed mesh at the nearest
+    snapshot 0.1 with the time in their names, titles and printed lines; the figures at T
+    are left as they were."""
+    folder = tmp_path / "copy"
+    shutil.copytree(paper_folder, folder)
+    assert main(["plot", str(folder), "--dpi", "40"]) == 0
+    at_T = {p.name: p.read_bytes() for p in folder.glob("*.png")}
+    assert {"stress.png", "contact_reactions.png", "deformed_mesh.png"} <= set(at_T)
+    capsys.readouterr()
+    assert main(["plot", str(folder), "--times", "0.5", "--dpi", "40"]) == 0
+    printed = capsys.readouterr().out
+    assert "no snapshot at t = 0.5" in printed and "nearest, t = 0.1" in printed
+    assert "no contact table" not in printed                   # 0.5 is a step
+    names = {p.name for p in folder.glob("*.png")} - set(at_T)
+    assert names == {"stress_t0.1.png", "deformed_mesh_t0.1.png", "contact_reactions_t0.5.png",
+                     "contact_displacements_t0.5.png"}, names
+    assert {p.name: p.read_bytes() for p in folder.glob("*.png") if p.name in at_T} == at_T
+    drawn = dict(figures.build_all(folder, times=[0.5]))
+    assert "t = 0.1 s" in drawn["stress_t0.1"].axes[0].get_title()
+    assert "nearest" in drawn["stress_t0.1"].axes[0].get_title()
+    assert "0.5 asked" in drawn["deformed_mesh_t0.1"].axes[0].get_title()
+    title = drawn["contact_reactions_t0.5"].axes[0].get_title()
+    assert title.startswith("t = 0.5 s") and "nearest" not in title
+    notes = []
+    drawn = dict(figures.build_all(folder, times=[0.1, 1.0], notes=notes))
+    assert not notes and {"stress_t0.1", "stress_t1", "contact_reactions_t1"} <= set(drawn)
+    assert all("nearest" not in ax.get_title() for fig in drawn.values() for ax in fig.axes)
 
 
 def test_step_records_from_either_layout(paper_folder, tmp_path):
