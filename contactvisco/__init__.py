@@ -3,7 +3,8 @@ a foundation with normal compliance and a unilateral constraint (Ouafik 2024), i
 
 The public interface (docs/api.md): load_scene, solve, check, scene_toml, Result, read_results,
 builtin_scenes, pyvista_grid, SceneError, NewtonFailure, the module tradeoff; for the demos also
-hertz, cattaneo_mindlin, cattaneo_traction, quick, show_images.
+hertz, cattaneo_mindlin, cattaneo_traction, cattaneo_mindlin_figure, quick, show_images,
+show_figure.
 
 Layers, each importing only those below it (docs/architecture.md):
 
@@ -49,7 +50,8 @@ _PUBLIC = {
     "Result": "solver.time_loop", "SceneError": "errors", "NewtonFailure": "solver.newton",
     "hertz": "studies.verification", "cattaneo_mindlin": "studies.coulomb",
     "cattaneo_traction": "studies.coulomb",
-    "quick": "post.notebook", "show_images": "post.notebook",
+    "quick": "post.notebook", "show_images": "post.notebook", "show_figure": "post.notebook",
+    "cattaneo_mindlin_figure": "post.figures",
 }
 #: Public modules, by the name they are reached under: the speed-accuracy trade of a scene
 #: (contactvisco tradeoff).

@@ -51,8 +51,7 @@ for nu, r in results.items():
 # tractions of a sticking zone (reactions, not a law) show it.
 
 # %%
-from contactvisco.post.figures import cattaneo_mindlin_figure
-from contactvisco.post.notebook import show_figure
+from contactvisco import cattaneo_mindlin_figure, show_figure
 
 show_figure(cattaneo_mindlin_figure(results, cattaneo_traction))
 

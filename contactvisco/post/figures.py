@@ -544,12 +544,23 @@ def probe_histories(steps: list, units: dict):
 
 def cattaneo_mindlin_figure(results: dict, traction) -> Figure:
     """The tangential traction of a cylinder pressed and then pulled on a plane, against
-    Cattaneo (1938) and Mindlin (1949), one panel per Poisson ratio.
+    Cattaneo (1938) and Mindlin (1949), one panel per Poisson ratio. Nodes that stick:
+    filled; that slip: open; separated: grey; dashed: the slip limit mu p of Hertz's pressure;
+    dotted: the closed-form stick zone.
 
-    results: {nu: the dict of contactvisco.studies.coulomb.cattaneo_mindlin}; traction:
-    its closed form q(x, a, c, p0, mu) (studies.coulomb.cattaneo_traction; passed in, since
-    post stands below studies). Nodes that stick: filled; that slip: open; separated: grey;
-    dashed: the slip limit mu p of Hertz's pressure; dotted: the closed-form stick zone."""
+    Parameters
+    ----------
+    results : dict
+        {nu: the dict that contactvisco.cattaneo_mindlin returns}.
+    traction : callable
+        The closed form q(x, a, c, p0, mu) (contactvisco.cattaneo_traction; passed in, since
+        post stands below studies).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure, one journal page wide.
+    """
     with matplotlib.rc_context(STYLE):
         return _cattaneo_mindlin(results, traction)
 
