@@ -34,6 +34,13 @@ exit codes: 0 done, 2 scene, folder or option error, 3 a step that does not conv
   128 + N stopped by signal N, 1 anything else"""
 
 
+def _scene_arguments(parser) -> None:
+    """SCENE and --set, as every command that reads a scene takes them."""
+    parser.add_argument("scene", help="built-in scene name or TOML file")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scene value, e.g. --set time.steps=100")
+
+
 def _parser():
     parser = argparse.ArgumentParser(
         prog="contactvisco", epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -42,13 +49,20 @@ def _parser():
     parser.add_argument("--version", action="store_true",
                         help="print the versions of contactvisco, DOLFINx, PETSc and MPI")
     sub = parser.add_subparsers(dest="command", required=True)
+    _add_run(sub)
+    sub.add_parser("scenes", help="list the built-in scenes")
+    _add_plot(sub)
+    _add_tradeoff(sub)
+    _add_show_and_check(sub)
+    return parser
+
+
+def _add_run(sub) -> None:
     run = sub.add_parser("run", help="solve a scene", description="Solve a scene. Arguments "
                          "that start with a single dash (-snes_monitor, -ksp_type gmres, ...) "
                          "go to PETSc.")
-    run.add_argument("scene", help="built-in scene name or TOML file")
+    _scene_arguments(run)
     run.add_argument("--out", default=None, help="output folder (default results/<scene name>)")
-    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a scene value, e.g. --set time.steps=100")
     run.add_argument("--preset", choices=["fast", "balanced", "accurate"],
                      help="speed-accuracy preset (scales the scene's mesh and steps)")
     run.add_argument("--quiet", action="store_true", help="no progress output")
@@ -58,7 +72,9 @@ def _parser():
                      help="continue the run in --out from its last checkpoint")
     run.add_argument("--traceback", action="store_true",
                      help="show the Python traceback of an unexpected error")
-    sub.add_parser("scenes", help="list the built-in scenes")
+
+
+def _add_plot(sub) -> None:
     plot = sub.add_parser("plot", help="redraw the figures of a finished run")
     plot.add_argument("folder", help="a run's output folder")
     plot.add_argument("--format", choices=["png", "pdf", "svg"], default="png",
@@ -70,9 +86,12 @@ def _parser():
                       "nearest is drawn and said (default: the figures at T)")
     plot.add_argument("--edges", action="store_true", help="draw the mesh edges on the "
                       "stress map")
+
+
+def _add_tradeoff(sub) -> None:
     trade = sub.add_parser("tradeoff", help="error against wall time over a ladder of "
                            "discretizations; the cheapest settings that reach a target")
-    trade.add_argument("scene", help="built-in scene name or TOML file")
+    _scene_arguments(trade)
     trade.add_argument("--target", type=float, required=True, metavar="TOL",
                        help="relative error to reach, e.g. 0.01")
     trade.add_argument("--out", default=None, help="output folder (default "
@@ -87,21 +106,20 @@ def _parser():
     trade.add_argument("--coarsest", type=float, default=0.25, help="mesh scale of the "
                        "coarsest level relative to the scene's (default 0.25)")
     trade.add_argument("--degrees", default="1,2", help="Lagrange degrees tried (default 1,2)")
-    trade.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+
+
+def _add_show_and_check(sub) -> None:
     show = sub.add_parser("show", help="print a scene as TOML that run accepts")
-    show.add_argument("scene", help="built-in scene name or TOML file")
+    _scene_arguments(show)
     show.add_argument("--all", action="store_true", help="every key, defaults included "
                       "(default: what the scene sets)")
-    show.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     check = sub.add_parser("check", help="build a scene and make every check a run makes, "
                            "without solving; print its size", description="Build a scene's "
                            "mesh, forms and solver and check them as a run does, without "
                            "solving. Exit 0 if the scene can run, 2 if not. Single-dash "
                            "arguments go to PETSc, as for run.")
-    check.add_argument("scene", help="built-in scene name or TOML file")
-    check.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    _scene_arguments(check)
     check.add_argument("--preset", choices=["fast", "balanced", "accurate"])
-    return parser
 
 
 def main(argv=None):
