@@ -139,13 +139,7 @@ DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3
 
 docs:
 	$(MAKE) STACK=debian install
-	@missing=$$(for p in $(DOCS_APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
-	if [ -n "$$missing" ]; then \
-	  echo "installing Debian packages: $$missing"; \
-	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
-	  $$SUDO apt-get update -qq && \
-	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
-	fi
+	$(MAKE) apt-packages APT_PACKAGES="$(DOCS_APT_PACKAGES)"
 	.venv/bin/python -m sphinx -W --keep-going -n -b html docs build/docs
 	.venv/bin/python -m pytest -q tests/unit/test_docs_links.py
 	@echo "documentation: build/docs/index.html"

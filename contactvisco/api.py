@@ -148,14 +148,11 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
     """
     from mpi4py import MPI
 
-    from contactvisco.fem.user_mesh import from_mesh
     from contactvisco.solver.time_loop import simulate
     if comm is None:
         comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
     try:
-        geometry = None
-        if mesh is not None or facet_tags is not None or boundaries is not None:
-            geometry = from_mesh(scene, mesh, facet_tags, boundaries)
+        geometry = _own_geometry(scene, mesh, facet_tags, boundaries)
         result = simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
                           restart=restart, overwrite=overwrite, geometry=geometry,
                           on_step=on_step)
@@ -164,6 +161,15 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
     if out is not None and comm.rank == 0 and scene["output"]["figures"]:
         _draw_figures(out)
     return result
+
+
+def _own_geometry(scene, mesh, facet_tags, boundaries):
+    """The Geometry of a caller's mesh checked against the scene, or None for the scene's
+    own (when none of the three is given)."""
+    if mesh is None and facet_tags is None and boundaries is None:
+        return None
+    from contactvisco.fem.user_mesh import from_mesh
+    return from_mesh(scene, mesh, facet_tags, boundaries)
 
 
 def _located(scene, err: SceneError) -> SceneError:
@@ -262,15 +268,11 @@ def check(scene: dict, mesh=None, facet_tags=None, boundaries=None, comm=None) -
     """
     from mpi4py import MPI
 
-    from contactvisco.fem.user_mesh import from_mesh
     from contactvisco.solver.check import check as check_scene
     if comm is None:
         comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
     try:
-        geometry = None
-        if mesh is not None or facet_tags is not None or boundaries is not None:
-            geometry = from_mesh(scene, mesh, facet_tags, boundaries)
-        return check_scene(scene, geometry, comm)
+        return check_scene(scene, _own_geometry(scene, mesh, facet_tags, boundaries), comm)
     except SceneError as err:
         raise _located(scene, err) from None
 

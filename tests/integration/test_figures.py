@@ -25,19 +25,20 @@ DOCS = ROOT / "docs" / "figures"
 def paper_folder(tmp_path_factory):
     """The paper scene as shipped (as docs/make_figures.py runs it), in a folder every rank
     names alike."""
-    folder = pathlib.Path(COMM.bcast(str(tmp_path_factory.mktemp("paper")), root=0))
-    scene = scene_module.load("paper")
-    scene["output"].update(xdmf=False, checkpoint=False)
-    simulate(scene, folder, progress=False)
-    COMM.barrier()
-    return folder
+    return _shipped_run(tmp_path_factory, "paper")
 
 
 @pytest.fixture(scope="module")
 def ironing_folder(tmp_path_factory):
     """The ironing scene as shipped: a strip six times longer than high."""
-    folder = pathlib.Path(COMM.bcast(str(tmp_path_factory.mktemp("ironing")), root=0))
-    scene = scene_module.load("ironing")
+    return _shipped_run(tmp_path_factory, "ironing")
+
+
+def _shipped_run(tmp_path_factory, name):
+    """A built-in scene as shipped, run into a folder every rank names alike (no XDMF, no
+    checkpoint: the figures need neither)."""
+    folder = pathlib.Path(COMM.bcast(str(tmp_path_factory.mktemp(name)), root=0))
+    scene = scene_module.load(name)
     scene["output"].update(xdmf=False, checkpoint=False)
     simulate(scene, folder, progress=False)
     COMM.barrier()
