@@ -50,7 +50,14 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     table = _gather_sorted(local, comm, problem.length_scale)
     table["status"] = classify(table["penetration"], contact["g"], problem.length_scale)
     table["friction"] = stick_slip(table)             # the stick/slip state
+    table["status_name"] = state_names(table["status"], STATUSES)
+    table["friction_name"] = state_names(table["friction"], STICK_SLIP_STATES)
     return table
+
+
+def state_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """The names of integer state codes (names[code]) as a numpy string array."""
+    return np.asarray(names)[np.asarray(codes, dtype=int)]
 
 
 def _node_fields(problem, own: np.ndarray) -> dict[str, np.ndarray | None]:
