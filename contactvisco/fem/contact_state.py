@@ -161,6 +161,18 @@ def status_counts(table) -> dict[str, int]:
     return {name: int(np.sum(table["status"] == i)) for i, name in enumerate(STATUSES)}
 
 
+def status_at_nodes(problem, table) -> tuple[np.ndarray, np.ndarray]:
+    """(the owned contact nodes of this rank, their status codes from the gathered `table`):
+    the table's rows matched to the nodes by position, rounded as _gather_sorted rounds."""
+    nodes = problem.contact.nodes
+    d = problem.geometry.mesh.geometry.dim
+    own = nodes.nodes[nodes.owned]
+    scale = 1e-9 * problem.length_scale
+    row = {tuple(key): i for i, key in enumerate(np.round(table["x"] / scale).astype(np.int64))}
+    keys = np.round(problem.contact.Q_coordinates[own][:, :d] / scale).astype(np.int64)
+    return own, table["status"][[row[tuple(key)] for key in keys]]
+
+
 def _nodal_displacement(problem) -> np.ndarray:
     d = problem.geometry.mesh.geometry.dim
     u_p1 = problem.contact.u_p1

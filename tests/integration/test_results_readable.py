@@ -1,5 +1,6 @@
 """Results a reader can follow without the code list: the contact states by name in the
-contact table and in contact_nodes.csv, with the columns docs/running.md lists."""
+contact table and in contact_nodes.csv, with the columns docs/running.md lists; the stress
+components, the von Mises stress and the contact state as named XDMF fields."""
 import csv
 import re
 
@@ -8,12 +9,16 @@ import pytest
 from mpi4py import MPI
 
 from contactvisco import load_scene, solve
+from contactvisco.fem import compat
 from contactvisco.fem.contact_state import STATUSES, STICK_SLIP_STATES
+from contactvisco.io import h5read, output
 from helpers import ROOT
 
 COMM = MPI.COMM_WORLD
 OVERRIDES = dict(contact={"mu": 0.4}, time={"steps": 3}, geometry={"cells": [8, 8]},
-                 output={"figures": False, "checkpoint": False})
+                 output={"figures": False, "checkpoint": False,
+                         "fields": ["u", "sigma", "stress_components", "von_mises",
+                                    "contact_status"]})
 
 
 @pytest.fixture(scope="module")
@@ -57,3 +62,53 @@ def test_contact_csv_has_the_documented_columns_and_state_names(run):
     assert [row[header.index("friction")] for row in last] == list(table["friction_name"])
     assert np.allclose([float(row[header.index("u_nu")]) for row in last], table["u_nu"],
                        rtol=0, atol=1e-15)
+
+
+def cell_stress(problem, comm):
+    """On rank 0: (centroids, stress (m, d, d)) of every cell of the mesh at the last step,
+    from the run's own stress expression."""
+    from dolfinx import fem
+    sigma = fem.Function(problem.tensor_space)
+    sigma.interpolate(problem.sigma_expression)
+    mesh = problem.geometry.mesh
+    d = mesh.geometry.dim
+    cells = mesh.topology.index_map(d).size_local
+    vertices = compat.cell_dofs(problem.V.dofmap)[:cells, :d + 1]
+    x = problem.V.tabulate_dof_coordinates()[:, :d]
+    dofs = compat.cell_dofs(sigma.function_space.dofmap)[:cells]
+    stress = sigma.x.array.reshape(-1, d, d)[dofs].mean(axis=1)
+    parts = comm.gather((x[vertices].mean(axis=1), stress), root=0)
+    if comm.rank == 0:
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+    return None
+
+
+def by_position(points):
+    return {tuple(p): i for i, p in enumerate(np.round(points / 1e-9).astype(np.int64))}
+
+
+def test_xdmf_holds_named_stress_components_and_the_contact_status(run):
+    """The fields read back from the HDF5 of the last step: sigma_xx, sigma_yy, sigma_xy and
+    von_mises are the run's stress cell by cell, contact_status is the contact table's status
+    at the contact nodes and 0 elsewhere."""
+    result, out = run
+    stress = cell_stress(result.problem, COMM)
+    if COMM.rank != 0:
+        return
+    t, arrays = h5read.check_xdmf(f"{out}/solution.xdmf")[-1]
+    assert t == result.steps[-1]["t"]
+    points, topology = arrays["geometry"], arrays["topology"].astype(int)
+    centroids, sigma = stress
+    where = by_position(centroids)
+    order = [where[key] for key in by_position(points[topology].mean(axis=1))]
+    sigma = sigma[order]
+    for name, (i, j) in {"sigma_xx": (0, 0), "sigma_yy": (1, 1), "sigma_xy": (0, 1)}.items():
+        assert np.allclose(arrays[name][:, 0], sigma[:, i, j], rtol=1e-12, atol=1e-12), name
+    assert np.allclose(arrays["von_mises"][:, 0], output.von_mises(sigma), rtol=1e-12)
+    assert np.ptp(arrays["sigma_xy"]) > 0.1          # not a constant stress
+    table = result.contact[-1]
+    status = np.zeros(len(points))
+    at = by_position(points)
+    status[[at[key] for key in by_position(table["x"])]] = table["status"]
+    assert np.array_equal(arrays["contact_status"][:, 0], status)
+    assert set(status) == {0, 1, 2}
