@@ -112,3 +112,30 @@ def test_xdmf_holds_named_stress_components_and_the_contact_status(run):
     status[[at[key] for key in by_position(table["x"])]] = table["status"]
     assert np.array_equal(arrays["contact_status"][:, 0], status)
     assert set(status) == {0, 1, 2}
+
+
+def test_gathered_grid_is_the_whole_mesh_on_rank_0(run):
+    """pyvista_grid(u, gather=True): on rank 0 every point and cell of the mesh once (the
+    cells tile the unit square) and the displacement of a run on one rank, point by point;
+    None on the other ranks."""
+    pytest.importorskip("pyvista")
+    from contactvisco import pyvista_grid
+    result, _ = run
+    grid = pyvista_grid(result.u, gather=True)
+    if COMM.rank != 0:
+        assert grid is None
+        return
+    V = result.u.function_space
+    assert grid.n_points == V.dofmap.index_map.size_global
+    assert grid.n_cells == result.problem.geometry.mesh.topology.index_map(2).size_global
+    areas = grid.compute_cell_sizes(length=False, area=True, volume=False)["Area"]
+    assert np.all(areas > 0) and abs(np.sum(areas) - 1.0) < 1e-12
+    alone = solve(load_scene("paper", **{**OVERRIDES, "output": {}}), comm=MPI.COMM_SELF)
+    local = pyvista_grid(alone.u)
+    assert local.n_points == grid.n_points
+    mine = np.lexsort(np.round(np.asarray(grid.points) / 1e-9).T[::-1])
+    theirs = np.lexsort(np.round(np.asarray(local.points) / 1e-9).T[::-1])
+    assert np.allclose(grid.points[mine], local.points[theirs], rtol=0, atol=1e-14)
+    u_all, u_one = grid.point_data["u"][mine], local.point_data["u"][theirs]
+    assert np.abs(u_one).max() > 1e-3
+    assert np.allclose(u_all, u_one, rtol=0, atol=1e-10 * np.abs(u_one).max())
