@@ -120,8 +120,9 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
         (the step's line of steps.jsonl, as a dict).
     comm : mpi4py.MPI.Comm, optional
         The communicator; default: the mesh's, else ``COMM_WORLD``.
-    progress : bool, optional
-        Print a line per step (rank 0).
+    progress : bool or "verbose", optional
+        Print the output folder and a line per step (rank 0); "verbose": also a line per
+        Newton iteration with its residual norm.
     restart : bool, optional
         Continue the run in `out` from its checkpoint.
     overwrite : bool, optional

@@ -139,3 +139,58 @@ def test_gathered_grid_is_the_whole_mesh_on_rank_0(run):
     u_all, u_one = grid.point_data["u"][mine], local.point_data["u"][theirs]
     assert np.abs(u_one).max() > 1e-3
     assert np.allclose(u_all, u_one, rtol=0, atol=1e-10 * np.abs(u_one).max())
+
+
+# ---- what a run prints ----
+
+def test_a_failure_message_is_short_and_keeps_the_whole_history():
+    """Newton held to 3 iterations on the first state: the message names the initial state,
+    gives the first and last residual norms and their count on one short line, and the
+    failure carries every norm."""
+    from contactvisco import NewtonFailure
+    scene = load_scene("paper", geometry={"cells": [4, 4]}, time={"steps": 1},
+                       solver={"petsc_options": {"snes_max_it": 3}})
+    with pytest.raises(NewtonFailure) as caught:
+        solve(scene)
+    message, residuals = str(caught.value), caught.value.residuals
+    assert message.startswith("the initial state (t = 0): Newton did not converge")
+    assert len(residuals) == 4 and residuals[0] > residuals[-1] > 0
+    assert (f"after 3 iterations; residual history |F| {residuals[0]:.2e} -> "
+            f"{residuals[-1]:.2e} (4 values)") in message
+    assert "[" not in message and len(message) < 300
+
+
+def test_run_names_its_folder_and_verbose_prints_every_newton_iteration(tmp_path):
+    """contactvisco run: the first line names the output folder; -v adds one line per
+    Newton iteration whose norms are the residual_history of steps.jsonl; --quiet prints
+    nothing; --quiet with -v is refused."""
+    import json
+    import subprocess
+    import sys
+    if COMM.size > 1:
+        pytest.skip("runs the command line on one rank")
+    args = ["run", "paper", "--set", "time.steps=2", "--set", "geometry.cells=[4, 4]",
+            "--set", "output.figures=false"]
+    runs = {}
+    for flag in ("-v", "--quiet", ""):
+        out = tmp_path / (flag.strip("-") or "plain")
+        proc = subprocess.run([sys.executable, "-m", "contactvisco", *args, "--out", str(out)]
+                              + ([flag] if flag else []), capture_output=True, text=True,
+                              timeout=300, cwd=ROOT)
+        assert proc.returncode == 0, proc.stderr
+        steps = [json.loads(line) for line in (out / "steps.jsonl").read_text().splitlines()]
+        runs[flag] = proc.stdout.splitlines(), steps
+    lines, steps = runs["-v"]
+    assert lines[0] == f"writing to {tmp_path / 'v'}"
+    printed = [float(line.split("=")[1]) for line in lines if line.startswith("  Newton")]
+    history = [r for step in steps for r in step["residual_history"]]
+    assert len(printed) == len(history) > len(steps)
+    assert np.allclose(printed, history, rtol=1e-3, atol=0)
+    plain, _ = runs[""]
+    assert plain[0] == f"writing to {tmp_path / 'plain'}"
+    # the folder, the header, a line per state and the closing line
+    assert not any(line.startswith("  Newton") for line in plain) and len(plain) == 6
+    assert runs["--quiet"][0] == []
+    refused = subprocess.run([sys.executable, "-m", "contactvisco", *args, "-v", "--quiet"],
+                             capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert refused.returncode == 2 and "not allowed with" in refused.stderr
