@@ -120,8 +120,9 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
         (the step's line of steps.jsonl, as a dict).
     comm : mpi4py.MPI.Comm, optional
         The communicator; default: the mesh's, else ``COMM_WORLD``.
-    progress : bool, optional
-        Print a line per step (rank 0).
+    progress : bool or "verbose", optional
+        Print the output folder and a line per step (rank 0); "verbose": also a line per
+        Newton iteration with its residual norm.
     restart : bool, optional
         Continue the run in `out` from its checkpoint.
     overwrite : bool, optional
@@ -192,17 +193,22 @@ def _draw_figures(out) -> None:
               file=sys.stderr, flush=True)
 
 
-def pyvista_grid(u):
-    """This rank's part of a P1 vector field as a pyvista grid.
+def pyvista_grid(u, gather=False):
+    """A P1 vector field as a pyvista grid: this rank's part, or the whole mesh on rank 0.
 
     Parameters
     ----------
     u : dolfinx.fem.Function
         A P1 vector field, e.g. ``result.u``.
+    gather : bool
+        False: this rank's part (the cells it owns). True: the whole mesh on rank 0
+        (its points in the global numbering of the field's nodes, each cell once) and None on
+        the other ranks; collective then (call it on every rank of the mesh's
+        communicator).
 
     Returns
     -------
-    pyvista.UnstructuredGrid
+    pyvista.UnstructuredGrid or None
         The grid with point data ``"u"`` (3 components, zero-padded in 2D) made the active
         vectors, ready for ``grid.warp_by_vector("u")``.
     """
@@ -210,13 +216,43 @@ def pyvista_grid(u):
     import pyvista
 
     from contactvisco.fem import compat
-    grid = pyvista.UnstructuredGrid(*compat.vtk_mesh(u.function_space))
+    topology, cell_types, points = compat.vtk_mesh(u.function_space)
     d = u.function_space.mesh.geometry.dim
-    values = np.zeros((grid.n_points, 3))
-    values[:, :d] = u.x.array.reshape(-1, d)[:grid.n_points]
+    values = np.zeros((len(points), 3))
+    values[:, :d] = u.x.array.reshape(-1, d)[:len(points)]
+    if gather:
+        topology, cell_types, points, values = _gathered(u.function_space, topology,
+                                                         cell_types, points, values)
+        if points is None:
+            return None
+    grid = pyvista.UnstructuredGrid(topology, cell_types, points)
     grid.point_data["u"] = values
     grid.set_active_vectors("u")
     return grid
+
+
+def _gathered(space, topology, cell_types, points, values):
+    """The VTK arrays of every rank's owned cells and nodes on rank 0, the nodes in the
+    space's global numbering (Nones elsewhere). P1: VTK's points are the space's nodes."""
+    import numpy as np
+
+    mesh = space.mesh
+    comm = mesh.comm
+    imap = space.dofmap.index_map
+    own = imap.size_local
+    cells = mesh.topology.index_map(mesh.topology.dim).size_local   # owned cells first
+    rows = np.asarray(topology, dtype=np.int64).reshape(len(cell_types), -1)[:cells]
+    rows[:, 1:] = imap.local_to_global(rows[:, 1:].ravel().astype(np.int32)).reshape(-1, rows.shape[1] - 1)
+    parts = comm.gather((imap.local_range[0], points[:own], values[:own], rows,
+                         np.asarray(cell_types)[:cells]), root=0)
+    if comm.rank != 0:
+        return None, None, None, None
+    size = imap.size_global
+    all_points, all_values = np.zeros((size, 3)), np.zeros((size, 3))
+    for start, x, v, _, _ in parts:
+        all_points[start:start + len(x)], all_values[start:start + len(x)] = x, v
+    return (np.concatenate([p[3] for p in parts]).ravel(),
+            np.concatenate([p[4] for p in parts]), all_points, all_values)
 
 
 def read_results(folder) -> dict:

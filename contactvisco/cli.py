@@ -65,7 +65,13 @@ def _add_run(sub) -> None:
     run.add_argument("--out", default=None, help="output folder (default results/<scene name>)")
     run.add_argument("--preset", choices=["fast", "balanced", "accurate"],
                      help="speed-accuracy preset (scales the scene's mesh and steps)")
-    run.add_argument("--quiet", action="store_true", help="no progress output")
+    verbosity = run.add_mutually_exclusive_group()
+    verbosity.add_argument("--quiet", action="store_true", help="no progress output")
+    # -v is read as --verbose before argparse sees it: declared as a short option, argparse
+    # would take PETSc options that start with -v (-vec_type) for -v with a value.
+    verbosity.add_argument("--verbose", action="store_true",
+                           help="(or -v) print also the residual |F| of every Newton "
+                           "iteration")
     run.add_argument("--overwrite", action="store_true",
                      help="replace the files of an earlier run in --out")
     run.add_argument("--restart", action="store_true",
@@ -127,6 +133,7 @@ def main(argv=None):
     if argv == ["--version"]:
         print(versions())
         return 0
+    argv = ["--verbose" if a == "-v" else a for a in argv]
     args, petsc_args = _parser().parse_known_args(argv)
     bad = [a for a in petsc_args if a.startswith("--")]
     if bad:
@@ -235,6 +242,11 @@ def versions() -> str:
     ])
 
 
+def _progress(args):
+    """solve's progress: False (--quiet), True, or "verbose" (--verbose)."""
+    return False if args.quiet else "verbose" if args.verbose else True
+
+
 def _run(args, petsc_args, scene_module):
     """`contactvisco run`: every error, on any rank, ends every rank with one message
     (contactvisco.io.parallel): exit 2 for a scene or folder error, 3 for a Newton failure,
@@ -251,7 +263,7 @@ def _run(args, petsc_args, scene_module):
         scene = api.load_scene(args.scene, sets=preset + args.set)
         out = args.out or f"results/{scene['name']}"
         _check_writable(out)
-        api.solve(scene, out, comm=comm, progress=not args.quiet, restart=args.restart,
+        api.solve(scene, out, comm=comm, progress=_progress(args), restart=args.restart,
                   overwrite=args.overwrite, keep_contact=False)
     except SceneError as err:
         from contactvisco.io.checkpoint import Damaged

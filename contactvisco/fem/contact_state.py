@@ -50,7 +50,14 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     table = _gather_sorted(local, comm, problem.length_scale)
     table["status"] = classify(table["penetration"], contact["g"], problem.length_scale)
     table["friction"] = stick_slip(table)             # the stick/slip state
+    table["status_name"] = state_names(table["status"], STATUSES)
+    table["friction_name"] = state_names(table["friction"], STICK_SLIP_STATES)
     return table
+
+
+def state_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """The names of integer state codes (names[code]) as a numpy string array."""
+    return np.asarray(names)[np.asarray(codes, dtype=int)]
 
 
 def _node_fields(problem, own: np.ndarray) -> dict[str, np.ndarray | None]:
@@ -152,6 +159,18 @@ def status_counts(table) -> dict[str, int]:
     if table is None:
         return {s: 0 for s in STATUSES}
     return {name: int(np.sum(table["status"] == i)) for i, name in enumerate(STATUSES)}
+
+
+def status_at_nodes(problem, table) -> tuple[np.ndarray, np.ndarray]:
+    """(the owned contact nodes of this rank, their status codes from the gathered `table`):
+    the table's rows matched to the nodes by position, rounded as _gather_sorted rounds."""
+    nodes = problem.contact.nodes
+    d = problem.geometry.mesh.geometry.dim
+    own = nodes.nodes[nodes.owned]
+    scale = 1e-9 * problem.length_scale
+    row = {tuple(key): i for i, key in enumerate(np.round(table["x"] / scale).astype(np.int64))}
+    keys = np.round(problem.contact.Q_coordinates[own][:, :d] / scale).astype(np.int64)
+    return own, table["status"][[row[tuple(key)] for key in keys]]
 
 
 def _nodal_displacement(problem) -> np.ndarray:

@@ -25,7 +25,7 @@ import numpy as np
 from dolfinx import fem, io
 
 from contactvisco.fem import compat
-from contactvisco.fem.contact_state import STATUSES, STICK_SLIP_STATES
+from contactvisco.fem.contact_state import STATUSES, STICK_SLIP_STATES, status_at_nodes
 
 class Writer:
     """summary.json, steps.jsonl, contact_nodes.csv and solution.xdmf in one output folder.
@@ -279,6 +279,61 @@ def jsonable(value):
     if isinstance(value, float) and not math.isfinite(value):
         return str(value)
     return value
+
+
+#: The stress components written by output.fields = "stress_components", (i, j) of sigma.
+COMPONENTS = {2: (("xx", 0, 0), ("yy", 1, 1), ("xy", 0, 1)),
+              3: (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("yz", 1, 2),
+                  ("xz", 0, 2))}
+#: The output.fields computed from sigma.
+STRESS_FIELDS = ("sigma", "stress_components", "von_mises")
+
+
+def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
+    """The fields of output.fields that are not unknowns of the problem, by field name, each a
+    list of Functions named as ParaView shows them:
+    "stress_components": sigma_xx, sigma_yy, sigma_xy (3D: and sigma_zz, sigma_yz, sigma_xz),
+    scalar fields of sigma's (discontinuous) space; "von_mises": sqrt(3/2 s:s) at the same
+    points (in 2D of the in-plane stress, sigma_zz taken as 0, as the figures);
+    "contact_status": a P1 scalar on the vertices, the contact table's status (0 separated,
+    1 compliance, 2 bound) on Gamma_C and 0 elsewhere (none without contact).
+    `sigma` must hold the stress of the step when a stress field is asked for; `cache`
+    keeps the Functions between steps."""
+    d = problem.geometry.mesh.geometry.dim
+    fields = {}
+    if "stress_components" in names or "von_mises" in names:
+        tensor_space = sigma.function_space
+        values = sigma.x.array.reshape(-1, d, d)
+        wanted = ([(f"sigma_{name}", values[:, i, j]) for name, i, j in COMPONENTS[d]]
+                  if "stress_components" in names else [])
+        if "von_mises" in names:
+            wanted.append(("von_mises", von_mises(values)))
+        if wanted and "stress space" not in cache:
+            cache["stress space"] = compat.scalar_space(tensor_space.mesh, "DG",
+                                                        compat.element_degree(tensor_space))
+        for name, value in wanted:
+            target = _cached(cache, name, lambda: cache["stress space"])
+            # The same element, so the same nodes cell by cell: copied through the cell dofs.
+            target.x.array[compat.cell_dofs(target.function_space.dofmap)] = \
+                value[compat.cell_dofs(tensor_space.dofmap)]
+        fields["stress_components"] = [cache[f"sigma_{name}"] for name, _, _ in COMPONENTS[d]
+                                       if f"sigma_{name}" in cache]
+        fields["von_mises"] = [cache["von_mises"]] if "von_mises" in cache else []
+    if "contact_status" in names and problem.contact is not None and table is not None:
+        target = _cached(cache, "contact_status", lambda: problem.contact.gap.function_space)
+        own, status = status_at_nodes(problem, table)
+        target.x.array[:] = 0.0
+        target.x.array[own] = status
+        target.x.scatter_forward()
+        fields["contact_status"] = [target]
+    return fields
+
+
+def _cached(cache: dict, name: str, space):
+    """The Function `name` of cache, made on space() the first time."""
+    if name not in cache:
+        cache[name] = fem.Function(space(), name=name)
+    return cache[name]
 
 
 def snapshot_skip_note(problem, limit, xdmf: bool) -> str | None:

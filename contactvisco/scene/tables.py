@@ -475,7 +475,8 @@ class Solver(Table):
 
 
 #: output.fields: the fields an XDMF file may hold.
-FIELDS = ("u", "sigma", "history_stress", "lambda_nu", "lambda_tau")
+FIELDS = ("u", "sigma", "history_stress", "lambda_nu", "lambda_tau", "stress_components",
+          "von_mises", "contact_status")
 
 
 class Output(Table):

@@ -59,7 +59,10 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
         written = {"u": counts["u"] // d * 3, "sigma": tensor_dofs // d ** 2 * 9,
                    "history_stress": tensor_dofs // d ** 2 * 9 if problem.memory else 0,
                    "lambda_nu": counts.get("lambda_nu", 0),
-                   "lambda_tau": counts.get("lambda_tau", 0) // d * 3}
+                   "lambda_tau": counts.get("lambda_tau", 0) // d * 3,
+                   "stress_components": tensor_dofs // d ** 2 * (3 if d == 2 else 6),
+                   "von_mises": tensor_dofs // d ** 2,
+                   "contact_status": vertices if problem.contact is not None else 0}
         values = cells * (tdim + 1) + vertices * d
         values += sum(written[name] for name in opts["fields"])
         per_step += FLOAT * values + XDMF_STEP

@@ -19,8 +19,10 @@ def step_failure(problem, comm, t_from, t_to, cuts, err: NewtonFailure, table,
     Collective."""
     limit = friction_limit(problem, comm, table)
     cut_note = f" after {cuts} cuts" if cuts else ""
+    where = (f"the initial state (t = {t_to:g})" if t_from == t_to else
+             f"step to t = {t_to:g} (from t = {t_from:g}{cut_note})")
     return NewtonFailure(
-        f"step to t = {t_to:g} (from t = {t_from:g}{cut_note}): "
+        f"{where}: "
         + (f"{limit}; {err}" if limit else
            f"{err}; {likely_cause(err, problem.scene, step)}"),
         err.reason, err.residuals)

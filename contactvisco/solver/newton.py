@@ -255,6 +255,15 @@ class NewtonFailure(RuntimeError):
         self.residuals = residuals
 
 
+def residual_summary(residuals) -> str:
+    """The residual history in a few words: its first and last norms and its length (the
+    whole history is NewtonFailure.residuals)."""
+    if not residuals:
+        return "residual history: none computed"
+    return (f"residual history |F| {residuals[0]:.2e} -> {residuals[-1]:.2e} "
+            f"({len(residuals)} values)")
+
+
 class NewtonSolver:
     """A PETSc SNES over UFL forms, shared by both linear systems: its options (SolverOptions,
     under a prefix of its own), monitor, solve and failure report."""
@@ -346,8 +355,8 @@ class NewtonSolver:
         if reason <= 0:
             raise NewtonFailure(
                 f"Newton did not converge (SNES reason {reason}) after "
-                f"{self.snes.getIterationNumber()} iterations; residual history "
-                f"{['%.3e' % r for r in self.residuals]}", reason, list(self.residuals))
+                f"{self.snes.getIterationNumber()} iterations; "
+                f"{residual_summary(self.residuals)}", reason, list(self.residuals))
         return self.snes.getIterationNumber()
 
     def _to_functions(self, x):

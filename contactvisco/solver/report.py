@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import sys
+import weakref
 
 from contactvisco.model.stability import stability_number
 
@@ -16,15 +17,22 @@ DIRECT_SUM_NOTE = ("memory: a general (table) kernel has no recursion: eq (19) i
 
 
 def printer(comm, enabled):
-    """say(text): print a line on rank 0 when enabled."""
+    """say(text): print a line on rank 0 when enabled (True, or "verbose": then the run also
+    prints the residual of every Newton iteration; say.verbose tells)."""
     def say(text):
         if enabled and comm.rank == 0:
             print(text, file=sys.stdout, flush=True)
+    say.verbose = enabled == "verbose"
     return say
 
 
 def announce(scene, problem, snes, comm, setup_s, say, writer=None):
-    """The header line, the memory note and the time-rule warning."""
+    """The output folder, the header line, the memory note and the time-rule warning; with a
+    verbose `say`, a line per Newton iteration from then on."""
+    if writer is not None:
+        say(f"writing to {writer.folder}")
+    if getattr(say, "verbose", False):
+        follow_iterations(snes, say)
     counts = problem.count_unknowns()
     contact_nodes = problem.count_contact_nodes()
     multipliers = ", ".join(name for name in counts if name != "u")
@@ -44,6 +52,19 @@ def announce(scene, problem, snes, comm, setup_s, say, writer=None):
             print(f"contactvisco: {warning}", file=sys.stderr, flush=True)
         if writer is not None:
             writer.note("warnings", warning)
+
+
+def follow_iterations(snes, say):
+    """Print the residual of every Newton iteration of `snes` (a NewtonSolver): the norm its
+    own monitor recorded (for the condensed system the norm of the full residual). The
+    solver is held weakly: the SNES keeps the callback."""
+    solver = weakref.ref(snes)
+
+    def iteration(_, it, norm):
+        newton = solver()
+        if newton is not None and newton.residuals:
+            say(f"  Newton {it:2d}  |F| = {newton.residuals[-1]:.3e}")
+    snes.snes.setMonitor(iteration)
 
 
 def memory_note(problem) -> str | None:

@@ -264,17 +264,20 @@ class FieldWriter:
 
     def __init__(self, writer, problem, sigma, names):
         self.writer, self.problem, self.sigma, self.names = writer, problem, sigma, names
+        self.derived = {}                     # the Functions of output.derived_fields
 
     def __call__(self, record, table):
         fields = []
         if self.writer.xdmf is not None:
             problem = self.problem
-            if "sigma" in self.names:
+            if any(name in output.STRESS_FIELDS for name in self.names):
                 self.sigma.interpolate(problem.sigma_expression)
             available = {"u": problem.u, "sigma": self.sigma,
                          "history_stress": problem.memory and problem.memory.H,
                          **problem.multipliers}
+            derived = output.derived_fields(self.names, problem, self.sigma, table, self.derived)
             fields = [available[name] for name in self.names if available.get(name) is not None]
+            fields += [f for name in self.names for f in derived.get(name, [])]
         self.writer.step(record, table, fields)
 
 

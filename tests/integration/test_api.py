@@ -81,6 +81,9 @@ def test_own_mesh_gives_the_builtin_answer():
     for a, b in zip(own.contact, builtin.contact):
         assert a.keys() == b.keys()
         for key in a:
+            if a[key].dtype.kind == "U":          # the names of the state codes
+                assert np.array_equal(a[key], b[key]), key
+                continue
             scale = max(1.0, float(np.abs(b[key]).max()))
             assert np.allclose(a[key], b[key], rtol=0.0, atol=1e-10 * scale), key
     probe_a, probe_b = own.steps[-1]["probes"][0]["u"], builtin.steps[-1]["probes"][0]["u"]

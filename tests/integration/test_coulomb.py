@@ -98,7 +98,7 @@ def test_load_beyond_the_friction_limit_stops_clearly():
 def test_load_beyond_the_friction_limit_at_the_first_step():
     """The same stop when the first time (t_0, no earlier equilibrium) is already beyond."""
     raw, _ = block_scene("stick", load=1.5)
-    with pytest.raises(NewtonFailure, match=r"step to t = 0 \(from t = 0\): no quasistatic "
+    with pytest.raises(NewtonFailure, match=r"the initial state \(t = 0\): no quasistatic "
                        r"equilibrium: the tangential load exceeds the friction limit "
                        r"\(tangential load 6 > mu x normal load = 0.4 x 10 = 4\)"):
         _run(raw)
