@@ -95,9 +95,9 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     """Solve a resolved scene; write results into folder `out` when given, with a checkpoint
     on the schedule of its [output] table (every step by default); restart=True continues
     from the checkpoint in `out`. The run holds the folder (contactvisco.io.lock); an earlier
-    run's files in it are replaced when overwrite is true, else refused. SIGINT/SIGTERM stop every rank after the same step (parallel.Stopped).
-    `geometry` replaces the scene's own mesh; on_step(record) is called after every accepted
-    step.
+    run's files in it are replaced when overwrite is true, else refused. SIGINT/SIGTERM stop
+    every rank after the same step (parallel.Stopped). `geometry` replaces the scene's own
+    mesh; on_step(record) is called after every accepted step.
     """
     started = clock.perf_counter()
     parallel.prepare(comm)          # collective: while every rank is still in step
