@@ -2,8 +2,9 @@
 the unknowns and the history state of its own dofs, keyed by position (dof coordinates, and
 cell midpoints for the discontinuous history fields), to
 checkpoint/state-<step>/part-<rank>.npz; rank 0 then writes checkpoint/meta.json (t, step,
-scene hash, the parts and the bounding box of each part's positions) atomically and removes the previous step's folder. No rank gathers the state of
-the whole mesh: every rank writes O(dofs / ranks).
+scene hash, the parts and the bounding box of each part's positions) atomically and removes
+the previous checkpoint's folder. No rank gathers the state of the whole mesh: every rank
+writes O(dofs / ranks).
 
 `contactvisco run ... --restart` continues from it on any partition and any rank count (the
 partition of a mesh is not reproducible between runs): each rank reads only the parts whose
