@@ -1,9 +1,10 @@
-"""Checkpoints: after every accepted step each rank writes the unknowns and the history state
-of its own dofs, keyed by position (dof coordinates, and cell midpoints for the discontinuous
-history fields), to checkpoint/state-<step>/part-<rank>.npz; rank 0 then writes
-checkpoint/meta.json (t, step, scene hash, the parts and the bounding box of each part's
-positions) atomically and removes the previous step's folder. No rank gathers the state of
-the whole mesh: every rank writes O(dofs / ranks).
+"""Checkpoints: after an accepted step (every one by default; see Schedule) each rank writes
+the unknowns and the history state of its own dofs, keyed by position (dof coordinates, and
+cell midpoints for the discontinuous history fields), to
+checkpoint/state-<step>/part-<rank>.npz; rank 0 then writes checkpoint/meta.json (t, step,
+scene hash, the parts and the bounding box of each part's positions) atomically and removes
+the previous checkpoint's folder. No rank gathers the state of the whole mesh: every rank
+writes O(dofs / ranks).
 
 `contactvisco run ... --restart` continues from it on any partition and any rank count (the
 partition of a mesh is not reproducible between runs): each rank reads only the parts whose
@@ -23,6 +24,7 @@ import json
 import os
 import pathlib
 import shutil
+import time
 
 import numpy as np
 
@@ -120,6 +122,34 @@ def _box(coordinates: np.ndarray):
     if len(coordinates) == 0:
         return None
     return [coordinates.min(axis=0).tolist(), coordinates.max(axis=0).tolist()]
+
+
+class Schedule:
+    """When a run writes its checkpoint ([output] checkpoint_every, checkpoint_seconds): after
+    the steps whose number (the record's "step": accepted states, the halves of a cut step
+    included) is a multiple of `every`; or, when `seconds` > 0 (then `every` is not used),
+    after the first step that ends at least `seconds` of wall time after the last checkpoint
+    (or after the start of the time loop); and always after the final state. The wall-time
+    decision is rank 0's, broadcast: every rank writes the same checkpoints (save is
+    collective)."""
+
+    def __init__(self, comm, every: int = 1, seconds: float = 0.0, clock=time.monotonic):
+        self.comm, self.every, self.seconds, self.clock = comm, every, seconds, clock
+        self.last = clock()
+
+    def due(self, step: int, final: bool = False) -> bool:
+        """Whether the state after record `step` gets a checkpoint (collective when
+        `seconds` > 0 and not final)."""
+        if final:
+            return True
+        if self.seconds > 0:
+            late = self.clock() - self.last >= self.seconds
+            return bool(self.comm.bcast(late, root=0)) if self.comm.size > 1 else late
+        return step % self.every == 0
+
+    def written(self):
+        """A checkpoint was written now: the wall-time interval starts again."""
+        self.last = self.clock()
 
 
 def save(folder, problem, comm, t: float, count: int, step: float | None):

@@ -80,10 +80,22 @@ class Writer:
             self.xdmf = self.folder / SOLUTION_DIR
             if self.rank == 0:
                 self.xdmf.mkdir(exist_ok=True)
+                if restart_count is not None:
+                    self._drop_fields_from(restart_count)
                 self.index = XdmfIndex(self.folder / "solution.xdmf", self.xdmf,
                                        restart_count or 0)
             comm.barrier()
         self._writable = {}                # P1/DG0 copies of higher-degree fields (xdmf_field)
+
+    def _drop_fields_from(self, count: int):
+        """Rank 0, on a restart: remove the field files of steps >= count, written after the
+        checkpoint by the stopped run. The restart writes those steps again where its
+        schedule asks for them; a file it does not write would otherwise stay, unlisted, and
+        be listed by a later restart (XdmfIndex takes every file before its count)."""
+        for path in self.xdmf.glob("step-*.*"):
+            number = path.name[len("step-"):].split(".", 1)[0]
+            if number.isdigit() and int(number) >= count and path.suffix in (".xdmf", ".h5"):
+                path.unlink(missing_ok=True)
 
     def _start_csv(self, d: int, restart_count: int | None):
         """Rank 0: contact_nodes.csv with its header and, on a restart, the rows of the
@@ -106,7 +118,8 @@ class Writer:
         self.csv = csv.writer(self.csv_file)
 
     def step(self, record: dict, table, fields=()):
-        """Write step record["step"]: its fields, contact-node rows, then its record."""
+        """Write step record["step"]: its fields (none: the step has no XDMF entry; the
+        caller's schedule decides), contact-node rows, then its record."""
         n = record["step"]
         if self.xdmf is not None and fields:
             # A file per step, closed before the index lists it: a stop while it is being

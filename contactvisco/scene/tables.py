@@ -490,6 +490,16 @@ class Output(Table):
         "snapshot_max_nodes": Key(200000, lambda x: (integer(x) and x >= 0) or x == math.inf,
                                   "an integer >= 0 or inf"),
         "checkpoint": Key(True, boolean, "true or false"),
+        # The schedule: counted in accepted states (the step numbers of steps.jsonl, a cut
+        # step's halves included); the final state always has its fields and checkpoint.
+        "field_every": Key(1, lambda x: integer(x) and x >= 1,
+                           "an integer >= 1 (the XDMF fields at every n-th step)"),
+        "field_times": Key([], lambda x: number_list(x) and all(v >= 0 for v in x),
+                           "a list of times >= 0"),
+        "checkpoint_every": Key(1, lambda x: integer(x) and x >= 1,
+                                "an integer >= 1 (a checkpoint at every n-th step)"),
+        "checkpoint_seconds": Key(0, lambda x: finite(x) and x >= 0,
+                                  "a number of seconds >= 0 (0: off)"),
     }
 
     def rules(self, scene):
@@ -497,6 +507,16 @@ class Output(Table):
         for i, point in enumerate(self["probes"]):
             self.need(number_list(point) and len(point) == d, "probes",
                       f"output.probes[{i}] must be a list of {d} finite numbers, got {point!r}")
+        t_end = scene["time"]["T"]
+        for i, t in enumerate(self["field_times"]):
+            self.need(t <= t_end, "field_times",
+                      f"output.field_times[{i}] = {t!r} is after the end of the run: it must "
+                      f"lie in [0, time.T] = [0, {t_end:g}]")
+        self.need(self["checkpoint_seconds"] == 0 or self["checkpoint_every"] == 1,
+                  "checkpoint_seconds",
+                  f"output.checkpoint_seconds = {self['checkpoint_seconds']!r} and "
+                  f"output.checkpoint_every = {self['checkpoint_every']!r}: give one of them "
+                  "(checkpoints by wall time, or every n steps), not both")
 
 
 def label(x) -> bool:

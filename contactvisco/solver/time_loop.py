@@ -2,8 +2,11 @@
 
 The loop is plain: `advance` solves one step and yields the accepted states (more than one
 when the step had to be cut), and every accepted state goes to the observers in turn: the
-result, the output writer, the figure snapshots, the checkpoint, the progress line and the
-caller's `on_step`.
+result, the output writer, the figure snapshots, the progress line and the caller's
+`on_step`; then the checkpoint. The records and contact rows are written for every accepted
+state; the XDMF fields and the checkpoint on the schedule of [output] (FieldSchedule,
+contactvisco.io.checkpoint.Schedule), both counted in accepted states and always at the
+final one.
 """
 from __future__ import annotations
 
@@ -90,11 +93,11 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
              keep_tables=False, restart=False, overwrite=True, geometry=None,
              on_step=None) -> Result:
     """Solve a resolved scene; write results into folder `out` when given, with a checkpoint
-    after every step; restart=True continues from the checkpoint in `out`. The run holds the
-    folder (contactvisco.io.lock); an earlier run's files in it are replaced when overwrite is
-    true, else refused. SIGINT/SIGTERM stop every rank after the same step (parallel.Stopped).
-    `geometry` replaces the scene's own mesh; on_step(record) is called after every accepted
-    step.
+    on the schedule of its [output] table (every step by default); restart=True continues
+    from the checkpoint in `out`. The run holds the folder (contactvisco.io.lock); an earlier
+    run's files in it are replaced when overwrite is true, else refused. SIGINT/SIGTERM stop
+    every rank after the same step (parallel.Stopped). `geometry` replaces the scene's own
+    mesh; on_step(record) is called after every accepted step.
     """
     started = clock.perf_counter()
     parallel.prepare(comm)          # collective: while every rank is still in step
@@ -152,6 +155,9 @@ class Run:
                         linear_solver=snes.linear_solver())
         observers = [recorder(result, keep_tables), *self._file_observers(k),
                      lambda record, table: self.say(report.progress_line(record, t_end))]
+        opts = scene["output"]
+        self.checkpoints = checkpoint.Schedule(comm, opts["checkpoint_every"],
+                                               opts["checkpoint_seconds"])
         if on_step is not None:
             observers.append(lambda record, table: on_step(record))
         t, count, table = 0.0, 0, None
@@ -169,7 +175,7 @@ class Run:
                     for observe in observers:
                         observe(record, table)
                     t, count = state.t, count + 1
-                    self._checkpoint(state, count)
+                    self._checkpoint(state, count, final=n == steps and state.t == n * k)
             except StepFailed as failed:
                 raise diagnosis.step_failure(problem, comm, failed.t_from, failed.t_to,
                                              failed.cuts, failed.failure, table,
@@ -192,17 +198,23 @@ class Run:
         if self.writer is None:
             return []
         opts = self.scene["output"]
+        steps = self.scene["time"]["steps"]
         sigma = fem.Function(self.problem.tensor_space, name="sigma")
-        writer = FieldWriter(self.writer, self.problem, sigma, opts["fields"])
-        snapshots = Snapshots(self.out, self.problem, sigma, self.comm, opts, k,
-                              self.scene["time"]["steps"], self.writer, self.say, self.resumed)
+        writer = FieldWriter(self.writer, self.problem, sigma, opts["fields"],
+                             FieldSchedule(opts["field_every"], opts["field_times"], k, steps))
+        snapshots = Snapshots(self.out, self.problem, writer, self.comm, opts, k, steps,
+                              self.writer, self.say, self.resumed)
         return [writer, snapshots]
 
-    def _checkpoint(self, state: Accepted, count):
-        """The checkpoint of the accepted state; then every rank stops here on a signal."""
-        if self.out and self.scene["output"]["checkpoint"]:
-            checkpoint.save(self.out, self.problem, self.comm, state.t, count, state.k)
+    def _checkpoint(self, state: Accepted, count, final=False):
+        """The checkpoint of the accepted state when the schedule (or a stop) asks for it;
+        then every rank stops here on a signal, its last state checkpointed: a restart loses
+        no step."""
         signum = parallel.stop_requested(self.comm)
+        if self.out and self.scene["output"]["checkpoint"] and (
+                signum or self.checkpoints.due(count - 1, final)):
+            checkpoint.save(self.out, self.problem, self.comm, state.t, count, state.k)
+            self.checkpoints.written()
         if signum:                        # every rank stops after this same step
             raise parallel.Stopped(signum, count - 1, state.t)
 
@@ -259,19 +271,38 @@ def advance(problem, snes, t_to, max_cuts, say, cuts=0):
     yield Accepted(t_to, k, iterations, clock.perf_counter() - tick, cuts)
 
 
-class FieldWriter:
-    """Observer: the step record, the contact table and the XDMF fields into the writer."""
+class FieldSchedule:
+    """Which accepted states get their XDMF fields ([output] field_every, field_times): those
+    whose step number (the record's "step", counting accepted states: the halves of a cut step
+    are two) is a multiple of `every`, those at the step times n k nearest to `times` (as for
+    figure_times), and the final state t = N k."""
 
-    def __init__(self, writer, problem, sigma, names):
+    def __init__(self, every: int, times, k: float, steps: int):
+        self.every = every
+        # n * k as the time loop computes it: its states land on these floats exactly.
+        self.times = {min(steps, max(0, round(t / k))) * k for t in times} | {steps * k}
+
+    def due(self, step: int, t: float) -> bool:
+        return step % self.every == 0 or t in self.times
+
+
+class FieldWriter:
+    """Observer: the step record and the contact table into the writer at every accepted
+    state, the XDMF fields at those of the schedule."""
+
+    def __init__(self, writer, problem, sigma, names, schedule: FieldSchedule | None = None):
         self.writer, self.problem, self.sigma, self.names = writer, problem, sigma, names
         self.derived = {}                     # the Functions of output.derived_fields
+        self.schedule = schedule or FieldSchedule(1, (), 1.0, 0)
+        self.sigma_step = None       # the step at which sigma was last interpolated
 
     def __call__(self, record, table):
         fields = []
-        if self.writer.xdmf is not None:
+        if self.writer.xdmf is not None and self.schedule.due(record["step"], record["t"]):
             problem = self.problem
             if any(name in output.STRESS_FIELDS for name in self.names):
                 self.sigma.interpolate(problem.sigma_expression)
+                self.sigma_step = record["step"]
             available = {"u": problem.u, "sigma": self.sigma,
                          "history_stress": problem.memory and problem.memory.H,
                          **problem.multipliers}
@@ -285,10 +316,11 @@ class Snapshots:
     """Observer: the whole mesh gathered on rank 0 at the figure times (snapshots.npz), unless
     the mesh is too large for that (a note then says so)."""
 
-    def __init__(self, out, problem, sigma, comm, opts, k, steps, writer, say, resumed):
+    def __init__(self, out, problem, fields: FieldWriter, comm, opts, k, steps, writer, say,
+                 resumed):
         self.path = pathlib.Path(out) / "snapshots.npz"
-        self.problem, self.sigma, self.comm, self.writer = problem, sigma, comm, writer
-        self.sigma_written = writer.xdmf is not None and "sigma" in opts["fields"]
+        self.problem, self.comm, self.writer = problem, comm, writer
+        self.fields, self.sigma = fields, fields.sigma     # sigma: shared with the XDMF output
         figure_steps = {min(steps, max(0, round(t / k))) for t in opts["figure_times"]} | {steps}
         self.times = {round(i * k, 12) for i in figure_steps}
         skip = opts["figures"] and output.snapshot_skip_note(
@@ -305,7 +337,7 @@ class Snapshots:
         t = record["t"]
         if not self.enabled or round(t, 12) not in self.times:
             return
-        if not self.sigma_written:
+        if self.fields.sigma_step != record["step"]:      # not interpolated for the XDMF
             self.sigma.interpolate(self.problem.sigma_expression)
         gathered = output.gather_mesh(self.problem, self.sigma, self.comm)
         if gathered is not None:
