@@ -14,6 +14,7 @@ from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.problem import build
 from contactvisco.model.stability import amplifies, stability_number
 from contactvisco.solver import newton
+from contactvisco.solver.time_loop import FieldSchedule
 
 #: Bytes of one float64 value.
 FLOAT = 8
@@ -45,28 +46,31 @@ def history_values(history, steps: int) -> int:
 
 def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int) -> int:
     """An estimate of what a run writes into its folder, figures and the checkpoint (replaced,
-    not added up) left out: per step an HDF5 file with the mesh and the fields (vectors padded
-    to 3 and tensors to 9 components, as XDMF wants them), a row of contact_nodes.csv per
-    contact node and a line of steps.jsonl."""
+    not added up) left out: at every step a row of contact_nodes.csv per contact node and a
+    line of steps.jsonl; at the steps of the field schedule an HDF5 file with the mesh and the
+    fields (vectors padded to 3 and tensors to 9 components, as XDMF wants them)."""
     mesh = problem.geometry.mesh
     d = mesh.geometry.dim
     tdim = mesh.topology.dim
     opts = scene["output"]
-    per_step = STEP_RECORD + problem.count_contact_nodes() * CSV_NUMBER * (d + 10)
-    if opts["xdmf"]:
-        cells = mesh.topology.index_map(tdim).size_global
-        vertices = mesh.topology.index_map(0).size_global
-        written = {"u": counts["u"] // d * 3, "sigma": tensor_dofs // d ** 2 * 9,
-                   "history_stress": tensor_dofs // d ** 2 * 9 if problem.memory else 0,
-                   "lambda_nu": counts.get("lambda_nu", 0),
-                   "lambda_tau": counts.get("lambda_tau", 0) // d * 3,
-                   "stress_components": tensor_dofs // d ** 2 * (3 if d == 2 else 6),
-                   "von_mises": tensor_dofs // d ** 2,
-                   "contact_status": vertices if problem.contact is not None else 0}
-        values = cells * (tdim + 1) + vertices * d
-        values += sum(written[name] for name in opts["fields"])
-        per_step += FLOAT * values + XDMF_STEP
-    return (scene["time"]["steps"] + 1) * per_step
+    steps = scene["time"]["steps"]
+    records = (steps + 1) * (STEP_RECORD + problem.count_contact_nodes() * CSV_NUMBER * (d + 10))
+    if not opts["xdmf"]:
+        return records
+    cells = mesh.topology.index_map(tdim).size_global
+    vertices = mesh.topology.index_map(0).size_global
+    written = {"u": counts["u"] // d * 3, "sigma": tensor_dofs // d ** 2 * 9,
+               "history_stress": tensor_dofs // d ** 2 * 9 if problem.memory else 0,
+               "lambda_nu": counts.get("lambda_nu", 0),
+               "lambda_tau": counts.get("lambda_tau", 0) // d * 3,
+               "stress_components": tensor_dofs // d ** 2 * (3 if d == 2 else 6),
+               "von_mises": tensor_dofs // d ** 2,
+               "contact_status": vertices if problem.contact is not None else 0}
+    values = cells * (tdim + 1) + vertices * d + sum(written[name] for name in opts["fields"])
+    k = scene["time"]["T"] / steps
+    schedule = FieldSchedule(opts["field_every"], opts["field_times"], k, steps)
+    field_steps = sum(schedule.due(n, n * k) for n in range(steps + 1))
+    return records + field_steps * (FLOAT * values + XDMF_STEP)
 
 
 def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:

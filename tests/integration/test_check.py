@@ -88,11 +88,12 @@ def test_check_sees_the_memory_grow_only_for_a_direct_sum():
     assert history(table, 40) / history(table, 10) == pytest.approx(41 / 11)
 
 
-def test_check_estimates_the_output_of_a_run(tmp_path):
-    """The estimated size of the folder's records (fields, contact table, step records)
-    within 15 % of what a run writes."""
-    scene = api.load_scene("paper", geometry={"cells": [8, 8]}, time={"steps": 3},
-                           output={"figures": False})
+@pytest.mark.parametrize("every", [1, 3])
+def test_check_estimates_the_output_of_a_run(tmp_path, every):
+    """The estimated size of the folder's records (fields at the steps of the schedule,
+    contact table and step records at every step) within 15 % of what a run writes."""
+    scene = api.load_scene("paper", geometry={"cells": [8, 8]}, time={"steps": 6},
+                           output={"figures": False, "field_every": every})
     estimate = api.check(scene)["output_bytes"]
     out = tmp_path / "run"
     out = pathlib.Path(COMM.bcast(str(out), root=0))
