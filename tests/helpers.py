@@ -164,6 +164,19 @@ def end(proc, timeout=EXIT_S) -> tuple[int, float]:
 
 
 
+
+def kill_a_rank(out, proc, ranks, victim, at):
+    """kill -9 of rank `victim` of a started run once `at` steps are done; the job must then
+    end within EXIT_S with a non-zero code and no rank left running."""
+    import os
+    import signal
+    pids = rank_pids(out, proc, ranks)
+    assert wait_for(out, proc, at), "the run ended before the kill"
+    os.kill(pids[victim], signal.SIGKILL)
+    code, seconds = end(proc)
+    assert code != 0 and seconds < EXIT_S
+    assert not any(alive(pid) for pid in pids), "a rank runs on"
+
 def mount_tmpfs(folder, size: str = "400k") -> bool:
     """A tmpfs of `size` mounted on the (empty) folder, to fill up: whether it could be
     mounted (root only)."""

@@ -9,7 +9,7 @@ import time
 import pytest
 from mpi4py import MPI
 
-from helpers import (EXIT_S, alive, block_rank0_file, check_folder, end, grow_tmpfs,
+from helpers import (EXIT_S, block_rank0_file, check_folder, end, grow_tmpfs, kill_a_rank,
                      mount_tmpfs, rank_pids, run_paper, start_paper, steps_done, unmount,
                      vtk_read, wait_for)
 
@@ -29,12 +29,7 @@ def test_kill9_of_a_rank_keeps_every_completed_step(tmp_path, ranks, victim, at)
     the files, and --restart completes the series once."""
     out = tmp_path / "run"
     proc = start_paper(ranks, out, STEPS)
-    pids = rank_pids(out, proc, ranks)
-    assert wait_for(out, proc, at), "the run ended before the kill"
-    os.kill(pids[victim], signal.SIGKILL)
-    code, seconds = end(proc)
-    assert code != 0 and seconds < EXIT_S
-    assert not any(alive(pid) for pid in pids), "a rank runs on"
+    kill_a_rank(out, proc, ranks, victim, at)
     left = check_folder(out)
     assert left["records"] >= at
     restarted = run_paper(ranks, out, STEPS, 16, "--restart")

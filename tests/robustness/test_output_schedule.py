@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from helpers import (EXIT_S, alive, end, rank_pids, read_steps, run_cli, run_paper,
-                     start_paper, wait_for)
+from helpers import (end, kill_a_rank, read_steps, run_cli, run_paper, start_paper, wait_for)
 
 from contactvisco.errors import SceneError
 from contactvisco.io import checkpoint
@@ -84,12 +83,7 @@ def test_kill9_between_checkpoints_then_restart_gives_the_uninterrupted_run(
 
     out = tmp_path / "run"
     proc = start_paper(ranks, out, STEPS, 16, *SCHEDULE)
-    pids = rank_pids(out, proc, ranks)
-    assert wait_for(out, proc, at), "the run ended before the kill"
-    os.kill(pids[victim], signal.SIGKILL)
-    code, seconds = end(proc)
-    assert code != 0 and seconds < EXIT_S
-    assert not any(alive(pid) for pid in pids), "a rank runs on"
+    kill_a_rank(out, proc, ranks, victim, at)
     m = len(read_steps(out))
     assert at <= m < STEPS + 1
     count = checkpoint_count(out)
