@@ -24,6 +24,9 @@ import time
 
 #: How long the ranks that raised an error wait for the others before aborting [s].
 AGREE_S = 3.0
+#: How long a rank that aborts the job waits after printing its message [s]: MPICH's
+#: launcher drops the output it has not yet forwarded when it ends the job.
+FORWARD_S = 1.0
 
 
 class Stopped(Exception):
@@ -104,6 +107,7 @@ def fail_together(comm, code: int, message: str, err: BaseException) -> int:
     from mpi4py import MPI
     if not together(comm, err):
         _print(f"{message} [rank {comm.rank}; ending all {comm.size} ranks]")
+        time.sleep(FORWARD_S)
         comm.Abort(code)
         os._exit(code)      # MPICH's MPI_Abort may return to the caller before the launcher
                             # ends the job: this rank must not go on (and print again)
