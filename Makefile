@@ -27,7 +27,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: install demo test test-serial test-parallel test-fast benchmark benchmark-scaling \
+.PHONY: install demo test test-serial test-parallel test-fast benchmark benchmark-newton benchmark-scaling \
         benchmark-reliability clean apt-packages compare-stacks figures notebook docs
 
 install: $(VENV)/.installed
@@ -94,6 +94,11 @@ benchmark: install
 	  $(PY) $(BENCH)/performance/scenes.py && $(MPIRUN) $(PY) $(BENCH)/performance/scenes.py && \
 	  $(PY) $(BENCH)/accuracy/verification.py && $(PY) $(BENCH)/accuracy/tradeoff.py && \
 	  $(PY) $(BENCH)/robustness/extremes.py && $(PY) $(BENCH)/performance/time_linearity.py
+
+# Newton iterations and factorizations of the paper scene per size, with and without the
+# predicted first iterate (about 2 minutes): docs/scaling.md.
+benchmark-newton: install
+	$(PY) $(BENCH)/performance/newton_work.py
 
 # Size, solver and rank scaling (about an hour on 2 cores; each configuration its own mpirun).
 benchmark-scaling: install

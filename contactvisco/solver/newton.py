@@ -18,15 +18,27 @@ contactvisco_<n>_, when it is set up, and removes them when it is destroyed (Sol
 the command line's (unprefixed) options are copied under the prefix, so they act on every
 solver. Options that no solver read are reported by unused_options, from PETSc's record of
 reads where petsc4py gives it (Options.used; petsc4py 3.18 has none).
+
+Preconditioner reuse: the Newton matrix of a linear bulk law depends on the iterate only
+through each contact node's branch of the law (free, compliant, at the bound, stick or slip),
+so consecutive iterations and steps often assemble the same matrix. With the direct solver
+each Jacobian is assembled into a matrix of its own and fingerprinted (a hash of its local
+values, compared on every rank); only when it differs from the linear solver's operator is it
+copied there, so an unchanged operator keeps its factorization and the solve is exactly the
+one a new factorization would give. The price is one more matrix of the system's size, small
+beside the LU factors; the iterative solver, whose memory is mostly the matrix, assembles
+into its operator directly and rebuilds its AMG hierarchy at every Jacobian.
 """
 from __future__ import annotations
 
+import hashlib
 import itertools
 import weakref
 
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from contactvisco.fem import compat
@@ -268,12 +280,15 @@ class NewtonSolver:
     """A PETSc SNES over UFL forms, shared by both linear systems: its options (SolverOptions,
     under a prefix of its own), monitor, solve and failure report."""
 
-    def __init__(self, comm, functions, scene_options=None, defaults=None):
+    def __init__(self, comm, functions, scene_options=None, defaults=None, reuse=False):
         self.functions = functions
+        self.reuse = reuse               # keep the factorization of an unchanged matrix
         self.residuals: list[float] = []
         self.krylov_iterations: list[int] = []
         self.options = SolverOptions(scene_options, defaults)
         self.snes = PETSc.SNES().create(comm)
+        self.setups = 0                  # preconditioner set-ups (factorizations) of a solve
+        self._fingerprint = None         # of the matrix the preconditioner was built from
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -314,10 +329,29 @@ class NewtonSolver:
         """Free the SNES and its vectors and matrices and take its options out of PETSc's
         database (idempotent); the object is unusable afterwards."""
         self.options.remove()
-        for name in ("snes", "b", "x", "A", "_x_jacobian", "_du"):
+        owned = ("snes", "b", "x", "A", "_x_jacobian", "_du") + (
+            ("operator",) if self.reuse else ())   # else the operator is A or J_red
+        for name in owned:
             obj = self.__dict__.get(name)
             if obj is not None:
                 obj.destroy()
+
+    def _to_operator(self, A):
+        """Hand the freshly assembled Newton matrix A to the linear solver: copied into the
+        SNES's operator (and the preconditioner rebuilt from it, counted in `setups`) unless
+        A is bitwise the operator already there, on every rank; then the operator's PETSc
+        state is unchanged and PCSetUp keeps its factorization. Without `reuse` A is the
+        operator itself."""
+        if not self.reuse:
+            self.setups += 1
+            return
+        fingerprint = matrix_fingerprint(A)
+        same = fingerprint is not None and fingerprint == self._fingerprint
+        if A.getComm().tompi4py().allreduce(same, op=MPI.LAND):
+            return
+        A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self._fingerprint = fingerprint
+        self.setups += 1
 
     def _monitor(self, snes, it, norm):
         self.residuals.append(float(norm))
@@ -334,6 +368,7 @@ class NewtonSolver:
         NewtonFailure. The Functions hold the converged solution afterwards."""
         self.residuals = []
         self.krylov_iterations = []
+        self.setups = 0
         self._from_functions(self.x)
         try:
             self.snes.solve(None, self.x)
@@ -386,8 +421,9 @@ class BlockSNES(NewtonSolver):
 
     system_kind = "coupled"
 
-    def __init__(self, F, J, functions, bcs, comm, scene_options=None, defaults=None):
-        super().__init__(comm, functions, scene_options, defaults)
+    def __init__(self, F, J, functions, bcs, comm, scene_options=None, defaults=None,
+                 reuse=False):
+        super().__init__(comm, functions, scene_options, defaults, reuse)
         J = [list(row) for row in J]
         # Multiplier dofs off Gamma_C have no entry in the ds blocks: a zero dx mass term gives
         # them a diagonal in the sparsity pattern for their Dirichlet rows.
@@ -402,8 +438,12 @@ class BlockSNES(NewtonSolver):
         self.b = compat.block_vector(self.F)
         self.x = compat.block_vector(self.F)
         self.A = compat.block_matrix(self.J)
+        self.operator = self.A
+        if reuse:
+            self._assemble_jacobian()      # the operator takes the assembled pattern
+            self.operator = self.A.duplicate(copy=True)
         self.snes.setFunction(_weak(self._residual), self.b)
-        self.snes.setJacobian(_weak(self._jacobian), self.A)
+        self.snes.setJacobian(_weak(self._jacobian), self.operator)
         self._finish_setup()
 
     def _residual(self, snes, x, b):
@@ -417,10 +457,14 @@ class BlockSNES(NewtonSolver):
         # Rows of Dirichlet dofs become x - g: SNES then drives them to g.
         compat.assemble_block_residual(b, self.F, self.J, self.bcs, x, scale=-1.0)
 
+    def _assemble_jacobian(self):
+        self.A.zeroEntries()
+        compat.assemble_block_matrix(self.A, self.J, self.bcs, diagonal=1.0)
+        self.A.assemble()
+
     def _jacobian(self, snes, x, A, P):
-        A.zeroEntries()
-        compat.assemble_block_matrix(A, self.J, self.bcs, diagonal=1.0)
-        A.assemble()
+        self._assemble_jacobian()
+        self._to_operator(self.A)
 
 
 class CondensedSNES(NewtonSolver):
@@ -432,8 +476,8 @@ class CondensedSNES(NewtonSolver):
 
     system_kind = "condensed"
 
-    def __init__(self, problem, comm, scene_options=None, defaults=None):
-        super().__init__(comm, [problem.u], scene_options, defaults)
+    def __init__(self, problem, comm, scene_options=None, defaults=None, reuse=False):
+        super().__init__(comm, [problem.u], scene_options, defaults, reuse)
         self.system = NodalCondensation(problem)
         u_vector = compat.petsc_vector(problem.u)
         self.b = u_vector.copy()
@@ -443,12 +487,13 @@ class CondensedSNES(NewtonSolver):
         self._pending = False            # a step from _x_jacobian awaits its multiplier update
         self._residuals_since_jacobian = 0
         self._broken = None              # why the iterates left the coupled method's, if so
+        self.operator = self.system.J_red.duplicate(copy=True) if reuse else self.system.J_red
         self.snes.setFunction(_weak(self._residual), self.b)
-        self.snes.setJacobian(_weak(self._jacobian), self.system.J_red)
+        self.snes.setJacobian(_weak(self._jacobian), self.operator)
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
         # as with BlockSNES; the condensed residual alone leaves out the multiplier rows.
         self.snes.setConvergenceTest(_weak(self._converged))
-        self.system.J_red.setNearNullSpace(rigid_body_modes(problem.V))
+        self.operator.setNearNullSpace(rigid_body_modes(problem.V))
         self._finish_setup()
 
     def _check_options(self):
@@ -515,6 +560,7 @@ class CondensedSNES(NewtonSolver):
 
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
+        self._to_operator(self.system.J_red)
         x.copy(self._x_jacobian)
         self._pending = True
         self._residuals_since_jacobian = 0
@@ -533,6 +579,17 @@ class CondensedSNES(NewtonSolver):
         if it >= max_it:
             return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         return PETSc.SNES.ConvergedReason.CONVERGED_ITERATING
+
+
+def matrix_fingerprint(A) -> bytes | None:
+    """A hash of the values of this rank's rows of the assembled AIJ matrix A (None for a
+    matrix type without CSR access): equal fingerprints on every rank, with the fixed
+    sparsity pattern of a Newton matrix, mean the same matrix."""
+    try:
+        _, _, values = A.getValuesCSR()
+    except PETSc.Error:
+        return None
+    return hashlib.blake2b(np.ascontiguousarray(values).tobytes(), digest_size=16).digest()
 
 
 def iterative_options() -> dict:
@@ -605,11 +662,11 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
                          "quadrature)", key="solver.linear_solver")
     defaults = iterative_options() if kind == "iterative" else {}
     if system == "condensed":
-        newton = CondensedSNES(problem, comm, options, defaults)
+        newton = CondensedSNES(problem, comm, options, defaults, reuse=kind == "direct")
     else:
         newton = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, comm,
-                           options, defaults)
+                           options, defaults, reuse=kind == "direct")
         if system == "displacement":           # u alone: a block system of one block
             newton.system_kind = system
-            newton.A.setNearNullSpace(rigid_body_modes(problem.V))
+            newton.operator.setNearNullSpace(rigid_body_modes(problem.V))
     return newton

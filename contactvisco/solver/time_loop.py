@@ -23,7 +23,7 @@ from contactvisco.fem.probes import Probes
 from contactvisco.fem.problem import Problem, build
 from contactvisco.io import checkpoint, output, parallel
 from contactvisco.io.lock import FolderLock
-from contactvisco.solver import diagnosis, report
+from contactvisco.solver import diagnosis, predictor, report
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure
 
@@ -139,6 +139,7 @@ class Run:
         points = scene["output"]["probes"]
         self.probes = Probes(problem.geometry.mesh, points) if points else None
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
+        self.predictor = predictor.create(scene, problem.unknowns)
         opts = scene["output"]
         self.writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
                                     restart_count=self.resumed and self.resumed["count"]
@@ -169,7 +170,7 @@ class Run:
                 continue                      # done before the restart
             try:
                 for state in advance(problem, snes, n * k, scene["solver"]["max_cuts"],
-                                     self.say):
+                                     self.say, predict=self.predictor):
                     table = contact_state.contact_table(problem, comm)
                     record = self._record(count, state, table)
                     for observe in observers:
@@ -190,6 +191,7 @@ class Run:
                 "residual": snes.residuals[-1] if snes.residuals else 0.0,
                 "residual_history": snes.residuals, "wall_s": state.wall_s, "cuts": state.cuts,
                 "krylov_iterations": snes.krylov_iterations,
+                "preconditioner_setups": snes.setups,
                 "status_counts": contact_state.status_counts(table),
                 "probes": probes.values(self.problem.u, self.comm) if probes else []}
 
@@ -242,33 +244,53 @@ def recorder(result: Result, keep_tables):
     return record_into_result
 
 
-def advance(problem, snes, t_to, max_cuts, say, cuts=0):
+def advance(problem, snes, t_to, max_cuts, say, cuts=0, predict=None):
     """Yield the accepted states that take the problem from its committed time to t_to: one,
     or, when Newton fails, those of the two halves (at most max_cuts halvings in a row; none
     on the first state, which has no earlier state to fall back on). Each state is committed
     (the history of eq 19 takes the exact step sizes) before it is yielded; a failure that
-    may not be cut raises StepFailed with the unknowns restored."""
+    may not be cut raises StepFailed with the unknowns restored. `predict`
+    (contactvisco.solver.predictor.Extrapolation, optional) gives Newton's first iterate."""
     tick = clock.perf_counter()
     t_from = problem.time.committed           # None: the first state, t_0
     first = t_from is None
     saved = [f.x.array.copy() for f in problem.unknowns]
     problem.time.stage(t_to)                  # H from u_0 .. u_n (eq 19, any step sizes)
     try:
-        iterations = snes.solve()
+        iterations = _solve(problem, snes, saved, predict, t_to)
     except NewtonFailure as err:
-        for f, values in zip(problem.unknowns, saved):
-            f.x.array[:] = values
+        _restore(problem, saved)
         if first or cuts >= max_cuts:
             raise StepFailed(t_to if first else t_from, t_to, cuts, err) from None
         say(f"step to t = {t_to:.4g} failed (SNES reason {err.reason}); taking it in two "
             "halves")
         middle = t_from + 0.5 * (t_to - t_from)
-        yield from advance(problem, snes, middle, max_cuts, say, cuts + 1)
-        yield from advance(problem, snes, t_to, max_cuts, say, cuts + 1)
+        yield from advance(problem, snes, middle, max_cuts, say, cuts + 1, predict)
+        yield from advance(problem, snes, t_to, max_cuts, say, cuts + 1, predict)
         return
     problem.time.commit()
+    if predict is not None:
+        predict.record(t_to)
     k = None if first else t_to - t_from
     yield Accepted(t_to, k, iterations, clock.perf_counter() - tick, cuts)
+
+
+def _solve(problem, snes, saved, predict, t_to) -> int:
+    """Newton from the predicted first iterate, and from the last accepted state (`saved`)
+    when that fails or there is no prediction; returns the iterations of both attempts."""
+    if predict is None or not predict.apply(t_to):
+        return snes.solve()
+    try:
+        return snes.solve()
+    except NewtonFailure as err:
+        spent = max(len(err.residuals) - 1, 0)
+    _restore(problem, saved)
+    return spent + snes.solve()
+
+
+def _restore(problem, saved):
+    for f, values in zip(problem.unknowns, saved):
+        f.x.array[:] = values
 
 
 class FieldSchedule:
