@@ -393,8 +393,9 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
 
     constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
+    laws = contact_laws(contact, context)
     terms = law.law_terms(law.UFL, u, normal, gap_value, lambda_nu, lambda_tau, u_previous,
-                          constants, contact["friction_law"])
+                          constants, contact["friction_law"], laws=laws)
     F_u = None
     pairs = []
     if terms["normal_force"] is not None:
@@ -414,8 +415,9 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                        gap=gap_function, u_previous=u_previous,
                        Q_coordinates=Q.tabulate_dof_coordinates(),
                        u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
-                       corner_forms=_corner_forms(terms, u, normal, Q, W, dsc) if corners
-                       else None)
+                       corner_forms=_corner_forms(terms, u, normal, Q, W, dsc,
+                                                  with_radius="p_tau" in laws)
+                       if corners or laws else None)
     return part, F_u, pairs
 
 
@@ -432,11 +434,14 @@ def _contact_unknowns(contact: dict, u, Q, W):
     if contact["stiffness"] > 0 and g > 0:
         constants["stiffness"] = _scalar(mesh, contact["stiffness"])
     lambda_nu = fem.Function(Q, name="lambda_nu") if math.isfinite(g) else None
-    has_pressure = ("stiffness" in constants
+    compliance = "stiffness" in constants or (contact.get("p_nu") is not None and g > 0)
+    has_pressure = (compliance
                     or (contact["friction_law"] == "coulomb" and lambda_nu is not None))
     lambda_tau = u_previous = None
-    if contact["mu"] > 0 and has_pressure:
-        constants["mu"] = _scalar(mesh, contact["mu"])
+    friction = contact["mu"] > 0 or (contact.get("p_tau") is not None and compliance)
+    if friction and has_pressure:
+        if contact["mu"] > 0:
+            constants["mu"] = _scalar(mesh, contact["mu"])
         lambda_tau = fem.Function(W, name="lambda_tau")
         if contact["slip"] == "increment":
             # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
@@ -444,18 +449,47 @@ def _contact_unknowns(contact: dict, u, Q, W):
     return constants, lambda_nu, lambda_tau, u_previous
 
 
-def _corner_forms(terms, u, normal, Q, W, dsc):
+def contact_laws(contact: dict, context: Context) -> dict:
+    """The prescribed functions of the [contact] table as callables of the saturated
+    penetration sigma = max(0, min(s, g)) (contactvisco.model.contact_law.law_terms): "p_nu"
+    (contact.p_nu, an expression in s, x, t; built when the compliance term acts, g > 0) and
+    "p_tau" (contact.p_tau, in s, p_nu, x, t); none for the linear law (stiffness, mu).
+
+    Parameters
+    ----------
+    contact : dict
+        The resolved [contact] table.
+    context : contactvisco.scene.expressions.Context
+        The position and time symbols of the mesh.
+
+    Returns
+    -------
+    dict
+        name -> callable giving the UFL value of p_nu(sigma) or p_tau(sigma, p_nu).
+    """
+    laws = {}
+    if contact.get("p_nu") is not None and contact["g"] > 0:
+        text = contact["p_nu"]
+        laws["p_nu"] = lambda sigma: context.scalar(text, "contact.p_nu", {"s": sigma})
+    if contact.get("p_tau") is not None:
+        text_tau = contact["p_tau"]
+        laws["p_tau"] = lambda sigma, p: context.scalar(text_tau, "contact.p_tau",
+                                                        {"s": sigma, "p_nu": p})
+    return laws
+
+
+def _corner_forms(terms, u, normal, Q, W, dsc, with_radius=False):
     """Forms whose assembled vectors, divided by the node's weight, are the law's node values
     as the forms see them: with the vertex rule, node i gets sum_f w_f value_f(x_i) over its
     facets f. Where the normal is one P1 field this is the value at the node; at a corner of
     Gamma_C, where the forms use each facet's normal, it is their weighted mean, which is what
     the node's single multiplier and force act on. Keys: weight, u_nu, s_nu, p_nu (if any),
-    slip, u_tau (vectors)."""
+    slip, u_tau (vectors), and radius with with_radius (a prescribed p_tau)."""
     d = Q.mesh.geometry.dim
     vertex = dsc.reconstruct(metadata=nodal_rule(d))
     scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
     scalars = {"weight": 1.0, "u_nu": law.normal_part(u, normal), "s_nu": terms["s_nu"],
-               "p_nu": terms["p_nu"]}
+               "p_nu": terms["p_nu"], "radius": terms["radius"] if with_radius else None}
     vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, normal)}
     forms = {key: fem.form(value * scalar_test * vertex) for key, value in scalars.items()
              if value is not None}
