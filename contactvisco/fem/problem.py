@@ -36,7 +36,9 @@ from contactvisco.fem import compat
 from contactvisco.model import contact_law as law
 from contactvisco.fem import rigid
 from contactvisco.fem.geometry import Geometry
-from contactvisco.model.material import elasticity, lame_constants, strain
+from contactvisco.model.material import (elasticity, energy_stress, hencky_energy,
+                                         invariants, lame_constants, strain)
+from contactvisco.fem.tangent import TangentCheck
 from contactvisco.scene.expressions import Context
 from contactvisco.model.memory import DirectHistory, History, table_kernel
 from contactvisco.errors import SceneError
@@ -187,6 +189,7 @@ class Problem:
     length_scale: float
     memory: MemoryPart | None = None
     contact: ContactPart | None = None
+    tangent: object | None = None              # fem.tangent.TangentCheck (nonlinear A)
 
     def load_resultant(self) -> np.ndarray:
         """The resultant of the external loads at the current time, int f + int_N f_N
@@ -261,7 +264,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
 
     V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
-    sigma, constants, memory = _stress(scene, mesh, u)
+    sigma, constants, memory = _stress(scene, mesh, u, context)
     constants["t"] = context.t
 
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
@@ -297,20 +300,27 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         time=TimeState(context.t, updates, u, memory, contact and contact.u_previous),
         loads=loads, tensor_space=tensor_space,
         sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
-        length_scale=_length_scale(mesh), memory=memory, contact=contact)
+        length_scale=_length_scale(mesh), memory=memory, contact=contact,
+        tangent=constants.pop("tangent", None))
     rigid.check(problem)
     return problem
 
 
-def _stress(scene, mesh, u):
+def _stress(scene, mesh, u, context=None):
     """sigma(u) = A eps(u) + H + sum_part w_part P_part eps(u) (eq 19: the elastic stress,
     the history stress of the memory part and its implicit weights, none without memory).
     Returns sigma, the Constants it uses by name (the Lame constants lame_lambda, lame_mu
-    and the memory part's) and the MemoryPart (None without memory)."""
+    and the memory part's; with a nonlinear A also "tangent", its TangentCheck) and the
+    MemoryPart (None without memory)."""
     mat = scene["material"]
     lame_lambda, lame_mu = lame_constants(mat["model"], mat["E"], mat["nu"])
     constants = {"lame_lambda": _scalar(mesh, lame_lambda), "lame_mu": _scalar(mesh, lame_mu)}
-    sigma = elasticity(strain(u), constants["lame_lambda"], constants["lame_mu"])
+    if mat.get("law", "linear") == "linear":
+        sigma = elasticity(strain(u), constants["lame_lambda"], constants["lame_mu"])
+    else:
+        energy = material_energy(mat, constants, context or Context(mesh))
+        sigma, C = energy_stress(strain(u), energy)
+        constants["tangent"] = TangentCheck(C, u, lame_mu)
     memory = _memory(scene, mesh, u)
     if memory is not None:
         sigma = sigma + memory.H
@@ -318,6 +328,33 @@ def _stress(scene, mesh, u):
             sigma = sigma + constant * _strain_part(u, part, mesh.geometry.dim)
         constants.update(memory.constants)
     return sigma, constants, memory
+
+
+def material_energy(mat: dict, constants: dict, context: Context):
+    """The strain energy W of a nonlinear A (material.law "hencky" or "energy").
+
+    Parameters
+    ----------
+    mat : dict
+        The resolved [material] table.
+    constants : dict
+        The Constants lame_lambda and lame_mu (lambda* in plane stress).
+    context : contactvisco.scene.expressions.Context
+        The position and time symbols of material.energy.
+
+    Returns
+    -------
+    callable
+        eps -> W(eps), a UFL expression: hencky_energy, or material.energy in the
+        invariants tr_eps, eps2, dev_eps2 with lmbda and mu_lame.
+    """
+    lmbda, mu = constants["lame_lambda"], constants["lame_mu"]
+    if mat["law"] == "hencky":
+        return lambda eps: hencky_energy(eps, lmbda, mu, mat["hencky_exponent"],
+                                         mat["hencky_strain"])
+    text = mat["energy"]
+    return lambda eps: context.scalar(text, "material.energy",
+                                      dict(invariants(eps), lmbda=lmbda, mu_lame=mu))
 
 
 def _strain_part(u, part, d):

@@ -13,8 +13,10 @@ import ast
 import math
 import pathlib
 
+import numpy as np
+
 from contactvisco.errors import SceneError
-from contactvisco.model.material import dimension
+from contactvisco.model.material import LAWS, dimension
 from contactvisco.model.memory import PARTS
 from contactvisco.model.memory_kernel import as_list
 from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
@@ -156,6 +158,11 @@ class Material(Table):
         "nu": Key(0.3),
         "lambda": Key(None),
         "mu": Key(None),
+        # A nonlinear A (check_material_law): sigma = dW/deps.
+        "law": choice("linear", *LAWS),
+        "energy": Key(None),
+        "hencky_exponent": Key(1.0, finite, "a finite number"),
+        "hencky_strain": Key(0.01, lambda x: finite(x) and x > 0, "> 0 (and finite)"),
     }
 
     def normalize(self) -> None:
@@ -179,6 +186,81 @@ class Material(Table):
         self.need(finite(self["nu"]) and -1.0 < self["nu"] < upper, "nu",
                   f"material.nu must lie in (-1, {upper}) for {self['model']}, got "
                   f"{self['nu']}")
+        check_material_law(self, scene)
+
+
+#: The strain step h of check_material_law's differences of W at zero strain.
+ENERGY_STEP = 1e-4
+
+
+def check_material_law(table: Table, scene) -> None:
+    """Check the nonlinear elasticity of material.law (material.energy, material.hencky_*).
+
+    material.energy is an expression in tr_eps, eps2, dev_eps2, lmbda, mu_lame (and x, t);
+    it is sampled at x = 0, t = 0 near zero strain: finite, stress-free at zero strain
+    (|dW/deps| <= 1e-6 (2 mu) h by central differences of step h = ENERGY_STEP) and a
+    positive definite tangent there (second differences along the symmetric unit strains and
+    their pairwise sums > 0). Away from zero strain the tangent is checked where the solution
+    takes it (contactvisco.fem.tangent). hencky_exponent must be > -1/2 (convex W).
+
+    Parameters
+    ----------
+    table : contactvisco.scene.table.Table
+        The [material] table.
+    scene : Scene
+        The scene (its dimension).
+
+    Returns
+    -------
+    None
+        A refused law raises a SceneError naming the key.
+    """
+    from contactvisco.model.material import invariants, lame_constants, strain_basis
+    law = table["law"]
+    if law == "hencky":
+        table.need(table["hencky_exponent"] > -0.5, "hencky_exponent",
+                   f"material.hencky_exponent must be > -1/2 (below, W is not convex: the "
+                   f"deviatoric stress decreases with strain), got {table['hencky_exponent']}")
+    table.need(law == "energy" or table["energy"] is None, "energy",
+               "material.energy is the strain energy of material.law = 'energy': set "
+               "material.law = 'energy' or drop material.energy")
+    if law != "energy":
+        return
+    from contactvisco.scene.expressions import parse, value_at
+    from contactvisco.model.material import ENERGY_NAMES
+    text = table["energy"]
+    table.need(isinstance(text, str), "energy",
+               "material.law = 'energy' needs material.energy, an expression string in "
+               f"{', '.join(ENERGY_NAMES)} (and x, t), e.g. "
+               "'0.5 * lmbda * tr_eps**2 + mu_lame * eps2', got " + repr(text))
+    d = 3 if table["model"] == "3d" else 2
+    try:
+        parse(text, table.key("energy"), d, ENERGY_NAMES)
+    except SceneError as err:
+        table.fail("energy", str(err))
+    lam, mu = lame_constants(table["model"], table["E"], table["nu"])
+    key = table.key("energy")
+
+    def W(eps):
+        names = dict(invariants(eps), lmbda=lam, mu_lame=mu)
+        return value_at(text, key, d, [0.0] * d, 0.0, names)
+
+    basis = strain_basis(d)
+    directions = basis + [a + b for k, a in enumerate(basis) for b in basis[k + 1:]]
+    h = ENERGY_STEP
+    zero = W(np.zeros((d, d)))
+    for e in directions:
+        plus, minus = W(h * e), W(-h * e)
+        slope = (plus - minus) / (2 * h)
+        table.need(abs(slope) <= 1e-6 * 2 * mu * h * np.sum(e * e), "energy",
+                   f"material.energy = '{text}' gives a stress at zero strain (dW/deps : E = "
+                   f"{slope:.3g} along E = {e.round(3).tolist()}): the reference state must "
+                   "be stress-free (W without terms linear in the strain)")
+        curvature = (plus - 2 * zero + minus) / h**2
+        table.need(curvature > 0, "energy",
+                   f"material.energy = '{text}' has a tangent that is not positive definite "
+                   f"at zero strain (d^2W along E = {e.round(3).tolist()} is "
+                   f"{curvature:.3g}): W must be convex (a positive definite A)")
 
 
 KERNELS = ("none", "constant", "exponential", "prony", "table", "power", "fractional")

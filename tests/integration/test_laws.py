@@ -70,15 +70,16 @@ def test_linear_law_as_expressions_gives_the_same_answer():
 
 def test_condensed_equals_coupled_with_prescribed_laws():
     """A power-law p_nu and a saturating p_tau: the node-wise elimination gives the coupled
-    answer (contact values to round-off) on the paper scene and the column. The counts agree
-    but at t_0, whose Newton starts at u = 0, where p_nu' = 0, far from the solution: there
-    a round-off difference can send an iterate to the other side of a kink of the law (on
-    DOLFINx 0.11: 7 and 8 iterations, the same converged state)."""
+    answer (contact values to round-off) on the paper scene and the column, with the same
+    Newton counts after t_0. At t_0 Newton starts at u = 0, where every contact node has
+    s = 0 and p_nu'(0) = 0: the body, held normally by the contact alone, has a singular
+    first Newton matrix, and the first iterates depend on round-off (measured 7 and 8
+    iterations on DOLFINx 0.11, 9 and 7 on 2 ranks; the same converged state)."""
     coupled = _paper(NONLINEAR + ["solver.linear_system='coupled'"])
     condensed = _paper(NONLINEAR + ["solver.linear_system='condensed'"])
     assert condensed.linear_system == "condensed"
     counts = [[s["newton_iterations"] for s in r.steps] for r in (coupled, condensed)]
-    assert counts[0][1:] == counts[1][1:] and abs(counts[0][0] - counts[1][0]) <= 1, counts
+    assert counts[0][1:] == counts[1][1:], counts
     saturated = 0
     for a, b in zip(coupled.tables, condensed.tables):
         assert np.array_equal(a["status"], b["status"])
@@ -99,7 +100,8 @@ def test_ranks_agree_with_prescribed_laws():
     single = _paper(NONLINEAR, MPI.COMM_SELF)
     for a, b in zip(world.tables, single.tables):
         for key in ("x", "u_nu", "u_tau", "reaction_nu", "reaction_tau", "radius"):
-            assert np.max(np.abs(a[key] - b[key])) < 1e-10, key
+            scale = max(1.0, np.max(np.abs(b[key])))
+            assert np.max(np.abs(a[key] - b[key])) < 1e-10 * scale, key
         assert np.array_equal(a["status"], b["status"])
 
 
@@ -134,3 +136,109 @@ def test_regularized_square_root_is_accepted():
     scene = scene_module.load("paper", ["contact.stiffness=0",
                                         "contact.p_nu='100 * s / sqrt(s + 1e-4)'"])
     assert scene["contact"]["p_nu"] == "100 * s / sqrt(s + 1e-4)"
+
+
+# ---- a nonlinear elasticity operator (material.law) ----
+
+LINEAR_AS_ENERGY = ["material.law='energy'",
+                    "material.energy='0.5 * lmbda * tr_eps**2 + mu_lame * eps2'"]
+
+
+@pytest.mark.parametrize("sets", [LINEAR_AS_ENERGY,
+                                  ["material.law='hencky'", "material.hencky_exponent=0"]])
+def test_linear_law_as_an_energy_gives_the_same_answer(sets):
+    """The linear A written as W (an expression, or Hencky's law with m = 0) and as E/nu:
+    the paper scene's Newton counts, zones and contact values to round-off (measured 0 and
+    2e-14 relative)."""
+    linear = _paper([])
+    energy = _paper(sets)
+    assert [s["newton_iterations"] for s in energy.steps] == \
+        [s["newton_iterations"] for s in linear.steps]
+    for a, b in zip(linear.tables, energy.tables):
+        assert np.array_equal(a["status"], b["status"])
+        for key in ("u_nu", "u_tau", "lambda_nu", "reaction_nu", "reaction_tau"):
+            scale = max(1e-12, np.max(np.abs(a[key])))
+            assert np.max(np.abs(a[key] - b[key])) <= 1e-12 * scale, key
+    assert all(abs(s["tangent_min"] - 1.0) < 1e-12 for s in energy.steps)
+
+
+@pytest.mark.convergence
+@pytest.mark.parametrize("alpha", [50.0, 0.0])
+def test_manufactured_solution_of_a_hencky_material(alpha):
+    """Hencky's power law (m = 1, e_0 = 0.1: the secant shear modulus grows up to ~10 times
+    over the square), with and without memory: P1 orders ~2 in L2 and ~1 in H1 on 8, 16, 32
+    (measured 1.89, 1.97 and 1.00, 1.00 with memory; 1.87, 1.96 and 1.01, 1.00 without; the
+    same on DOLFINx 0.5 and 0.11)."""
+    from contactvisco.studies.verification import manufactured, orders
+    runs = [manufactured(n, 1, alpha=alpha, material={"law": "hencky", "hencky_exponent": 1.0,
+                                                      "hencky_strain": 0.1})
+            for n in (8, 16, 32)]
+    h = [r["h"] for r in runs]
+    l2, h1 = orders([r["L2"] for r in runs], h), orders([r["H1"] for r in runs], h)
+    assert l2[-1] > 1.85 and h1[-1] > 0.95 and h1[-1] < 1.1, (l2, h1)
+
+
+def _sheared_square(sets, gamma=0.02):
+    """A built unit square (8 x 8 squares) whose u is the P1 interpolant of (gamma y^2, 0):
+    in the cells between y_0 and y_0 + h, eps_xy = gamma (y_0 + h/2), largest in the top
+    row (y_0 + h/2 = 15/16)."""
+    from contactvisco.fem import geometry as geometry_module
+    from contactvisco.fem.problem import build
+    raw = {"name": "square", "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0],
+                                          "cells": [8, 8]},
+           "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3},
+           "dirichlet": [{"boundary": "bottom", "components": "all", "value": 0.0}]}
+    scene = scene_module.resolve(raw, sets)
+    problem = build(scene, geometry_module.build(scene, MPI.COMM_WORLD))
+    problem.u.interpolate(lambda x: np.vstack([gamma * x[1] ** 2, 0.0 * x[0]]))
+    return problem
+
+
+def test_tangent_of_a_softening_hencky_law():
+    """m = -0.4, e_0 = 0.01 under shear: the smallest eigenvalue of the tangent over 2 mu is
+    (1 + x)^(m - 1) (1 + (2m + 1) x), x = |dev eps|^2 / e_0^2, largest strain at y = 1 (P1:
+    the top row, where the P1 strain is that of y = 15/16)."""
+    problem = _sheared_square(["material.law='hencky'", "material.hencky_exponent=-0.4",
+                               "material.hencky_strain=0.01"])
+    check = problem.tangent.smallest(MPI.COMM_WORLD)
+    assert check["x"][1] > 1 - 1 / 8
+    x = 2 * (0.02 * 15 / 16) ** 2 / 0.01**2
+    assert abs(check["ratio"] - (1 + x) ** (-1.4) * (1 + 0.2 * x)) < 1e-10
+
+
+def test_a_non_convex_energy_is_reported_where_it_fails(capsys):
+    """W = K/2 tr^2 + mu (q - q^2 / (2a)), q = |dev eps|^2: convex at zero strain (accepted
+    when loaded), its tangent along dev eps is 2 mu (1 - 3q/a) < 0 for q > a/3; the check
+    gives that value at the top row and the run's warning names the point and the time."""
+    from contactvisco.solver import report
+    energy = ("0.5 * (lmbda + mu_lame) * tr_eps**2 + mu_lame * (dev_eps2 - dev_eps2**2 "
+              "/ (2 * 1e-3))")
+    problem = _sheared_square(["material.law='energy'", f"material.energy='{energy}'"])
+    check = problem.tangent.smallest(MPI.COMM_WORLD)
+    assert check["x"][1] > 1 - 1 / 8
+    assert abs(check["ratio"] - (1 - 3 * 2 * (0.02 * 15 / 16) ** 2 / 1e-3)) < 1e-10
+    record = {"t": 0.5}
+    assert report.tangent_warning(record, problem, MPI.COMM_WORLD, None, False)
+    assert record["tangent_min"] == check["ratio"] < 0
+    if MPI.COMM_WORLD.rank == 0:
+        err = capsys.readouterr().err
+        assert "not positive definite at x = (" in err and "t = 0.5" in err
+
+
+@pytest.mark.parametrize("sets, key, message", [
+    (["material.law='energy'"], "material.energy", "needs material.energy"),
+    (["material.energy='mu_lame * eps2'"], "material.energy", "set material.law = 'energy'"),
+    (["material.law='energy'", "material.energy='mu_lame * eps2 + 3 * tr_eps'"],
+     "material.energy", "stress at zero strain"),
+    (["material.law='energy'", "material.energy='mu_lame * eps2 - lmbda * tr_eps**2'"],
+     "material.energy", "not positive definite at zero strain"),
+    (["material.law='energy'", "material.energy='mu_lame * eps2 + s'"], "material.energy",
+     "the name 's' is not allowed"),
+    (["material.law='hencky'", "material.hencky_exponent=-0.6"], "material.hencky_exponent",
+     "must be > -1/2"),
+    (["material.law='neo_hooke'"], "material.law", "material.law must be"),
+])
+def test_material_law_checks(sets, key, message):
+    with pytest.raises(SceneError, match=message) as err:
+        scene_module.load("paper", sets)
+    assert err.value.key == key
