@@ -83,7 +83,9 @@ def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -
     """The law of the forms (contactvisco.model.contact_law) evaluated at the nodes: penetration
     s_nu, u_nu, u_tau_vector, p_nu (zero without compliance) and slip_vector. At corners of
     Gamma_C the forms use each facet's normal: the values there are the law's as the forms
-    see them (the facets' weighted mean), not at the mean normal."""
+    see them (the facets' weighted mean), not at the mean normal. With a prescribed p_nu or
+    p_tau (expressions, not numpy functions) p_nu and the friction bound (radius) come from
+    the forms at every node."""
     contact = problem.scene["contact"]
     u = fields["u"]
     constants = {key: float(c.value) for key, c in problem.constants.items()

@@ -71,10 +71,10 @@ def test_linear_law_as_expressions_gives_the_same_answer():
 def test_condensed_equals_coupled_with_prescribed_laws():
     """A power-law p_nu and a saturating p_tau: the node-wise elimination gives the coupled
     answer (contact values to round-off) on the paper scene and the column, with the same
-    Newton counts after t_0. At t_0 Newton starts at u = 0, where every contact node has
-    s = 0 and p_nu'(0) = 0: the body, held normally by the contact alone, has a singular
-    first Newton matrix, and the first iterates depend on round-off (measured 7 and 8
-    iterations on DOLFINx 0.11, 9 and 7 on 2 ranks; the same converged state)."""
+    Newton counts after t_0. At t_0 Newton starts at u = 0, where every contact node sits
+    at the kink s = 0 of the law (p_nu'(0) = 0, p_nu'' unbounded for m = 1.5): on which side
+    an early iterate lands depends on round-off (measured 7 and 8 iterations on DOLFINx
+    0.11, 9 and 7 on 2 ranks; the same converged state)."""
     coupled = _paper(NONLINEAR + ["solver.linear_system='coupled'"])
     condensed = _paper(NONLINEAR + ["solver.linear_system='condensed'"])
     assert condensed.linear_system == "condensed"
