@@ -42,6 +42,13 @@ def tensor_space(mesh, family: str, degree: int):
     return fem.TensorFunctionSpace(mesh, (family, degree))
 
 
+def blocked_space(mesh, family: str, degree: int, size: int):
+    """A space of vectors of `size` components (any size) of a family and degree."""
+    if _SHAPED_SPACES:
+        return fem.functionspace(mesh, (_family(family), degree, (size,)))
+    return fem.VectorFunctionSpace(mesh, (family, degree), dim=size)
+
+
 def _family(name: str) -> str:
     return {"CG": "Lagrange"}.get(name, name)
 

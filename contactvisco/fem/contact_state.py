@@ -39,7 +39,8 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     # The rigid part's reaction is the one the multiplier carries, R_nu = -lambda_nu (the
     # law's R_nu(lambda_nu, u_nu) at the converged state).
     lam_nu, p_nu = fields["lambda_nu"], law_values["p_nu"]
-    radius = law.friction_radius(contact["mu"], p_nu, -lam_nu, contact["friction_law"])
+    radius = (law_values["radius"] if "radius" in law_values else
+              law.friction_radius(contact["mu"], p_nu, -lam_nu, contact["friction_law"]))
     local = dict(x=problem.contact.Q_coordinates[own][:, :d], normal=normals,
                  u_nu=law_values["u_nu"], gap=fields["gap"],
                  penetration=law_values["penetration"], u_tau=u_tau, lambda_nu=lam_nu,
@@ -82,7 +83,9 @@ def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -
     """The law of the forms (contactvisco.model.contact_law) evaluated at the nodes: penetration
     s_nu, u_nu, u_tau_vector, p_nu (zero without compliance) and slip_vector. At corners of
     Gamma_C the forms use each facet's normal: the values there are the law's as the forms
-    see them (the facets' weighted mean), not at the mean normal."""
+    see them (the facets' weighted mean), not at the mean normal. With a prescribed p_nu or
+    p_tau (expressions, not numpy functions) p_nu and the friction bound (radius) come from
+    the forms at every node."""
     contact = problem.scene["contact"]
     u = fields["u"]
     constants = {key: float(c.value) for key, c in problem.constants.items()
@@ -95,11 +98,16 @@ def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -
                   p_nu=terms["p_nu"] if terms["p_nu"] is not None else np.zeros_like(u_nu),
                   slip_vector=terms["slip"])
     if problem.contact.corner_forms is not None:
-        at = np.isin(own, problem.contact.nodes.corners)
+        # A prescribed p_nu or p_tau (contact_laws) is read from the forms at every node.
+        general = contact.get("p_nu") is not None or contact.get("p_tau") is not None
+        at = (np.ones(len(own), dtype=bool) if general
+              else np.isin(own, problem.contact.nodes.corners))
         corner = problem_module.corner_values(problem, own[at])
+        if "radius" in corner:
+            values["radius"] = np.zeros(len(own))
         for key, corner_key in (("penetration", "s_nu"), ("u_nu", "u_nu"),
                                 ("slip_vector", "slip"), ("u_tau_vector", "u_tau"),
-                                ("p_nu", "p_nu")):
+                                ("p_nu", "p_nu"), ("radius", "radius")):
             if corner_key in corner:
                 values[key] = values[key].copy()
                 values[key][at] = corner[corner_key]

@@ -36,7 +36,9 @@ from contactvisco.fem import compat
 from contactvisco.model import contact_law as law
 from contactvisco.fem import rigid
 from contactvisco.fem.geometry import Geometry
-from contactvisco.model.material import elasticity, lame_constants, strain
+from contactvisco.model.material import (elasticity, energy_stress, hencky_energy,
+                                         invariants, lame_constants, strain)
+from contactvisco.fem.tangent import TangentCheck
 from contactvisco.scene.expressions import Context
 from contactvisco.model.memory import DirectHistory, History, table_kernel
 from contactvisco.errors import SceneError
@@ -187,6 +189,7 @@ class Problem:
     length_scale: float
     memory: MemoryPart | None = None
     contact: ContactPart | None = None
+    tangent: object | None = None              # fem.tangent.TangentCheck (nonlinear A)
 
     def load_resultant(self) -> np.ndarray:
         """The resultant of the external loads at the current time, int f + int_N f_N
@@ -261,7 +264,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
 
     V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
-    sigma, constants, memory = _stress(scene, mesh, u)
+    sigma, constants, memory = _stress(scene, mesh, u, context)
     constants["t"] = context.t
 
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
@@ -297,20 +300,27 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         time=TimeState(context.t, updates, u, memory, contact and contact.u_previous),
         loads=loads, tensor_space=tensor_space,
         sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
-        length_scale=_length_scale(mesh), memory=memory, contact=contact)
+        length_scale=_length_scale(mesh), memory=memory, contact=contact,
+        tangent=constants.pop("tangent", None))
     rigid.check(problem)
     return problem
 
 
-def _stress(scene, mesh, u):
+def _stress(scene, mesh, u, context=None):
     """sigma(u) = A eps(u) + H + sum_part w_part P_part eps(u) (eq 19: the elastic stress,
     the history stress of the memory part and its implicit weights, none without memory).
     Returns sigma, the Constants it uses by name (the Lame constants lame_lambda, lame_mu
-    and the memory part's) and the MemoryPart (None without memory)."""
+    and the memory part's; with a nonlinear A also "tangent", its TangentCheck) and the
+    MemoryPart (None without memory)."""
     mat = scene["material"]
     lame_lambda, lame_mu = lame_constants(mat["model"], mat["E"], mat["nu"])
     constants = {"lame_lambda": _scalar(mesh, lame_lambda), "lame_mu": _scalar(mesh, lame_mu)}
-    sigma = elasticity(strain(u), constants["lame_lambda"], constants["lame_mu"])
+    if mat.get("law", "linear") == "linear":
+        sigma = elasticity(strain(u), constants["lame_lambda"], constants["lame_mu"])
+    else:
+        energy = material_energy(mat, constants, context or Context(mesh))
+        sigma, C = energy_stress(strain(u), energy)
+        constants["tangent"] = TangentCheck(C, u, lame_mu)
     memory = _memory(scene, mesh, u)
     if memory is not None:
         sigma = sigma + memory.H
@@ -318,6 +328,33 @@ def _stress(scene, mesh, u):
             sigma = sigma + constant * _strain_part(u, part, mesh.geometry.dim)
         constants.update(memory.constants)
     return sigma, constants, memory
+
+
+def material_energy(mat: dict, constants: dict, context: Context):
+    """The strain energy W of a nonlinear A (material.law "hencky" or "energy").
+
+    Parameters
+    ----------
+    mat : dict
+        The resolved [material] table.
+    constants : dict
+        The Constants lame_lambda and lame_mu (lambda* in plane stress).
+    context : contactvisco.scene.expressions.Context
+        The position and time symbols of material.energy.
+
+    Returns
+    -------
+    callable
+        eps -> W(eps), a UFL expression: hencky_energy, or material.energy in the
+        invariants tr_eps, eps2, dev_eps2 with lmbda and mu_lame.
+    """
+    lmbda, mu = constants["lame_lambda"], constants["lame_mu"]
+    if mat["law"] == "hencky":
+        return lambda eps: hencky_energy(eps, lmbda, mu, mat["hencky_exponent"],
+                                         mat["hencky_strain"])
+    text = mat["energy"]
+    return lambda eps: context.scalar(text, "material.energy",
+                                      dict(invariants(eps), lmbda=lmbda, mu_lame=mu))
 
 
 def _strain_part(u, part, d):
@@ -393,8 +430,9 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
 
     constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
+    laws = contact_laws(contact, context)
     terms = law.law_terms(law.UFL, u, normal, gap_value, lambda_nu, lambda_tau, u_previous,
-                          constants, contact["friction_law"])
+                          constants, contact["friction_law"], laws=laws)
     F_u = None
     pairs = []
     if terms["normal_force"] is not None:
@@ -414,8 +452,9 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                        gap=gap_function, u_previous=u_previous,
                        Q_coordinates=Q.tabulate_dof_coordinates(),
                        u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
-                       corner_forms=_corner_forms(terms, u, normal, Q, W, dsc) if corners
-                       else None)
+                       corner_forms=_corner_forms(terms, u, normal, Q, W, dsc,
+                                                  with_radius="p_tau" in laws)
+                       if corners or laws else None)
     return part, F_u, pairs
 
 
@@ -432,11 +471,14 @@ def _contact_unknowns(contact: dict, u, Q, W):
     if contact["stiffness"] > 0 and g > 0:
         constants["stiffness"] = _scalar(mesh, contact["stiffness"])
     lambda_nu = fem.Function(Q, name="lambda_nu") if math.isfinite(g) else None
-    has_pressure = ("stiffness" in constants
+    compliance = "stiffness" in constants or (contact.get("p_nu") is not None and g > 0)
+    has_pressure = (compliance
                     or (contact["friction_law"] == "coulomb" and lambda_nu is not None))
     lambda_tau = u_previous = None
-    if contact["mu"] > 0 and has_pressure:
-        constants["mu"] = _scalar(mesh, contact["mu"])
+    friction = contact["mu"] > 0 or (contact.get("p_tau") is not None and compliance)
+    if friction and has_pressure:
+        if contact["mu"] > 0:
+            constants["mu"] = _scalar(mesh, contact["mu"])
         lambda_tau = fem.Function(W, name="lambda_tau")
         if contact["slip"] == "increment":
             # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
@@ -444,18 +486,47 @@ def _contact_unknowns(contact: dict, u, Q, W):
     return constants, lambda_nu, lambda_tau, u_previous
 
 
-def _corner_forms(terms, u, normal, Q, W, dsc):
+def contact_laws(contact: dict, context: Context) -> dict:
+    """The prescribed functions of the [contact] table as callables of the saturated
+    penetration sigma = max(0, min(s, g)) (contactvisco.model.contact_law.law_terms): "p_nu"
+    (contact.p_nu, an expression in s, x, t; built when the compliance term acts, g > 0) and
+    "p_tau" (contact.p_tau, in s, p_nu, x, t); none for the linear law (stiffness, mu).
+
+    Parameters
+    ----------
+    contact : dict
+        The resolved [contact] table.
+    context : contactvisco.scene.expressions.Context
+        The position and time symbols of the mesh.
+
+    Returns
+    -------
+    dict
+        name -> callable giving the UFL value of p_nu(sigma) or p_tau(sigma, p_nu).
+    """
+    laws = {}
+    if contact.get("p_nu") is not None and contact["g"] > 0:
+        text = contact["p_nu"]
+        laws["p_nu"] = lambda sigma: context.scalar(text, "contact.p_nu", {"s": sigma})
+    if contact.get("p_tau") is not None:
+        text_tau = contact["p_tau"]
+        laws["p_tau"] = lambda sigma, p: context.scalar(text_tau, "contact.p_tau",
+                                                        {"s": sigma, "p_nu": p})
+    return laws
+
+
+def _corner_forms(terms, u, normal, Q, W, dsc, with_radius=False):
     """Forms whose assembled vectors, divided by the node's weight, are the law's node values
     as the forms see them: with the vertex rule, node i gets sum_f w_f value_f(x_i) over its
     facets f. Where the normal is one P1 field this is the value at the node; at a corner of
     Gamma_C, where the forms use each facet's normal, it is their weighted mean, which is what
     the node's single multiplier and force act on. Keys: weight, u_nu, s_nu, p_nu (if any),
-    slip, u_tau (vectors)."""
+    slip, u_tau (vectors), and radius with with_radius (a prescribed p_tau)."""
     d = Q.mesh.geometry.dim
     vertex = dsc.reconstruct(metadata=nodal_rule(d))
     scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
     scalars = {"weight": 1.0, "u_nu": law.normal_part(u, normal), "s_nu": terms["s_nu"],
-               "p_nu": terms["p_nu"]}
+               "p_nu": terms["p_nu"], "radius": terms["radius"] if with_radius else None}
     vectors = {"slip": terms["slip"], "u_tau": law.tangential_part(u, normal)}
     forms = {key: fem.form(value * scalar_test * vertex) for key, value in scalars.items()
              if value is not None}

@@ -9,6 +9,12 @@ paper's) or mu (p_nu(u_nu) + R_nu) = -mu sigma_nu (friction_law = "coulomb": Cou
 total normal pressure), and opposes the slip where it reaches the bound. The slip is u_tau
 (the paper's) or the step's u_tau - u_tau(t_{n-1}) (Coulomb's incremental law).
 
+General laws (contact.p_nu, contact.p_tau: the paper's eq 3 with prescribed functions) enter
+as callables `laws` of law_terms: p_nu = laws["p_nu"](sigma) and p_tau = laws["p_tau"](sigma, p_nu)
+with sigma = max(0, min(s, g)) the saturated penetration, so that they vanish for s < 0 and
+the bound's friction is F_b = p_tau(g). The linear law (stiffness, mu) stays its own short
+form.
+
 Every function takes the array namespace `ops` it is evaluated in: UFL (the forms of
 contactvisco.fem.problem) or NUMPY (the node values of the contact table, one row per node,
 vectors as (n, d) arrays). The law is thus one set of expressions for both.
@@ -65,12 +71,39 @@ def tangential_part(u, nu, ops=UFL):
     return u - ops.times(ops.dot(u, nu), nu)
 
 
-def p_nu(u_nu, stiffness, g=None, ops=UFL):
+def law_argument(u_nu, g=None, ops=UFL):
+    """The argument of the prescribed functions: max(0, min(s, g)) (min(s, g) without
+    the max when g is None: no bound)."""
+    s = u_nu if g is None else ops.minimum(u_nu, g)
+    return positive_part(s, ops)
+
+
+def p_nu(u_nu, stiffness, g=None, ops=UFL, law=None):
     """Normal compliance p_nu(s) = c_nu s_+, saturated at the bound: p_nu(min(s, g)).
 
     The paper's [s]_g (zero above g) would switch the force off at nodes that round-off puts
     at g + 1e-17; saturating gives the same converged solution without that trap.
+
+    Parameters
+    ----------
+    u_nu : UFL expression or numpy.ndarray
+        The penetration s.
+    stiffness : float or Constant
+        c_nu of the linear law (unused when `law` is given).
+    g : float or Constant, optional
+        The bound (None: no bound).
+    ops : class, optional
+        The array namespace, UFL or NUMPY.
+    law : callable, optional
+        A prescribed p_nu(sigma) of sigma = max(0, min(s, g)) (eq 3), in place of c_nu sigma.
+
+    Returns
+    -------
+    UFL expression or numpy.ndarray
+        p_nu(max(0, min(s, g))).
     """
+    if law is not None:
+        return law(law_argument(u_nu, g, ops))
     s = u_nu if g is None else ops.minimum(u_nu, g)
     return stiffness * positive_part(s, ops)
 
@@ -104,26 +137,36 @@ def friction_force(lambda_tau, slip, nu, radius, r, ops=UFL):
     return project_ball(tangential_part(lambda_tau, nu, ops) - r * slip, radius, ops)
 
 
-def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, friction_law):
+def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, friction_law,
+              laws=None):
     """The law's quantities at u with normal nu (eqs 20-21): s_nu = u . nu - h (the
     penetration past the initial gap h), p_nu, R_nu, the normal force p_nu + R_nu, the
     friction radius, the slip and sigma_tau; None where the scene has no such term.
 
     constants: r, g (None for no bound), stiffness (absent without compliance), mu (the
     friction coefficient, absent without friction); UFL Constants or numbers. friction_law:
-    "compliance" or "coulomb" (friction_radius)."""
+    "compliance" or "coulomb" (friction_radius). laws: the prescribed functions by name,
+    "p_nu" (sigma -> p_nu) in place of stiffness, "p_tau" ((sigma, p_nu) -> radius) in place
+    of mu p_nu, sigma = max(0, min(s, g)) (module description)."""
+    laws = laws or {}
     s_nu = normal_part(u, nu, ops) - gap
     g = constants.get("g")
-    p = (p_nu(s_nu, constants["stiffness"], g, ops) if "stiffness" in constants else None)
+    if "p_nu" in laws:
+        p = p_nu(s_nu, None, g, ops, law=laws["p_nu"])
+    else:
+        p = (p_nu(s_nu, constants["stiffness"], g, ops) if "stiffness" in constants
+             else None)
     R = (unilateral_reaction(lambda_nu, s_nu, g, constants["r"], ops)
          if lambda_nu is not None else None)
     normal_force = p if R is None else (R if p is None else p + R)
     moved = u if u_previous is None else u - u_previous
     slip = tangential_part(moved, nu, ops)
     radius = sigma_tau = None
-    if "mu" in constants:
+    if "p_tau" in laws and p is not None:
+        radius = laws["p_tau"](law_argument(s_nu, g, ops), p)
+    elif "mu" in constants:
         radius = friction_radius(constants["mu"], p, R, friction_law)
-        if lambda_tau is not None and radius is not None:
-            sigma_tau = friction_force(lambda_tau, slip, nu, radius, constants["r"], ops)
+    if lambda_tau is not None and radius is not None:
+        sigma_tau = friction_force(lambda_tau, slip, nu, radius, constants["r"], ops)
     return {"s_nu": s_nu, "p_nu": p, "R_nu": R, "normal_force": normal_force,
             "radius": radius, "slip": slip, "sigma_tau": sigma_tau}

@@ -13,6 +13,11 @@ An expression is data, never code: its syntax tree is walked node by node agains
 conditional, the constants and functions below) and nothing else is ever evaluated; no
 attribute, no other subscript or call. The text is at most MAX_LENGTH characters and the tree
 at most MAX_DEPTH levels deep.
+
+Some keys allow more variables than x and t, each a plain name given by the caller (the
+penetration `s` of contact.p_nu, the invariants of the strain in material.energy): they are
+data in the same way and add no other syntax. The same walk computes a value from floats
+(value_at), which the scene checks use to sample such a function before any mesh exists.
 """
 from __future__ import annotations
 
@@ -50,11 +55,13 @@ _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
            ast.Div: operator.truediv, ast.Pow: operator.pow}
 _COMPARE = {ast.Lt: ufl.lt, ast.LtE: ufl.le, ast.Gt: ufl.gt, ast.GtE: ufl.ge,
             ast.Eq: ufl.eq, ast.NotEq: ufl.ne}
+_COMPARE_FLOAT = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt,
+                  ast.GtE: operator.ge, ast.Eq: operator.eq, ast.NotEq: operator.ne}
 
 
-def allowed(d: int = 3) -> str:
-    """What an expression may contain (for error messages)."""
-    xs = ", ".join(f"x[{i}]" for i in range(d))
+def allowed(d: int = 3, names=()) -> str:
+    """What an expression may contain (for error messages); names: the further variables."""
+    xs = ", ".join(f"x[{i}]" for i in range(d)) + "".join(f", {name}" for name in names)
     functions = ", ".join(f"{name}({arity} args)" if arity > 1 else name
                           for name, (_, arity) in FUNCTIONS.items())
     return (f"allowed: numbers, {xs}, t, + - * / ** and unary -, comparisons < <= > >= == != "
@@ -62,9 +69,10 @@ def allowed(d: int = 3) -> str:
             f"{', '.join(CONSTANTS)} and the functions {functions}")
 
 
-def parse(text: str, where: str, d: int = 3) -> ast.Expression:
+def parse(text: str, where: str, d: int = 3, names=()) -> ast.Expression:
     """The syntax tree of an expression text, checked against the whitelist of node types
-    (see :func:`allowed`) without evaluating anything; a SceneError names what is refused."""
+    (see :func:`allowed`; `names` the further variables allowed) without evaluating
+    anything; a SceneError names what is refused."""
     if not isinstance(text, str):
         raise SceneError(f"{where} must be a number or an expression string, got {text!r}",
                          key=where)
@@ -79,15 +87,27 @@ def parse(text: str, where: str, d: int = 3) -> ast.Expression:
     except (RecursionError, MemoryError, ValueError):
         raise SceneError(f"{where}: the expression is nested too deeply (at most {MAX_DEPTH} "
                          "levels)", key=where) from None
-    _Walker(text, where, d, None).value(tree.body, 0)
+    _Walker(text, where, d, None, dict.fromkeys(names)).value(tree.body, 0)
     return tree
 
 
-def evaluate(text: str, where: str, x, t, d: int):
-    """The value of an expression: a float when it depends on neither x nor t, else a UFL
-    expression in the SpatialCoordinate x and the Constant t."""
-    tree = parse(text, where, d)
-    return _Walker(text, where, d, (x, t)).value(tree.body, 0)
+def evaluate(text: str, where: str, x, t, d: int, names=None):
+    """The value of an expression: a float when it depends on neither x nor t (nor the
+    further variables), else a UFL expression in the SpatialCoordinate x, the Constant t and
+    the UFL values of `names` (a dict: variable name -> value)."""
+    names = names or {}
+    tree = parse(text, where, d, tuple(names))
+    return _Walker(text, where, d, (x, t), names).value(tree.body, 0)
+
+
+def value_at(text: str, where: str, d: int, x, t: float, names=None) -> float:
+    """The value of an expression on numbers: x a sequence of d floats, t a float, `names`
+    a dict of further variables -> float. Overflow, a domain error or a complex value is a
+    SceneError naming `where`."""
+    names = {key: float(value) for key, value in (names or {}).items()}
+    tree = parse(text, where, d, tuple(names))
+    point = tuple(float(c) for c in x)
+    return float(_Walker(text, where, d, (point, float(t)), names).value(tree.body, 0))
 
 
 class _Walker:
@@ -98,12 +118,13 @@ class _Walker:
     It is longer than most classes here because the whitelist is the class: one short method
     per accepted node type, so that what an expression may contain is read in one place."""
 
-    def __init__(self, text, where, d, symbols):
+    def __init__(self, text, where, d, symbols, names=None):
         self.text, self.where, self.d, self.symbols = text, where, d, symbols
+        self.names = names or {}
 
     def refuse(self, what):
         raise SceneError(f"{self.where} = '{self.text}': {what} is not allowed; "
-                         f"{allowed(self.d)}", key=self.where)
+                         f"{allowed(self.d, tuple(self.names))}", key=self.where)
 
     def value(self, node, depth):
         if depth > MAX_DEPTH:
@@ -117,6 +138,8 @@ class _Walker:
         if isinstance(node, ast.Name):
             if node.id == "t":
                 return self.symbols[1] if build else None
+            if node.id in self.names:
+                return self.names[node.id] if build else None
             if node.id in CONSTANTS:
                 return CONSTANTS[node.id]
             if node.id == "x":
@@ -161,6 +184,9 @@ class _Walker:
                     self.refuse(f"the comparison '{type(op).__name__}'")
             if not build:
                 return None
+            if all(isinstance(a, float) for a in operands):
+                return all(_COMPARE_FLOAT[type(op)](a, b)
+                           for op, a, b in zip(node.ops, operands, operands[1:]))
             parts = [(_COMPARE[type(op)], a, b)
                      for op, a, b in zip(node.ops, operands, operands[1:])]
             conditions = [f(ufl.as_ufl(a), ufl.as_ufl(b)) for f, a, b in parts]
@@ -172,6 +198,8 @@ class _Walker:
             values = [self.condition(v, depth + 1) for v in node.values]
             if not build:
                 return None
+            if all(isinstance(v, bool) for v in values):
+                return all(values) if isinstance(node.op, ast.And) else any(values)
             join = ufl.And if isinstance(node.op, ast.And) else ufl.Or
             out = values[0]
             for v in values[1:]:
@@ -179,6 +207,8 @@ class _Walker:
             return out
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
             c = self.condition(node.operand, depth + 1)
+            if isinstance(c, bool):
+                return not c
             return ufl.Not(c) if build else None
         self.refuse(f"'{ast.unparse(node)}' as a condition (conditional needs a comparison)")
 
@@ -194,6 +224,8 @@ class _Walker:
         if name == "conditional":
             args = [self.condition(node.args[0], depth + 1)] + [
                 self.value(a, depth + 1) for a in node.args[1:]]
+            if isinstance(args[0], bool):              # on numbers (value_at)
+                return args[1] if args[0] else args[2]
         else:
             args = [self.value(a, depth + 1) for a in node.args]
         if name != "conditional" and all(isinstance(a, float) for a in args):
@@ -238,13 +270,14 @@ class Context:
         items = value if isinstance(value, (list, tuple)) else [value]
         return any(isinstance(v, str) and "t" in _names(v, "value") for v in items)
 
-    def scalar(self, value, where: str):
-        """A number -> Constant; a string -> UFL expression."""
+    def scalar(self, value, where: str, names=None):
+        """A number -> Constant; a string -> UFL expression (in x, t and the further
+        variables `names`: a dict name -> UFL value)."""
         if isinstance(value, bool) or not isinstance(value, (numbers.Real, str)):
             raise SceneError(f"{where} must be a number or an expression string, got {value!r}",
                              key=where)
         if isinstance(value, str):
-            value = self._evaluate(value, where)
+            value = self._evaluate(value, where, names)
             if not isinstance(value, float):
                 return value
         if not math.isfinite(value):
@@ -271,9 +304,9 @@ class Context:
                              key=where)
         return float(value)
 
-    def _evaluate(self, text: str, where: str):
+    def _evaluate(self, text: str, where: str, names=None):
         d = self.mesh.geometry.dim
-        result = evaluate(text, where, self.x, self.t, d)
+        result = evaluate(text, where, self.x, self.t, d, names)
         if isinstance(result, numbers.Real):
             return float(result)
         if not isinstance(result, ufl.core.expr.Expr) or result.ufl_shape != ():

@@ -13,8 +13,10 @@ import ast
 import math
 import pathlib
 
+import numpy as np
+
 from contactvisco.errors import SceneError
-from contactvisco.model.material import dimension
+from contactvisco.model.material import LAWS, dimension
 from contactvisco.model.memory import PARTS
 from contactvisco.model.memory_kernel import as_list
 from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
@@ -156,6 +158,11 @@ class Material(Table):
         "nu": Key(0.3),
         "lambda": Key(None),
         "mu": Key(None),
+        # A nonlinear A (check_material_law): sigma = dW/deps.
+        "law": choice("linear", *LAWS),
+        "energy": Key(None),
+        "hencky_exponent": Key(1.0, finite, "a finite number"),
+        "hencky_strain": Key(0.01, lambda x: finite(x) and x > 0, "> 0 (and finite)"),
     }
 
     def normalize(self) -> None:
@@ -179,6 +186,81 @@ class Material(Table):
         self.need(finite(self["nu"]) and -1.0 < self["nu"] < upper, "nu",
                   f"material.nu must lie in (-1, {upper}) for {self['model']}, got "
                   f"{self['nu']}")
+        check_material_law(self, scene)
+
+
+#: The strain step h of check_material_law's differences of W at zero strain.
+ENERGY_STEP = 1e-4
+
+
+def check_material_law(table: Table, scene) -> None:
+    """Check the nonlinear elasticity of material.law (material.energy, material.hencky_*).
+
+    material.energy is an expression in tr_eps, eps2, dev_eps2, lmbda, mu_lame (and x, t);
+    it is sampled at x = 0, t = 0 near zero strain: finite, stress-free at zero strain
+    (|dW/deps| <= 1e-6 (2 mu) h by central differences of step h = ENERGY_STEP) and a
+    positive definite tangent there (second differences along the symmetric unit strains and
+    their pairwise sums > 0). Away from zero strain the tangent is checked where the solution
+    takes it (contactvisco.fem.tangent). hencky_exponent must be > -1/2 (convex W).
+
+    Parameters
+    ----------
+    table : contactvisco.scene.table.Table
+        The [material] table.
+    scene : Scene
+        The scene (its dimension).
+
+    Returns
+    -------
+    None
+        A refused law raises a SceneError naming the key.
+    """
+    from contactvisco.model.material import invariants, lame_constants, strain_basis
+    law = table["law"]
+    if law == "hencky":
+        table.need(table["hencky_exponent"] > -0.5, "hencky_exponent",
+                   f"material.hencky_exponent must be > -1/2 (below, W is not convex: the "
+                   f"deviatoric stress decreases with strain), got {table['hencky_exponent']}")
+    table.need(law == "energy" or table["energy"] is None, "energy",
+               "material.energy is the strain energy of material.law = 'energy': set "
+               "material.law = 'energy' or drop material.energy")
+    if law != "energy":
+        return
+    from contactvisco.scene.expressions import parse, value_at
+    from contactvisco.model.material import ENERGY_NAMES
+    text = table["energy"]
+    table.need(isinstance(text, str), "energy",
+               "material.law = 'energy' needs material.energy, an expression string in "
+               f"{', '.join(ENERGY_NAMES)} (and x, t), e.g. "
+               "'0.5 * lmbda * tr_eps**2 + mu_lame * eps2', got " + repr(text))
+    d = 3 if table["model"] == "3d" else 2
+    try:
+        parse(text, table.key("energy"), d, ENERGY_NAMES)
+    except SceneError as err:
+        table.fail("energy", str(err))
+    lam, mu = lame_constants(table["model"], table["E"], table["nu"])
+    key = table.key("energy")
+
+    def W(eps):
+        names = dict(invariants(eps), lmbda=lam, mu_lame=mu)
+        return value_at(text, key, d, [0.0] * d, 0.0, names)
+
+    basis = strain_basis(d)
+    directions = basis + [a + b for k, a in enumerate(basis) for b in basis[k + 1:]]
+    h = ENERGY_STEP
+    zero = W(np.zeros((d, d)))
+    for e in directions:
+        plus, minus = W(h * e), W(-h * e)
+        slope = (plus - minus) / (2 * h)
+        table.need(abs(slope) <= 1e-6 * 2 * mu * h * np.sum(e * e), "energy",
+                   f"material.energy = '{text}' gives a stress at zero strain (dW/deps : E = "
+                   f"{slope:.3g} along E = {e.round(3).tolist()}): the reference state must "
+                   "be stress-free (W without terms linear in the strain)")
+        curvature = (plus - 2 * zero + minus) / h**2
+        table.need(curvature > 0, "energy",
+                   f"material.energy = '{text}' has a tangent that is not positive definite "
+                   f"at zero strain (d^2W along E = {e.round(3).tolist()} is "
+                   f"{curvature:.3g}): W must be convex (a positive definite A)")
 
 
 KERNELS = ("none", "constant", "exponential", "prony", "table", "power", "fractional")
@@ -363,6 +445,9 @@ class Contact(Table):
         "friction": Key(None),              # the former name of friction_law, read as it
         "slip": choice("total", *SLIP_MEASURES),
         "augmentation": Key(None, lambda x: finite(x) and x > 0, "> 0 (and finite)"),
+        # Prescribed functions (eq 3), expressions in s (and p_nu): check_contact_laws.
+        "p_nu": Key(None),
+        "p_tau": Key(None),
     }
 
     def normalize(self, material: dict) -> None:
@@ -407,15 +492,136 @@ class Contact(Table):
                       f"contact.{name} must be 0 or lie in [{1 / MODULUS_RANGE:g}, "
                       f"{MODULUS_RANGE:g}] (change the units), got {self[name]}")
         self.expression("gap", self["gap"], scene.dimension)
-        self.need(self["stiffness"] > 0 or math.isfinite(g), "stiffness",
+        check_contact_laws(self, scene)
+        compliance = self["stiffness"] > 0 or self["p_nu"] is not None
+        self.need(compliance or math.isfinite(g), "stiffness",
                   "contact.stiffness: a contact boundary needs a compliance stiffness > 0 or a "
                   "finite bound g")
         self.need(self["mu"] == 0 or self["friction_law"] == "coulomb"
-                  or (self["stiffness"] > 0 and g > 0), "mu",
+                  or (compliance and g > 0), "mu",
                   f"contact.mu = {self['mu']} has no effect: the friction bound mu p_nu(u_nu) "
                   "is zero without a compliance stiffness > 0 and a layer g > 0; set "
                   "contact.mu = 0, or contact.friction_law = 'coulomb' for a bound mu times the "
                   "total normal pressure")
+
+
+#: Sample points of check_contact_laws, as fractions of the sampled range [0, g]: two
+#: points near 0 for the slope at 0+, then a uniform grid.
+LAW_SAMPLES = (0.0, 1e-10, 1e-7) + tuple(k / 200 for k in range(1, 201))
+#: The slope at 0+ is finite when p(h)/h at h = 1e-10 g exceeds its value at 1e-7 g by at
+#: most this factor (p = c s^m: (1e-3)^(m - 1), 1.0007 for m = 0.9999).
+LAW_SLOPE_RATIO = 1.0 + 1e-4
+
+
+def check_contact_laws(table: Table, scene) -> None:
+    """Check the prescribed functions contact.p_nu and contact.p_tau (paper eq 3).
+
+    p_nu is an expression in the penetration s (and x, t), p_tau in s and p_nu (and x, t);
+    the forms evaluate them at sigma = max(0, min(s, g)), so that they vanish for s < 0 and
+    the friction bound at the bound is F_b = p_tau(g). What Newton needs is checked on
+    samples of sigma in [0, g] ([0, 1] without a bound) at x = 0 and t = 0, T/2, T: finite
+    values, p(0) = 0, p >= 0, p_nu non-decreasing and not zero, a finite slope at 0+ (s**0.5
+    is refused: its derivative at 0 is infinite).
+
+    Parameters
+    ----------
+    table : contactvisco.scene.table.Table
+        The [contact] table (its p_nu, p_tau, stiffness, mu, g, friction_law).
+    scene : Scene
+        The scene (its dimension and time.T).
+
+    Returns
+    -------
+    None
+        A refused function raises a SceneError naming the key.
+    """
+    from contactvisco.scene.expressions import parse, value_at
+    given = [name for name in ("p_nu", "p_tau") if table[name] is not None]
+    if not given:
+        return
+    d = scene.dimension
+    for name in given:
+        table.need(isinstance(table[name], str), name,
+                   f"contact.{name} must be an expression string in s (the penetration)"
+                   f"{', p_nu' if name == 'p_tau' else ''}, x and t, e.g. "
+                   f"{EXAMPLES[name]!r}, got {table[name]!r}")
+        try:
+            parse(table[name], table.key(name), d, ("s", "p_nu") if name == "p_tau" else ("s",))
+        except SceneError as err:
+            table.fail(name, str(err))
+    if table["p_nu"] is not None:
+        table.need(table["stiffness"] == 0, "p_nu",
+                   "contact.p_nu and contact.stiffness are two forms of the normal law: give "
+                   "one (stiffness c is p_nu = 'c * s')")
+        table.need(table["g"] > 0, "p_nu",
+                   "contact.p_nu acts in a compliant layer g > 0; with g = 0 (Signorini) the "
+                   "normal law has no compliance: drop contact.p_nu")
+    if table["p_tau"] is not None:
+        table.need(table["mu"] == 0, "p_tau",
+                   "contact.p_tau and contact.mu are two forms of the friction bound: give one "
+                   "(mu is p_tau = 'mu * p_nu')")
+        table.need(table["friction_law"] == "compliance", "p_tau",
+                   "contact.p_tau is the bound p_tau(s) of friction_law = 'compliance' (the "
+                   "paper's); with 'coulomb' the bound is mu times the total pressure: use "
+                   "contact.mu")
+        table.need((table["stiffness"] > 0 or table["p_nu"] is not None) and table["g"] > 0,
+                   "p_tau", "contact.p_tau needs a normal compliance (contact.p_nu or "
+                   "contact.stiffness > 0, and g > 0): there is no pressure to bound")
+    upper = table["g"] if math.isfinite(table["g"]) else 1.0
+    T = float(scene["time"]["T"]) if "time" in scene else 1.0
+    for t in (0.0, T / 2, T):
+        values = _sample_laws(table, d, upper, t)
+        for name in given:
+            _check_samples(table, name, values[name], upper, t)
+
+
+EXAMPLES = {"p_nu": "2e3 * s**1.5", "p_tau": "0.3 * min(p_nu, 40)"}
+
+
+def _sample_laws(table, d, upper, t) -> dict:
+    """p_nu and p_tau at the samples sigma = upper * LAW_SAMPLES (lists of floats)."""
+    from contactvisco.scene.expressions import value_at
+    x = [0.0] * d
+    p_nu, p_tau = [], []
+    for fraction in LAW_SAMPLES:
+        sigma = upper * fraction
+        if table["p_nu"] is not None:
+            p = value_at(table["p_nu"], table.key("p_nu"), d, x, t, {"s": sigma})
+        else:
+            p = table["stiffness"] * sigma
+        p_nu.append(p)
+        if table["p_tau"] is not None:
+            p_tau.append(value_at(table["p_tau"], table.key("p_tau"), d, x, t,
+                                  {"s": sigma, "p_nu": p}))
+    return {"p_nu": p_nu, "p_tau": p_tau}
+
+
+def _check_samples(table, name, values, upper, t) -> None:
+    """The conditions of check_contact_laws on the samples of one function."""
+    text = f"contact.{name} = '{table[name]}'"
+    at = f"at x = 0, t = {t:g}"
+    scale = max(abs(v) for v in values)
+    tol = 1e-12 * scale
+    table.need(abs(values[0]) <= tol, name,
+               f"{text} gives {values[0]:g} at s = 0 ({at}): the law must vanish for s <= 0 "
+               "(paper eq 3), so its value at 0 must be 0 (a jump at 0 has no derivative)")
+    worst = min(range(len(values)), key=lambda k: values[k])
+    table.need(values[worst] >= -tol, name,
+               f"{text} is negative ({values[worst]:g}) at s = "
+               f"{upper * LAW_SAMPLES[worst]:g} ({at}): the law must be >= 0")
+    if name == "p_nu":
+        table.need(scale > 0, name, f"{text} is zero on [0, {upper:g}] ({at}): no compliance")
+        drops = [k for k in range(1, len(values)) if values[k] < values[k - 1] - tol]
+        table.need(not drops, name,
+                   f"{text} decreases near s = {upper * LAW_SAMPLES[drops[0]] if drops else 0:g}"
+                   f" ({at}): p_nu must be non-decreasing (a monotone normal law)")
+    h1, h2 = upper * LAW_SAMPLES[1], upper * LAW_SAMPLES[2]
+    q1, q2 = values[1] / h1, values[2] / h2
+    table.need(q1 <= LAW_SLOPE_RATIO * q2 + tol / upper, name,
+               f"{text} has an infinite slope at s = 0+ (p(h)/h is {q2:.3g} at h = {h2:.3g} and "
+               f"{q1:.3g} at h = {h1:.3g}, {at}): Newton's derivative at s = 0 would be "
+               f"infinite; use powers s**m with m >= 1 (e.g. 'c * s**1.5'), or regularize "
+               f"near 0 (e.g. 'c * s / sqrt(s + delta)' for c * s**0.5)")
 
 
 class Time(Table):

@@ -51,8 +51,11 @@ def friction_limit(problem, comm, previous) -> str | None:
     resultant F exceeds mu times its normal part, the most that friction on the total normal
     pressure can hold (mu F.nu >= sum_i w_i |sigma_tau,i|). nu: the contact normal at the last
     equilibrium `previous` (a contact table), weighted by the normal reaction. Collective.
-    Returns the explanation, or None."""
+    Returns the explanation, or None (also with a prescribed friction bound contact.p_tau,
+    which has no coefficient mu to compare with)."""
     if problem.contact is None or problem.contact.lambda_tau is None or problem.bcs_u:
+        return None
+    if problem.scene["contact"].get("p_tau") is not None:
         return None
     known = previous is not None
     previous = previous if known else contact_state.contact_table(problem, comm)  # weights, normals

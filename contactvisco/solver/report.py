@@ -104,3 +104,26 @@ def closing_line(final: dict, t_end: float) -> str:
     """The last line: the run's wall time and the node states at T."""
     return (f"done in {final['wall_s']:.2f} s; at t = {t_end:g}: "
             + ", ".join(f"{v} {key}" for key, v in final["status_counts"].items()))
+
+
+def tangent_warning(record: dict, problem, comm, writer, warned: bool) -> bool:
+    """With a nonlinear A, the smallest eigenvalue of its tangent at the accepted state into
+    the step record (``tangent_min``, over 2 mu; contactvisco.fem.tangent) and, the first
+    time it is <= 0, a warning naming the point and the time (stderr on rank 0 and the output
+    folder's warnings). Returns whether the warning has been given."""
+    if problem.tangent is None:
+        return warned
+    check = problem.tangent.smallest(comm)
+    record["tangent_min"] = check["ratio"]
+    if check["ratio"] > 0 or warned:
+        return warned
+    x = ", ".join(f"{c:.4g}" for c in check["x"][:problem.V.mesh.geometry.dim])
+    warning = (f"warning: material.law: the tangent of A = dW/deps is not positive definite "
+               f"at x = ({x}) at t = {record['t']:g} (smallest eigenvalue {check['ratio']:.3g} "
+               "x 2 mu): W is not convex there, the solution may not be unique")
+    if comm.rank == 0:
+        print(f"contactvisco: {warning}", file=sys.stderr, flush=True)
+    if writer is not None:
+        writer.note("warnings", warning)
+    return True
+

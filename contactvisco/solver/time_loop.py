@@ -162,6 +162,7 @@ class Run:
         if on_step is not None:
             observers.append(lambda record, table: on_step(record))
         t, count, table = 0.0, 0, None
+        self.tangent_warned = False
         if self.resumed:
             t, count = self.resumed["t"], self.resumed["count"]
             self.say(f"restarting from the checkpoint at t = {t:g} (step {count - 1})")
@@ -173,6 +174,8 @@ class Run:
                                      self.say, predict=self.predictor):
                     table = contact_state.contact_table(problem, comm)
                     record = self._record(count, state, table)
+                    self.tangent_warned = report.tangent_warning(
+                        record, problem, comm, self.writer, self.tangent_warned)
                     for observe in observers:
                         observe(record, table)
                     t, count = state.t, count + 1

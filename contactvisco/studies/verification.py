@@ -43,8 +43,8 @@ from mpi4py import MPI
 from contactvisco.fem import geometry as geometry_module
 from contactvisco.model import kernels
 from contactvisco.scene import loader as scene_module
-from contactvisco.model.material import elasticity, lame_constants, strain
-from contactvisco.fem.problem import build
+from contactvisco.model.material import elasticity, energy_stress, lame_constants, strain
+from contactvisco.fem.problem import build, material_energy
 from contactvisco.solver.time_loop import simulate
 from contactvisco.solver.newton import BlockSNES
 
@@ -54,7 +54,7 @@ U_EXACT = ["0.1 * sin(pi * x[0]) * sin(pi * x[1]) + 0.05 * x[0] * x[1]",
 
 
 def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 4,
-                 alpha: float = 50.0, comm=MPI.COMM_WORLD) -> dict:
+                 alpha: float = 50.0, comm=MPI.COMM_WORLD, material=None) -> dict:
     """Errors at T = 1 of the manufactured solution (module description).
 
     Parameters
@@ -71,6 +71,9 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
         The constant memory kernel ``R = alpha I``.
     comm : mpi4py.MPI.Comm, optional
         The communicator (collective).
+    material : dict, optional
+        Further [material] keys, e.g. a nonlinear A (``{"law": "hencky", ...}``): the body
+        force is then -div (dW/deps(U) + alpha t eps(U)), W the scene's energy.
 
     Returns
     -------
@@ -79,8 +82,8 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
     """
     raw = {"name": "manufactured",
            "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [cells, cells]},
-           "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3},
-           "memory": {"kernel": "constant", "alpha": alpha},
+           "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3, **(material or {})},
+           "memory": {"kernel": "constant" if alpha else "none", "alpha": alpha},
            "dirichlet": [{"boundary": b, "components": "all", "value": U_EXACT}
                          for b in ("left", "right", "bottom", "top")],
            "time": {"T": 1.0, "steps": steps, "rule": rule},
@@ -91,7 +94,12 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
     ctx = problem.context
     U = ctx.vector(U_EXACT, "U_EXACT", 2)
     lmbda, mu = lame_constants("plane_strain", 100.0, 0.3)
-    sigma = elasticity(strain(U), lmbda, mu) + alpha * ctx.t * strain(U)
+    if scene["material"]["law"] == "linear":
+        elastic = elasticity(strain(U), lmbda, mu)
+    else:
+        energy = material_energy(scene["material"], problem.constants, ctx)
+        elastic = energy_stress(strain(U), energy)[0]
+    sigma = elastic + alpha * ctx.t * strain(U)
     v = problem.F[0].arguments()[0]
     F = [problem.F[0] + ufl.dot(ufl.div(sigma), v) * ufl.dx] + problem.F[1:]
     snes = BlockSNES(F, problem.J, problem.unknowns, problem.bcs, comm)

@@ -18,7 +18,8 @@ def build(overrides):
 def test_paper_scene_values():
     scene = scene_module.load("paper")
     assert scene["material"] == {"model": "plane_stress", "E": 100.0, "nu": 0.3,
-                                 "lambda": None, "mu": None}
+                                 "lambda": None, "mu": None, "law": "linear", "energy": None,
+                                 "hencky_exponent": 1.0, "hencky_strain": 0.01}
     assert scene["contact"]["g"] == 0.05 and scene["contact"]["mu"] == 0.2
     assert scene["contact"]["augmentation"] == 100.0       # defaults to the stiffness
     assert memory_terms(scene) == [(100.0, math.inf, "full")]
