@@ -107,7 +107,8 @@ def compliant_column_exact(t, c: float = 2000.0, m: float = 1.5, g: float = 0.01
             "q_bound": c * g**m}
 
 
-def compliant_column(comm=MPI.COMM_WORLD, linear_system: str = "coupled", **parameters):
+def compliant_column(comm=MPI.COMM_WORLD, linear_system: str = "coupled",
+                     predictor: str = "extrapolate", **parameters):
     """Run the compliant column and compare with its closed form at every step.
 
     Parameters
@@ -116,6 +117,9 @@ def compliant_column(comm=MPI.COMM_WORLD, linear_system: str = "coupled", **para
         The communicator (collective).
     linear_system : str, optional
         ``solver.linear_system``: ``"coupled"`` or ``"condensed"``.
+    predictor : str, optional
+        ``solver.predictor``: ``"none"`` starts every step from the last accepted state (the
+        extrapolated start lands on the column's solution, linear in t before the bound).
     **parameters
         Passed to compliant_column_scene (c, m, g, s_1, steps, cells, p_tau).
 
@@ -130,6 +134,7 @@ def compliant_column(comm=MPI.COMM_WORLD, linear_system: str = "coupled", **para
     raw = compliant_column_scene(**parameters)
     scene = scene_module.resolve(raw)
     scene["solver"]["linear_system"] = linear_system
+    scene["solver"]["predictor"] = predictor
     result = simulate(scene, comm=comm, progress=False, keep_tables=True)
     t = np.array([s["t"] for s in result.steps])
     tables = result.tables
