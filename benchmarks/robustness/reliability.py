@@ -162,9 +162,9 @@ def one_rank_error(root):
     block_rank0_file(out)
     tick = time.time()
     proc = run_paper(2, out, 3, 8, "--restart")
-    row = {"case": "error on rank 0 only (its CSV cannot be opened), rank 1 in a collective",
-           "exit": proc.returncode, "ended_s": round(time.time() - tick, 2),
-           "note": f"messages: {proc.stderr.count('IsADirectoryError')}"}
+    row = {"case": "error on rank 0 only (its snapshots.npz is damaged), rank 1 in a "
+           "collective", "exit": proc.returncode, "ended_s": round(time.time() - tick, 2),
+           "note": f"messages: {proc.stderr.count('not a readable .npz archive')}"}
     print(json.dumps(row), flush=True)
     return [row]
 
