@@ -258,52 +258,56 @@ def check_records(folder, records: dict, count: int) -> None:
     `count` steps: a file longer than then (steps written after the checkpoint) is cut back
     to exactly its length at the checkpoint; a file that is missing, shorter, or whose first
     bytes differ from what the checkpoint recorded stops the restart (SceneError naming the
-    file): the steps it held would be lost. The XDMF index gets its closing tags again and
-    every field file it lists must be there."""
+    file): the steps it held would be lost. Every HDF5 file the XDMF index lists up to the
+    checkpoint must be there. Nothing is changed unless every file passes."""
     from contactvisco.io.checkpoint import Damaged
     folder = pathlib.Path(folder)
     for name, entry in records.items():
         path = folder / name
-        kind = files.what(path)
-        if kind is None:
+        if files.what(path) is None:
             raise Damaged(f"--restart: the record file '{path}' is missing; the checkpoint "
                           f"(after {count} steps) expects {entry['bytes']} bytes: its steps "
                           "would be lost")
-        with files.open_file(path, "r+b") as f:
+        with files.open_file(path, "rb") as f:
             size = os.fstat(f.fileno()).st_size
             if size < entry["bytes"]:
                 raise Damaged(f"--restart: the record file '{path}' has {size} bytes, fewer "
                               f"than the {entry['bytes']} it had at the checkpoint (after "
                               f"{count} steps): records were cut or removed")
-            digest, left = hashlib.sha256(), entry["bytes"]
+            digest, left, head = hashlib.sha256(), entry["bytes"], []
             while left:
                 chunk = f.read(min(left, 1 << 20))
                 if not chunk:
                     break
                 digest.update(chunk)
+                if name == "solution.xdmf":
+                    head.append(chunk)
                 left -= len(chunk)
-            if digest.hexdigest() != entry["sha256"]:
-                raise Damaged(f"--restart: the record file '{path}' differs from what it "
-                              f"held at the checkpoint (after {count} steps; SHA-256 of its "
-                              f"first {entry['bytes']} bytes): it was edited or damaged")
+        if digest.hexdigest() != entry["sha256"]:
+            raise Damaged(f"--restart: the record file '{path}' differs from what it held at "
+                          f"the checkpoint (after {count} steps; SHA-256 of its first "
+                          f"{entry['bytes']} bytes): it was edited or damaged")
+        if name == "solution.xdmf":
+            _check_listed_fields(path, b"".join(head) + XdmfIndex.TAIL.encode())
+    for name, entry in records.items():       # all checked: cut back to the checkpoint
+        with files.open_file(folder / name, "r+b") as f:
+            f.truncate(entry["bytes"])
             if name == "solution.xdmf":
-                f.truncate(entry["bytes"])
                 f.seek(entry["bytes"])
                 f.write(XdmfIndex.TAIL.encode())
-                f.flush()
-            elif size > entry["bytes"]:
-                f.truncate(entry["bytes"])      # the steps after the checkpoint go
+            f.flush()
             os.fsync(f.fileno())
-        if name == "solution.xdmf":
-            _check_listed_fields(path)
 
 
-def _check_listed_fields(path: pathlib.Path):
-    """Every HDF5 file the XDMF index `path` points to is a regular file."""
+def _check_listed_fields(path: pathlib.Path, text: bytes):
+    """Every HDF5 file the XDMF index `text` (of file `path`) points to is a regular file."""
     import xml.etree.ElementTree as ET
 
     from contactvisco.io.checkpoint import Damaged
-    root = ET.fromstring(files.read_bytes(path))
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as err:
+        raise Damaged(f"--restart: '{path}' is not XML ({err})") from None
     for item in root.iter("DataItem"):
         name = (item.text or "").strip().split(":", 1)[0]
         target = path.parent / name
