@@ -332,7 +332,10 @@ def _plot(args):
         paths = draw_all(folder, fmt=args.format, dpi=args.dpi, times=args.times,
                          edges=args.edges, notes=notes)
     except SceneError as err:         # a damaged file, a link or a FIFO: named in err
-        print(f"contactvisco: cannot draw the figures of {folder}: {err}", file=sys.stderr)
+        from contactvisco.io.output import DamagedFile
+        what = "its files are damaged or incomplete: " if isinstance(err, DamagedFile) else ""
+        print(f"contactvisco: cannot draw the figures of {folder}: {what}{err}",
+              file=sys.stderr)
         return 2
     except (ValueError, KeyError, IndexError, OSError, EOFError, TypeError, RecursionError,
             zipfile.BadZipFile) as err:          # damaged or cut files

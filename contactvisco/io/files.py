@@ -7,8 +7,9 @@ written through) and O_NONBLOCK (a FIFO or device where a file belongs is refuse
 not waited on), and the opened descriptor must be a regular file. A refusal is an
 `UnsafeEntry` (exit 2 on the command line) naming the path and what it is.
 
-The HDF5 and XDMF files of DOLFINx and h5py are opened by those libraries from a path: there
-`require_regular` checks, just before, that the path is absent or a regular file.
+The HDF5 and XDMF files that DOLFINx's XDMFFile writes, and that the HDF5 library reads back
+(contactvisco.io.h5read), are opened by those libraries from a path: there `require_regular`
+checks, just before, that the path is absent or a regular file.
 """
 from __future__ import annotations
 
@@ -56,7 +57,7 @@ def refusal(path, kind: str, wanted: str = "a regular file of the run's") -> Uns
 
 def require_regular(path) -> None:
     """Raise UnsafeEntry unless `path` is absent or a regular file (used just before a
-    library that opens paths itself, DOLFINx's XDMFFile or h5py, opens it)."""
+    library that opens paths itself, DOLFINx's XDMFFile or the HDF5 library, opens it)."""
     kind = what(path)
     if kind:
         raise refusal(path, kind)

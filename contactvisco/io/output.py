@@ -372,7 +372,7 @@ def read_json(path, limit: int = JSON_MAX_BYTES) -> dict:
     except RecursionError:
         raise DamagedFile(path, "JSON nested too deeply") from None
     except (ValueError, UnicodeDecodeError) as err:
-        raise DamagedFile(path, f"not valid JSON ({err})") from None
+        raise DamagedFile(path, f"not valid JSON ({type(err).__name__}: {err})") from None
     if not isinstance(value, dict):
         raise DamagedFile(path, f"not a JSON object (a {type(value).__name__})")
     return value
