@@ -80,19 +80,26 @@ class Writer:
                 if key in earlier:
                     self.summary[key] = earlier[key]
             self.last_record = kept_steps[-1] if kept_steps else None
+            if records is not None and [s.get("step") for s in kept_steps] != list(
+                    range(restart_count)):
+                from contactvisco.io.checkpoint import Damaged
+                raise Damaged(f"--restart: {self.folder / STEPS_FILE} holds "
+                              f"{len(kept_steps)} step records, not the steps 0.."
+                              f"{restart_count - 1} of the checkpoint")
         self.steps_written = len(kept_steps)
         self.csv = self.steps_file = self.index = None
-        verified = records is not None and restart_count is not None
+        verified = {name for name in (records or {}) if restart_count is not None}
         if self.rank == 0:
             # Restart: the records are cut to the checkpoint once (O(N) once per restart).
             path = self.folder / STEPS_FILE
-            if not verified:
+            if STEPS_FILE not in verified:
                 files.replace(path, "".join(json.dumps(jsonable(record), allow_nan=False)
                                             + "\n" for record in kept_steps))
             self.steps_file = AppendedRecord(path)
             self._write_summary()
         if self.rank == 0 and problem.contact is not None:
-            self._start_csv(problem.geometry.mesh.geometry.dim, restart_count, verified)
+            self._start_csv(problem.geometry.mesh.geometry.dim, restart_count,
+                            CSV_FILE in verified)
         self.xdmf = None
         if xdmf:
             self.xdmf = self.folder / SOLUTION_DIR
@@ -101,8 +108,7 @@ class Writer:
                 if restart_count is not None:
                     self._drop_fields_from(restart_count)
                 self.index = XdmfIndex(self.folder / "solution.xdmf", self.xdmf,
-                                       restart_count or 0,
-                                       verified and "solution.xdmf" in records)
+                                       restart_count or 0, "solution.xdmf" in verified)
             comm.barrier()
         self._writable = {}                # P1/DG0 copies of higher-degree fields (xdmf_field)
 
