@@ -15,7 +15,10 @@ A restart trusts nothing it reads: meta.json carries a SHA-256 of its own conten
 part; each part repeats t and the step count; the arrays' shapes are checked against the
 fields and each other. Anything that does not match stops the restart (SceneError, exit 2)
 naming the file and what is wrong. The scene must equal the checkpoint's except in its
-[output] table; a refused restart lists the keys that differ."""
+[output] table; a refused restart lists the keys that differ. The mesh must be the
+checkpoint's (mesh_signature), a caller's mesh given to the Python interface included.
+meta.json also keeps the length and SHA-256 of each record file at that step (the output
+writer's record_state), which the restart checks (contactvisco.io.output.check_records)."""
 from __future__ import annotations
 
 import hashlib
