@@ -111,7 +111,8 @@ benchmark-reliability: install
 	  $(MPIRUN) $(PY) $(BENCH)/performance/output_cost.py --skip-runs && \
 	  $(PY) $(BENCH)/robustness/reliability.py --part kill1 && \
 	  $(PY) $(BENCH)/robustness/reliability.py --part kill2 && \
-	  $(PY) $(BENCH)/robustness/reliability.py --part other
+	  $(PY) $(BENCH)/robustness/reliability.py --part other && \
+	  $(PY) $(BENCH)/robustness/reliability.py --part paths
 
 # Both routes give the paper scene's answer to 1e-10 on 1 and 2 ranks
 # (benchmarks/accuracy/stacks.py).

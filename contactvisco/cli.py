@@ -267,8 +267,11 @@ def _run(args, petsc_args, scene_module):
                   overwrite=args.overwrite, keep_contact=False)
     except SceneError as err:
         from contactvisco.io.checkpoint import Damaged
+        from contactvisco.io.files import UnsafeEntry
         from contactvisco.io.lock import FolderError
-        kind = "error" if isinstance(err, (Damaged, FolderError)) else "scene error"
+        from contactvisco.io.output import DamagedFile
+        kind = "error" if isinstance(err, (Damaged, FolderError, UnsafeEntry, DamagedFile)) \
+            else "scene error"
         return parallel.fail_together(comm, 2, f"contactvisco: {kind}: {err}", err)
     except NewtonFailure as err:
         return parallel.fail_together(comm, 3, f"contactvisco: {err}", err)
@@ -312,8 +315,10 @@ def _check_writable(folder):
 
 def _plot(args):
     import pathlib
+
+    from contactvisco.io import files
     folder = args.folder
-    if not (pathlib.Path(folder) / "summary.json").exists():
+    if files.what(pathlib.Path(folder) / "summary.json") is None:
         print(f"contactvisco: {folder} has no summary.json: not a contactvisco output folder",
               file=sys.stderr)
         return 2
@@ -326,7 +331,13 @@ def _plot(args):
         notes = []
         paths = draw_all(folder, fmt=args.format, dpi=args.dpi, times=args.times,
                          edges=args.edges, notes=notes)
-    except (ValueError, KeyError, IndexError, OSError, EOFError,
+    except SceneError as err:         # a damaged file, a link or a FIFO: named in err
+        from contactvisco.io.output import DamagedFile
+        what = "its files are damaged or incomplete: " if isinstance(err, DamagedFile) else ""
+        print(f"contactvisco: cannot draw the figures of {folder}: {what}{err}",
+              file=sys.stderr)
+        return 2
+    except (ValueError, KeyError, IndexError, OSError, EOFError, TypeError, RecursionError,
             zipfile.BadZipFile) as err:          # damaged or cut files
         print(f"contactvisco: cannot draw the figures of {folder}: its files are damaged or "
               f"incomplete ({type(err).__name__}: {err})", file=sys.stderr)

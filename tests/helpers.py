@@ -194,10 +194,10 @@ def unmount(folder, check: bool = False):
 
 
 def block_rank0_file(out):
-    """A folder where a finished run's contact_nodes.csv was: the file only rank 0 writes
-    cannot be opened on --restart, while the other ranks wait in a collective."""
-    (pathlib.Path(out) / "contact_nodes.csv").unlink()
-    (pathlib.Path(out) / "contact_nodes.csv").mkdir()
+    """A finished run's snapshots.npz overwritten by bytes that are no archive: only rank 0
+    reads it on --restart, while the other ranks go on to a collective. (A folder in place
+    of a file is refused by every rank before anything is read.)"""
+    (pathlib.Path(out) / "snapshots.npz").write_bytes(b"PK\x03\x04 not an archive")
 
 VTK_READ = """
 import sys, vtk

@@ -8,6 +8,8 @@ time series once (tests/helpers.check_folder checks every file).
     python benchmarks/robustness/reliability.py --part kill2  # kill -9, 2 ranks (~5 min)
     python benchmarks/robustness/reliability.py --part other  # signals, disk, folder,
                                                               # checkpoints
+    python benchmarks/robustness/reliability.py --part paths  # links, FIFOs, records with
+                                                              # holes, runs inside runs
 
 Results: benchmarks/results/reliability_<part>.json and .md (one table row per case).
 """
@@ -25,7 +27,8 @@ import time
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
 from common import write_results  # noqa: E402
 from helpers import (alive, block_rank0_file, check_folder, end, grow_tmpfs,  # noqa: E402
-                     mount_tmpfs, rank_pids, run_paper, start_paper, unmount, wait_for)
+                     kill_a_rank, mount_tmpfs, rank_pids, run_cli, run_paper, start_paper,
+                     unmount, wait_for)
 
 STEPS = 60
 #: Steps completed before the kill (0: during set-up, before the first step is written).
@@ -162,9 +165,9 @@ def one_rank_error(root):
     block_rank0_file(out)
     tick = time.time()
     proc = run_paper(2, out, 3, 8, "--restart")
-    row = {"case": "error on rank 0 only (its CSV cannot be opened), rank 1 in a collective",
-           "exit": proc.returncode, "ended_s": round(time.time() - tick, 2),
-           "note": f"messages: {proc.stderr.count('IsADirectoryError')}"}
+    row = {"case": "error on rank 0 only (its snapshots.npz is damaged), rank 1 in a "
+           "collective", "exit": proc.returncode, "ended_s": round(time.time() - tick, 2),
+           "note": f"messages: {proc.stderr.count('not a readable .npz archive')}"}
     print(json.dumps(row), flush=True)
     return [row]
 
@@ -193,9 +196,68 @@ def checkpoint_cases(root):
     return rows
 
 
+def paths_cases(root):
+    """The cases of tests/robustness/test_paths.py through the command line, on 1 and 2
+    ranks: a symbolic link at each name a restart writes, a FIFO at each name it reads, the
+    record files damaged after a kill -9. Each row: the exit code, the time, whether the
+    message names the path, whether the file outside is unchanged."""
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "tests" /
+                           "robustness"))
+    import test_paths as cases
+    small = [a for o in cases.SMALL for a in ("--set", o)]
+    base = root / "paths-base"
+    assert run_cli("run", "paper", *small, "--quiet", "--out", base).returncode == 0
+    outside = root / "outside"
+    outside.mkdir()
+    (outside / "victim").write_text("keep")
+    rows = []
+
+    def restart(ranks, name, target, kind):
+        tick = time.time()
+        proc = run_cli("run", "paper", *small, "--quiet", "--out", target, "--restart",
+                       ranks=ranks, timeout=120)
+        rows.append({"case": f"{kind} at {name}, --restart ({ranks} rank(s))",
+                     "exit": proc.returncode, "ended_s": round(time.time() - tick, 2),
+                     "note": proc.stderr.strip().replace(str(root), "")[:160],
+                     "names_file": name in proc.stderr,
+                     "outside_kept": (outside / "victim").read_text() == "keep"
+                     and sorted(p.name for p in outside.iterdir()) == ["victim"]})
+        print(json.dumps(rows[-1]), flush=True)
+
+    for i, name in enumerate(cases.LINKED_FILES):
+        target = root / f"link-{i}"
+        shutil.copytree(base, target, symlinks=True)
+        (target / name).unlink(missing_ok=True)
+        (target / name).symlink_to(outside / "victim")
+        restart(1, name, target, "symbolic link")
+    for ranks in (1, 2):
+        for i, name in enumerate(cases.FIFO_RESTART):
+            target = root / f"fifo-{ranks}-{i}"
+            shutil.copytree(base, target, symlinks=True)
+            cases.fifo(target / name)
+            restart(ranks, name, target, "FIFO")
+    for ranks in (1, 2):
+        killed = root / f"killed-{ranks}"
+        proc = start_paper(ranks, killed, cases.KILL_STEPS, 16, "--set",
+                           "output.checkpoint_every=5")
+        kill_a_rank(killed, proc, ranks, ranks - 1, cases.KILL_AT)
+        for i, (case, (name, damage)) in enumerate(sorted(cases.DAMAGE.items())):
+            target = root / f"holes-{ranks}-{i}"
+            shutil.copytree(killed, target)
+            damage(target)
+            tick = time.time()
+            proc = cases.restart_killed(ranks, target)
+            rows.append({"case": f"after kill -9: {case}, --restart ({ranks} rank(s))",
+                         "exit": proc.returncode, "ended_s": round(time.time() - tick, 2),
+                         "note": proc.stderr.strip().replace(str(root), "")[:160],
+                         "names_file": name in proc.stderr})
+            print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
 def table(rows) -> str:
     keys = ["case", "exit", "ended_s", "records", "fields", "checkpoint", "left_ok", "restart",
-            "complete_after", "note"]
+            "complete_after", "names_file", "outside_kept", "note"]
     lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
     for r in rows:
         lines.append("| " + " | ".join(str(r.get(k, "")).replace("|", "/") for k in keys)
@@ -205,7 +267,7 @@ def table(rows) -> str:
 
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("--part", choices=["kill1", "kill2", "other"], required=True)
+    parser.add_argument("--part", choices=["kill1", "kill2", "other", "paths"], required=True)
     args = parser.parse_args()
     root = pathlib.Path(tempfile.mkdtemp(prefix="cv-reliability-"))
     try:
@@ -213,6 +275,8 @@ def main():
             rows = kill_campaign(1, root)
         elif args.part == "kill2":
             rows = kill_campaign(2, root)
+        elif args.part == "paths":
+            rows = paths_cases(root)
         else:
             rows = (signal_cases(root) + disk_cases(root) + folder_cases(root)
                     + one_rank_error(root) + checkpoint_cases(root))

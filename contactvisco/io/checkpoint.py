@@ -15,13 +15,15 @@ A restart trusts nothing it reads: meta.json carries a SHA-256 of its own conten
 part; each part repeats t and the step count; the arrays' shapes are checked against the
 fields and each other. Anything that does not match stops the restart (SceneError, exit 2)
 naming the file and what is wrong. The scene must equal the checkpoint's except in its
-[output] table; a refused restart lists the keys that differ."""
+[output] table; a refused restart lists the keys that differ. The mesh must be the
+checkpoint's (mesh_signature), a caller's mesh given to the Python interface included.
+meta.json also keeps the length and SHA-256 of each record file at that step (the output
+writer's record_state), which the restart checks (contactvisco.io.output.check_records)."""
 from __future__ import annotations
 
 import hashlib
 import io
 import json
-import os
 import pathlib
 import shutil
 import time
@@ -30,6 +32,7 @@ import numpy as np
 
 from contactvisco.fem import compat
 from contactvisco.errors import SceneError
+from contactvisco.io import files
 
 META = "meta.json"
 LEGACY = "state.npz"
@@ -152,14 +155,50 @@ class Schedule:
         self.last = self.clock()
 
 
-def save(folder, problem, comm, t: float, count: int, step: float | None):
-    """Write the state after `count` accepted steps (collective: every rank calls it)."""
+def mesh_signature(problem, comm) -> dict:
+    """What identifies the mesh whatever its partition (collective): the global numbers of
+    cells and of displacement nodes, and per coordinate the sum and the sum of squares of
+    the nodes' positions (equal up to rounding on any rank count)."""
+    from mpi4py import MPI
+    mesh = problem.geometry.mesh
+    tdim = mesh.topology.dim
+    imap = problem.V.dofmap.index_map
+    x = problem.V.tabulate_dof_coordinates()[:imap.size_local]
+    sums = comm.allreduce(np.concatenate([x.sum(axis=0), (x * x).sum(axis=0)]), op=MPI.SUM)
+    return {"cells": int(mesh.topology.index_map(tdim).size_global),
+            "nodes": int(imap.size_global), "moments": [float(v) for v in sums]}
+
+
+def _check_mesh(saved: dict | None, now: dict):
+    """Refuse a restart onto a mesh other than the checkpoint's (any rank count)."""
+    if not saved:
+        return                          # a checkpoint written before meshes were recorded
+    differ = [f"{key}: {saved.get(key)} -> {now[key]}" for key in ("cells", "nodes")
+              if saved.get(key) != now[key]]
+    moments = np.asarray(saved.get("moments", []), dtype=float)
+    scale = max(1.0, float(np.max(np.abs(now["moments"]))))
+    if not differ and (moments.shape != (len(now["moments"]),) or np.max(
+            np.abs(moments - now["moments"])) > 1e-9 * scale):
+        differ.append("node positions (their sums and sums of squares) differ")
+    if differ:
+        raise SceneError("--restart: the mesh differs from the one of the checkpoint (a "
+                         "restart continues the same mesh, on any rank count): "
+                         + "; ".join(differ))
+
+
+def save(folder, problem, comm, t: float, count: int, step: float | None,
+         records: dict | None = None):
+    """Write the state after `count` accepted steps (collective: every rank calls it).
+    `records` (rank 0): the output writer's record_state(), kept in meta.json for the
+    restart's check of the record files (contactvisco.io.output.check_records)."""
     root = pathlib.Path(folder) / "checkpoint"
     folder_name = f"state-{count:06d}"
     here = root / folder_name
     if comm.rank == 0:
-        if here.exists():              # left by a run killed before its meta was written
+        if files.what(here) == "a directory":   # left by a run killed before its meta
             shutil.rmtree(here)
+        elif files.what(here) is not None:       # a link or file planted there: removed
+            here.unlink()
         here.mkdir(parents=True)
     comm.barrier()
     here.mkdir(parents=True, exist_ok=True)   # no reliance on another node's directory cache
@@ -179,26 +218,29 @@ def save(folder, problem, comm, t: float, count: int, step: float | None):
     buffer = io.BytesIO()
     np.savez(buffer, **part)
     data = buffer.getvalue()
-    tmp = here / f"part-{comm.rank}.tmp.npz"
-    tmp.write_bytes(data)
-    os.replace(tmp, here / f"part-{comm.rank}.npz")
+    if files.what(here) != "a directory":     # made a link by someone else meanwhile
+        raise files.refusal(here, files.what(here) or "absent", "the checkpoint folder (a directory)")
+    files.replace(here / f"part-{comm.rank}.npz", data, tmp=here / f"part-{comm.rank}.tmp.npz")
     cache = problem.__dict__.setdefault("_checkpoint_keys", {})
     if "box" not in cache:             # the positions never change during a run
         cache["box"] = _box(np.concatenate(points)) if points else None
         cache["scene"] = scene_values(problem.scene)
+        cache["mesh"] = mesh_signature(problem, comm)
     parts = comm.gather((cache["box"], _digest(data), len(data)), root=0)
     if comm.rank == 0:                 # every part is complete once rank 0 has every box
         meta = {"t": t, "count": count, "step": step, "ranks": comm.size,
-                "scene_values": cache["scene"], "fields": names,
+                "scene_values": cache["scene"], "mesh": cache["mesh"], "fields": names,
                 "parts": [{"file": f"{folder_name}/part-{rank}.npz", "box": box,
                            "sha256": digest, "bytes": size}
                           for rank, (box, digest, size) in enumerate(parts)]}
+        if records is not None:
+            meta["records"] = records
         meta["sha256"] = _meta_digest(meta)
-        tmp = root / "meta.tmp.json"
-        tmp.write_text(json.dumps(meta))
-        os.replace(tmp, root / META)   # the checkpoint of step `count` is now the one
+        # The checkpoint of step `count` is the one once meta.json is replaced.
+        files.replace(root / META, json.dumps(meta), tmp=root / "meta.tmp.json")
         for old in root.iterdir():
-            if old.name != folder_name and old.name.startswith("state-") and old.is_dir():
+            if old.name != folder_name and old.name.startswith("state-") and \
+                    files.what(old) == "a directory":      # a link is not followed
                 shutil.rmtree(old, ignore_errors=True)
         (root / LEGACY).unlink(missing_ok=True)
     comm.barrier()
@@ -209,10 +251,10 @@ class Damaged(SceneError):
 
 
 def _read_meta(root: pathlib.Path) -> dict:
-    if (root / META).exists():
+    if files.what(root / META) is not None:
         return _checked_meta(root / META)
-    if (root / LEGACY).exists():       # one file holding every dof, gathered by rank 0
-        data = np.load(root / LEGACY)
+    if files.what(root / LEGACY) is not None:   # one file holding every dof, from rank 0
+        data = np.load(io.BytesIO(files.read_bytes(root / LEGACY)))
         meta = json.loads(str(data["meta"]))
         meta["fields"] = [f for f in data.files if f != "meta" and not f.endswith(".keys")]
         meta["parts"] = [{"file": LEGACY, "box": None}]
@@ -225,9 +267,9 @@ def _checked_meta(path: pathlib.Path) -> dict:
     def bad(what):
         return Damaged(f"--restart: checkpoint {path}: {what}")
     try:
-        meta = json.loads(path.read_text())
-    except (ValueError, UnicodeDecodeError) as err:
-        raise bad(f"not valid JSON ({err})") from None
+        meta = json.loads(files.read_bytes(path, 64 * 2**20))
+    except (ValueError, UnicodeDecodeError, RecursionError) as err:
+        raise bad(f"not valid JSON ({type(err).__name__})") from None
     if not isinstance(meta, dict):
         raise bad("not a JSON object")
     if "sha256" in meta and meta["sha256"] != _meta_digest(meta):
@@ -240,6 +282,13 @@ def _checked_meta(path: pathlib.Path) -> dict:
         raise bad(f"impossible t = {meta['t']} or count = {meta['count']}")
     if len(meta["parts"]) != meta["ranks"]:
         raise bad(f"{len(meta['parts'])} parts for {meta['ranks']} ranks")
+    records = meta.get("records")
+    if records is not None and not (isinstance(records, dict) and all(
+            name in ("steps.jsonl", "contact_nodes.csv", "solution.xdmf")
+            and isinstance(entry, dict) and isinstance(entry.get("bytes"), int)
+            and entry["bytes"] >= 0 and isinstance(entry.get("sha256"), str)
+            for name, entry in records.items())):
+        raise bad("'records' is not the record files' lengths and checksums")
     return meta
 
 
@@ -253,7 +302,7 @@ def _checked_part(root: pathlib.Path, entry: dict, meta: dict):
     def bad(what):
         return Damaged(f"--restart: checkpoint {path}: {what}")
     try:
-        data = path.read_bytes()
+        data = files.read_bytes(path)
     except OSError as err:
         raise bad(f"cannot be read ({err.strerror})") from None
     if "sha256" in entry and _digest(data) != entry["sha256"]:
@@ -302,6 +351,7 @@ def load(folder, problem, comm) -> dict:
     root = pathlib.Path(folder) / "checkpoint"
     meta = _read_meta(root)
     _check_scene(meta, problem.scene)
+    _check_mesh(meta.get("mesh"), mesh_signature(problem, comm))
     scale = 1e-9 * problem.length_scale
     # The unknowns, then the history arrays the checkpoint holds (a fresh history has none).
     fields = [(name, space, array) for name, space, array in _fields(problem)
@@ -346,12 +396,12 @@ def _read_parts(root: pathlib.Path, parts: list[dict], meta: dict, comm):
     stops every rank (collective)."""
     def read(entry):
         return (_checked_part(root, entry, meta) if entry["file"] != LEGACY
-                else np.load(root / LEGACY))
+                else np.load(io.BytesIO(files.read_bytes(root / LEGACY))))
     error = data = first = None
     try:
         data = [read(p) for p in parts]
         first = data[0] if parts and parts[0] is meta["parts"][0] else read(meta["parts"][0])
-    except Damaged as err:
+    except SceneError as err:          # Damaged, or files.UnsafeEntry (a link, a FIFO)
         error = str(err)
     error = next((e for e in comm.allgather(error) if e is not None), None)
     if error is not None:

@@ -39,6 +39,8 @@ def _hdf5():
 
 def read_dataset(file: pathlib.Path, path: str) -> np.ndarray:
     """The dataset `path` of HDF5 file `file`, as float64."""
+    from contactvisco.io import files
+    files.require_regular(file)          # the HDF5 library opens the path itself
     lib = _hdf5()
     f = lib.H5Fopen(str(file).encode(), 0, ctypes.c_int64(0))
     if f < 0:

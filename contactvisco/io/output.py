@@ -15,6 +15,7 @@ are skipped above output.snapshot_max_nodes.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io as io_module
 import json
 import math
@@ -25,7 +26,9 @@ import numpy as np
 from dolfinx import fem, io
 
 from contactvisco.fem import compat
+from contactvisco.errors import SceneError
 from contactvisco.fem.contact_state import STATUSES, STICK_SLIP_STATES, status_at_nodes
+from contactvisco.io import files
 
 class Writer:
     """summary.json, steps.jsonl, contact_nodes.csv and solution.xdmf in one output folder.
@@ -40,9 +43,11 @@ class Writer:
     all of them back to the same step (restart_count), which a writer per file could not do
     without sharing that state."""
 
-    def __init__(self, folder, problem, comm, xdmf=True, restart_count=None):
+    def __init__(self, folder, problem, comm, xdmf=True, restart_count=None, records=None):
         """restart_count: continue the files of an earlier run after its first
-        restart_count steps (what a later stop may have written beyond them is dropped)."""
+        restart_count steps (what a later stop may have written beyond them is dropped).
+        records: the checkpoint's record_state(); the record files are then checked against
+        it first (check_records: cut back exactly to it, or refused)."""
         self.folder = pathlib.Path(folder)
         self.comm = comm
         self.rank = comm.rank
@@ -50,6 +55,17 @@ class Writer:
         if self.rank == 0:
             self.folder.mkdir(parents=True, exist_ok=True)
         comm.barrier()
+        if records is not None and restart_count is not None:
+            error = None
+            if self.rank == 0:
+                try:
+                    check_records(self.folder, records, restart_count)
+                except SceneError as err:
+                    error = err
+            message = comm.bcast(error and str(error), root=0)
+            if message is not None:
+                from contactvisco.io.checkpoint import Damaged
+                raise error if error is not None else Damaged(message)
         self.summary = {"scene": problem.scene, "unknowns": problem.count_unknowns(),
                         "ranks": comm.size, "steps_file": STEPS_FILE, "final": None}
         self.steps_written = 0
@@ -64,17 +80,26 @@ class Writer:
                 if key in earlier:
                     self.summary[key] = earlier[key]
             self.last_record = kept_steps[-1] if kept_steps else None
+            if records is not None and [s.get("step") for s in kept_steps] != list(
+                    range(restart_count)):
+                from contactvisco.io.checkpoint import Damaged
+                raise Damaged(f"--restart: {self.folder / STEPS_FILE} holds "
+                              f"{len(kept_steps)} step records, not the steps 0.."
+                              f"{restart_count - 1} of the checkpoint")
         self.steps_written = len(kept_steps)
         self.csv = self.steps_file = self.index = None
+        verified = {name for name in (records or {}) if restart_count is not None}
         if self.rank == 0:
             # Restart: the records are cut to the checkpoint once (O(N) once per restart).
             path = self.folder / STEPS_FILE
-            _rewrite(path, "".join(json.dumps(jsonable(record), allow_nan=False) + "\n"
-                                   for record in kept_steps))
-            self.steps_file = open(path, "a")
+            if STEPS_FILE not in verified:
+                files.replace(path, "".join(json.dumps(jsonable(record), allow_nan=False)
+                                            + "\n" for record in kept_steps))
+            self.steps_file = AppendedRecord(path)
             self._write_summary()
         if self.rank == 0 and problem.contact is not None:
-            self._start_csv(problem.geometry.mesh.geometry.dim, restart_count)
+            self._start_csv(problem.geometry.mesh.geometry.dim, restart_count,
+                            CSV_FILE in verified)
         self.xdmf = None
         if xdmf:
             self.xdmf = self.folder / SOLUTION_DIR
@@ -83,7 +108,7 @@ class Writer:
                 if restart_count is not None:
                     self._drop_fields_from(restart_count)
                 self.index = XdmfIndex(self.folder / "solution.xdmf", self.xdmf,
-                                       restart_count or 0)
+                                       restart_count or 0, "solution.xdmf" in verified)
             comm.barrier()
         self._writable = {}                # P1/DG0 copies of higher-degree fields (xdmf_field)
 
@@ -97,25 +122,27 @@ class Writer:
             if number.isdigit() and int(number) >= count and path.suffix in (".xdmf", ".h5"):
                 path.unlink(missing_ok=True)
 
-    def _start_csv(self, d: int, restart_count: int | None):
+    def _start_csv(self, d: int, restart_count: int | None, verified: bool = False):
         """Rank 0: contact_nodes.csv with its header and, on a restart, the rows of the
-        first restart_count steps (a row cut by a stop is dropped), opened for appending."""
+        first restart_count steps (a row cut by a stop is dropped), opened for appending.
+        verified: the file was already cut back to the checkpoint (check_records)."""
         header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
             "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
             "status", "friction"]
-        path = self.folder / "contact_nodes.csv"
-        kept = []
-        if restart_count is not None and path.exists():
-            with open(path, newline="") as f:
-                kept = [row for row in list(csv.reader(f))[1:]
-                        if len(row) == len(header) and int(row[0]) < restart_count]
-        text = io_module.StringIO()
-        writer = csv.writer(text)
-        writer.writerow(header)
-        writer.writerows(kept)
-        _rewrite(path, text.getvalue())
-        self.csv_file = open(path, "a", newline="")
-        self.csv = csv.writer(self.csv_file)
+        path = self.folder / CSV_FILE
+        if not (verified and files.what(path) == ""):
+            kept = []
+            if restart_count is not None and files.what(path) is not None:
+                with files.open_file(path, "r", newline="") as f:
+                    kept = [row for row in list(csv.reader(f))[1:]
+                            if len(row) == len(header) and row[0].isdigit()
+                            and int(row[0]) < restart_count]
+            text = io_module.StringIO()
+            writer = csv.writer(text)
+            writer.writerow(header)
+            writer.writerows(kept)
+            files.replace(path, text.getvalue())
+        self.csv = AppendedRecord(path)
 
     def step(self, record: dict, table, fields=()):
         """Write step record["step"]: its fields (none: the step has no XDMF entry; the
@@ -125,6 +152,9 @@ class Writer:
             # A file per step, closed before the index lists it: a stop while it is being
             # written never touches the steps before it.
             name = self.xdmf / f"step-{n:06d}.xdmf"
+            if self.rank == 0:          # DOLFINx opens these paths itself: checked before
+                files.require_regular(name)
+                files.require_regular(name.with_suffix(".h5"))
             with io.XDMFFile(self.comm, str(name), "w") as f:
                 f.write_mesh(self.mesh)
                 for field in fields:
@@ -134,21 +164,22 @@ class Writer:
         if self.rank != 0:
             return
         if self.csv is not None and table is not None:
+            text = io_module.StringIO()
+            rows = csv.writer(text)
             for i in range(len(table["u_nu"])):
-                self.csv.writerow([n, repr(record["t"])]
-                                  + [repr(float(c)) for c in table["x"][i]]
-                                  + [repr(float(table[key][i])) for key in
-                                     ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
-                                      "radius")]
-                                  + [STATUSES[table["status"][i]],
-                                     STICK_SLIP_STATES[table["friction"][i]]])
-            self.csv_file.flush()
+                rows.writerow([n, repr(record["t"])]
+                              + [repr(float(c)) for c in table["x"][i]]
+                              + [repr(float(table[key][i])) for key in
+                                 ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
+                                  "radius")]
+                              + [STATUSES[table["status"][i]],
+                                 STICK_SLIP_STATES[table["friction"][i]]])
+            self.csv.append(text.getvalue())
         if self.index is not None and fields:
             self.index.append(n, record["t"])
         # One line, written whole and flushed: a stop leaves whole lines (and at most a cut
         # last one, which read_summary drops).
-        self.steps_file.write(json.dumps(jsonable(record), allow_nan=False) + "\n")
-        self.steps_file.flush()
+        self.steps_file.append(json.dumps(jsonable(record), allow_nan=False) + "\n")
 
     def note(self, key: str, text: str):
         """Add a note or warning to summary.json (rewritten: it is small)."""
@@ -170,48 +201,187 @@ class Writer:
             return
         if self.index is not None:
             self.index.close()
-        for f in (self.csv is not None and self.csv_file, self.steps_file):
-            if f and not f.closed:
-                f.flush()
-                os.fsync(f.fileno())
+        for f in (self.csv, self.steps_file):
+            if f is not None:
                 f.close()
 
+    def record_state(self) -> dict | None:
+        """Rank 0: {file name: {"bytes": length, "sha256": digest}} of the record files as
+        they are now (steps.jsonl, contact_nodes.csv, solution.xdmf without its closing
+        tags), kept by a checkpoint so that a restart can check them; None elsewhere. O(1):
+        the digests are kept up to date as the files grow."""
+        if self.rank != 0:
+            return None
+        state = {}
+        for name, f in ((STEPS_FILE, self.steps_file), (CSV_FILE, self.csv),
+                        ("solution.xdmf", self.index)):
+            if f is not None:
+                state[name] = {"bytes": f.size, "sha256": f.digest.hexdigest()}
+        return state
+
     def _write_summary(self):
-        _rewrite(self.folder / "summary.json",
-                 json.dumps(jsonable(self.summary), indent=1, allow_nan=False))
+        files.replace(self.folder / "summary.json",
+                      json.dumps(jsonable(self.summary), indent=1, allow_nan=False))
 
 
 STEPS_FILE = "steps.jsonl"
+CSV_FILE = "contact_nodes.csv"
 SOLUTION_DIR = "solution"
+#: The largest summary.json and JSON line read back (a run's scene and notes: far less).
+JSON_MAX_BYTES = 64 * 2**20
 
 
-def _rewrite(path: pathlib.Path, text: str):
-    """Replace a file's content atomically (a stop leaves the old or the new file)."""
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+class AppendedRecord:
+    """A record file that only grows (steps.jsonl, contact_nodes.csv): opened for appending
+    as files.open_file opens, each append written whole and flushed; its length and the
+    SHA-256 of its content are kept as it grows (what a checkpoint records)."""
+
+    def __init__(self, path: pathlib.Path):
+        self.path = path
+        self.file = files.open_file(path, "ab")
+        self.digest = hashlib.sha256()
+        with files.open_file(path, "rb") as f:      # O(N) once per run (a restart's part)
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                self.digest.update(chunk)
+        self.size = os.fstat(self.file.fileno()).st_size
+
+    def append(self, text: str):
+        data = text.encode()
+        self.file.write(data)
+        self.file.flush()
+        self.digest.update(data)
+        self.size += len(data)
+
+    def close(self):
+        if not self.file.closed:
+            self.file.flush()
+            os.fsync(self.file.fileno())
+            self.file.close()
+
+
+def check_records(folder, records: dict, count: int) -> None:
+    """Check the record files of `folder` against a checkpoint's record_state() after
+    `count` steps: a file longer than then (steps written after the checkpoint) is cut back
+    to exactly its length at the checkpoint; a file that is missing, shorter, or whose first
+    bytes differ from what the checkpoint recorded stops the restart (SceneError naming the
+    file): the steps it held would be lost. Every HDF5 file the XDMF index lists up to the
+    checkpoint must be there. Nothing is changed unless every file passes."""
+    from contactvisco.io.checkpoint import Damaged
+    folder = pathlib.Path(folder)
+    for name, entry in records.items():
+        path = folder / name
+        if files.what(path) is None:
+            raise Damaged(f"--restart: the record file '{path}' is missing; the checkpoint "
+                          f"(after {count} steps) expects {entry['bytes']} bytes: its steps "
+                          "would be lost")
+        with files.open_file(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            if size < entry["bytes"]:
+                raise Damaged(f"--restart: the record file '{path}' has {size} bytes, fewer "
+                              f"than the {entry['bytes']} it had at the checkpoint (after "
+                              f"{count} steps): records were cut or removed")
+            digest, left, head = hashlib.sha256(), entry["bytes"], []
+            while left:
+                chunk = f.read(min(left, 1 << 20))
+                if not chunk:
+                    break
+                digest.update(chunk)
+                if name == "solution.xdmf":
+                    head.append(chunk)
+                left -= len(chunk)
+        if digest.hexdigest() != entry["sha256"]:
+            raise Damaged(f"--restart: the record file '{path}' differs from what it held at "
+                          f"the checkpoint (after {count} steps; SHA-256 of its first "
+                          f"{entry['bytes']} bytes): it was edited or damaged")
+        if name == "solution.xdmf":
+            _check_listed_fields(path, b"".join(head) + XdmfIndex.TAIL.encode())
+    for name, entry in records.items():       # all checked: cut back to the checkpoint
+        with files.open_file(folder / name, "r+b") as f:
+            f.truncate(entry["bytes"])
+            if name == "solution.xdmf":
+                f.seek(entry["bytes"])
+                f.write(XdmfIndex.TAIL.encode())
+            f.flush()
+            os.fsync(f.fileno())
+
+
+def _check_listed_fields(path: pathlib.Path, text: bytes):
+    """Every HDF5 file the XDMF index `text` (of file `path`) points to is a regular file."""
+    import xml.etree.ElementTree as ET
+
+    from contactvisco.io.checkpoint import Damaged
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as err:
+        raise Damaged(f"--restart: '{path}' is not XML ({err})") from None
+    for item in root.iter("DataItem"):
+        name = (item.text or "").strip().split(":", 1)[0]
+        target = path.parent / name
+        kind = files.what(target)
+        if kind is None or pathlib.Path(name).is_absolute() or ".." in pathlib.Path(name).parts:
+            raise Damaged(f"--restart: '{target}', listed in {path} before the checkpoint, "
+                          "is missing: the fields of that step would be lost")
+        if kind:
+            raise files.refusal(target, kind)
 
 
 def read_summary(folder) -> dict:
     """summary.json with "steps": the step records of steps.jsonl (a cut last line, left by
     a hard stop, is dropped). An earlier layout with the steps inside summary.json reads
-    as it is."""
+    as it is. A file that is a link, not a regular file, not a JSON object, or nested
+    too deeply stops with a SceneError naming it (files.UnsafeEntry, DamagedFile)."""
     folder = pathlib.Path(folder)
-    summary = json.loads((folder / "summary.json").read_text())
-    path = folder / summary.get("steps_file", STEPS_FILE)
+    summary = read_json(folder / "summary.json")
+    name = summary.get("steps_file", STEPS_FILE)
+    if not isinstance(name, str) or pathlib.PurePath(name).name != name:
+        raise DamagedFile(folder / "summary.json", f"steps_file {name!r} is not a file name "
+                          "in its folder")
+    path = folder / name
     if "steps" not in summary:
         steps = []
-        if path.exists():
-            for line in path.read_text().split("\n"):
+        if files.what(path) is not None:
+            lines = files.read_bytes(path).split(b"\n")
+            for number, line in enumerate(lines, 1):
                 try:
-                    steps.append(json.loads(line))
-                except ValueError:
+                    record = json.loads(line)
+                except (ValueError, RecursionError):
+                    if number < len(lines):     # a whole line: not the last, cut one
+                        raise DamagedFile(path, f"line {number} is not a JSON record") from None
                     break            # the last, cut line of a stopped run (or the end)
+                if not isinstance(record, dict):
+                    raise DamagedFile(path, f"line {number} is not a JSON object")
+                steps.append(record)
         summary["steps"] = steps
+    if not isinstance(summary["steps"], list) or not all(
+            isinstance(s, dict) for s in summary["steps"]):
+        raise DamagedFile(folder / "summary.json", "'steps' is not a list of objects")
     return summary
+
+
+class DamagedFile(SceneError):
+    """A file of an output folder that cannot be what the package wrote (cut elsewhere than
+    at its end, not the JSON object it must be, nested too deeply, too large)."""
+
+    def __init__(self, path, what: str):
+        super().__init__(f"'{path}': {what}")
+        self.path, self.what = path, what
+
+    def __reduce__(self):
+        return DamagedFile, (self.path, self.what)
+
+
+def read_json(path, limit: int = JSON_MAX_BYTES) -> dict:
+    """The JSON object in file `path` (regular, at most `limit` bytes), else DamagedFile or
+    files.UnsafeEntry naming it."""
+    try:
+        value = json.loads(files.read_bytes(path, limit))
+    except RecursionError:
+        raise DamagedFile(path, "JSON nested too deeply") from None
+    except (ValueError, UnicodeDecodeError) as err:
+        raise DamagedFile(path, f"not valid JSON ({type(err).__name__}: {err})") from None
+    if not isinstance(value, dict):
+        raise DamagedFile(path, f"not a JSON object (a {type(value).__name__})")
+    return value
 
 
 class XdmfIndex:
@@ -225,21 +395,30 @@ class XdmfIndex:
             '    <Grid Name="solution" GridType="Collection" CollectionType="Temporal">\n')
     TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
 
-    def __init__(self, path: pathlib.Path, steps: pathlib.Path, keep: int):
-        """Start the index with the first `keep` steps of the files in `steps`."""
+    def __init__(self, path: pathlib.Path, steps: pathlib.Path, keep: int,
+                 verified: bool = False):
+        """Start the index with the first `keep` steps of the files in `steps`; verified:
+        `path` already lists exactly them (check_records cut it back to the checkpoint)."""
         self.path, self.steps = path, steps
-        body = "".join(self.entry(n) for n in range(keep)
-                       if (steps / f"step-{n:06d}.xdmf").exists())
-        _rewrite(path, self.HEAD + body + self.TAIL)
-        self.fd = os.open(path, os.O_WRONLY)
-        self.end = os.path.getsize(path) - len(self.TAIL)
+        if not verified:
+            body = "".join(self.entry(n) for n in range(keep)
+                           if files.what(steps / f"step-{n:06d}.xdmf") is not None)
+            files.replace(path, self.HEAD + body + self.TAIL)
+        self.fd = files.open_fd(path, "r+")
+        self.end = os.fstat(self.fd).st_size - len(self.TAIL)
+        self.digest = hashlib.sha256(os.pread(self.fd, self.end, 0))
+
+    @property
+    def size(self) -> int:
+        """The length of the index without its closing tags (what only grows)."""
+        return self.end
 
     def entry(self, n: int, t=None) -> str:
         """The grid of step n, taken from solution/step-n.xdmf, its data paths made relative
         to solution.xdmf."""
         import xml.etree.ElementTree as ET
         name = f"step-{n:06d}"
-        root = ET.parse(self.steps / f"{name}.xdmf").getroot()
+        root = ET.fromstring(files.read_bytes(self.steps / f"{name}.xdmf"))
         domain = root.find("Domain")
         mesh = domain.find("Grid[@GridType='Uniform']")
         grid = ET.Element("Grid", Name=f"step {n}", GridType="Uniform")
@@ -265,6 +444,7 @@ class XdmfIndex:
             os.pwrite(self.fd, self.TAIL.encode(), self.end)
             os.ftruncate(self.fd, self.end + len(self.TAIL))
             raise OSError(28, f"short write to {self.path}")
+        self.digest.update(data[:len(data) - len(self.TAIL)])
         self.end += len(data) - len(self.TAIL)
 
     def close(self):
@@ -419,9 +599,48 @@ def von_mises(stress: np.ndarray) -> np.ndarray:
     return np.sqrt(1.5 * np.einsum("cij,cij->c", dev, dev))
 
 
+#: The most that snapshots.npz may hold once decompressed (its arrays as declared).
+SNAPSHOT_MAX_BYTES = 2 * 2**30
+
+
+def load_npz(path, limit: int = SNAPSHOT_MAX_BYTES) -> dict:
+    """The arrays of the regular file `path` (an .npz archive), after checking what its
+    members declare: each member's declared size and its array header (shape x item size)
+    must add up to at most `limit` bytes, so that a damaged or forged archive is refused
+    (DamagedFile naming it) before anything is allocated."""
+    import zipfile
+    from numpy.lib import format as npy_format
+    with files.open_file(path, "rb") as f:
+        try:
+            archive = zipfile.ZipFile(f)
+            total = 0
+            for member in archive.infolist():
+                with archive.open(member) as item:
+                    version = npy_format.read_magic(item)
+                    header = {(1, 0): npy_format.read_array_header_1_0,
+                              (2, 0): npy_format.read_array_header_2_0}.get(version)
+                    if header is None:
+                        raise ValueError(f"npy format version {version}")
+                    shape, _, dtype = header(item)
+                total += max(member.file_size,
+                             int(np.prod(shape, dtype=object)) * dtype.itemsize)
+                if total > limit:
+                    raise DamagedFile(path, f"declares more than {limit} bytes of arrays "
+                                      "(at most that is read)")
+            f.seek(0)
+            data = np.load(f, allow_pickle=False)
+            return {name: data[name] for name in data.files}
+        except DamagedFile:
+            raise
+        except (ValueError, OSError, EOFError, KeyError, TypeError, zipfile.BadZipFile,
+                NotImplementedError) as err:
+            raise DamagedFile(path, f"not a readable .npz archive ({type(err).__name__}: "
+                              f"{err})") from None
+
+
 def read_snapshots(path, t_max):
     """The snapshots of snapshots.npz up to time t_max, as write_snapshots takes them."""
-    data = np.load(path)
+    data = load_npz(path)
     return [(t, data["points"], data["cells"], disp, mises)
             for t, disp, mises in zip(data["times"], data["displacements"], data["von_mises"])
             if t <= t_max + 1e-12]
@@ -430,7 +649,7 @@ def read_snapshots(path, t_max):
 def write_snapshots(path, snapshots):
     """snapshots.npz: the mesh once, then per figure time its displacement and stress."""
     times, points, cells, disp, mises = zip(*snapshots)
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez_compressed(tmp, times=np.array(times), points=points[0], cells=cells[0],
-                        displacements=np.array(disp), von_mises=np.array(mises))
-    os.replace(tmp, path)
+    files.replace_with(path, lambda f: np.savez_compressed(
+        f, times=np.array(times), points=points[0], cells=cells[0],
+        displacements=np.array(disp), von_mises=np.array(mises)),
+        tmp=path.with_suffix(".tmp.npz"))

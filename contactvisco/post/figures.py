@@ -12,8 +12,9 @@ bodies are rendered by pyvista (contactvisco.post.render) and framed here.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
-import json
+import io
 import math
 import pathlib
 
@@ -24,7 +25,8 @@ from matplotlib.collections import LineCollection
 from matplotlib.patches import Rectangle
 
 from contactvisco.fem.contact_state import STATUSES
-from contactvisco.io.output import read_summary
+from contactvisco.io import files
+from contactvisco.io.output import DamagedFile, load_npz, read_json, read_summary
 
 ZONE_COLOURS = {"separated": "#dddddd", "compliance": "#9ecae1", "bound": "#fdae6b"}
 COLUMN = 3.35        # inches: one journal column (8.5 cm)
@@ -51,6 +53,8 @@ def step_records(folder) -> list[dict]:
 def units_of(scene: dict) -> dict:
     """The scene's unit labels (None where not given)."""
     given = scene.get("units") or {}
+    if not isinstance(given, dict):
+        given = {}
     return {key: given.get(key) for key in ("length", "force", "time")}
 
 
@@ -80,24 +84,53 @@ def final_contact_table(path: pathlib.Path, t=None):
     return tables[chosen], float(chosen)
 
 
-def contact_tables(path: pathlib.Path) -> dict:
-    """Every step of contact_nodes.csv: {t: table}."""
-    if not path.exists():
+def contact_tables(path: pathlib.Path, steps: int | None = None) -> dict:
+    """Every step of contact_nodes.csv: {t: table}. A last row cut by a stop is dropped, and
+    with `steps` (the number of step records) the rows of later steps, which a stop may have
+    left incomplete; any other damage is a DamagedFile naming the file and line."""
+    if files.what(path) is None:
         return {}
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
+    text = files.read_bytes(path).decode(errors="replace")
+    lines = text.split("\n")
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = next(reader)
+    except StopIteration:
+        return {}
     by_step = {}
-    for row in rows:
-        by_step.setdefault(row["step"], []).append(row)
+    for number, row in enumerate(reader, 2):
+        if len(row) != len(header):
+            if number >= len(lines) - 1 and not text.endswith("\n"):
+                break                    # the last row, cut by a stop
+            raise DamagedFile(path, f"line {number} has {len(row)} fields, the header "
+                              f"{len(header)}")
+        row = dict(zip(header, row))
+        with _reading(path, f"line {number}"):
+            step = int(row["step"])
+        if steps is None or step < steps:
+            by_step.setdefault(step, []).append((number, row))
     out = {}
     for group in by_step.values():
-        coords = [c for c in "xyz" if c in group[0]]
-        table = {"x": np.array([[float(row[c]) for c in coords] for row in group])}
-        for key in ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound"):
-            table[key] = np.array([float(row[key]) for row in group])
-        table["status"] = np.array([STATUSES.index(row["status"]) for row in group])
-        out[float(group[0]["t"])] = table
+        first = group[0][1]
+        with _reading(path, f"line {group[0][0]}"):
+            coords = [c for c in "xyz" if c in first]
+            table = {"x": np.array([[float(row[c]) for c in coords] for _, row in group])}
+            for key in ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
+                        "friction_bound"):
+                table[key] = np.array([float(row[key]) for _, row in group])
+            table["status"] = np.array([STATUSES.index(row["status"]) for _, row in group])
+            out[float(first["t"])] = table
     return out
+
+
+@contextlib.contextmanager
+def _reading(path, where: str = ""):
+    """Any failure to use what was read from `path` is a DamagedFile naming it."""
+    try:
+        yield
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as err:
+        raise DamagedFile(path, (f"{where}: " if where else "") + "does not hold what a run "
+                          f"writes ({type(err).__name__}: {err})") from None
 
 
 # --- all figures ----------------------------------------------------------------------------
@@ -112,9 +145,14 @@ def draw_all(folder, fmt: str = "png", dpi: int = 300, times=None,
     folder = pathlib.Path(folder)
     written = []
     with matplotlib.rc_context(STYLE):
-        for name, fig in build_all(folder, times, edges, notes):
-            path = folder / f"{name}.{fmt}"
-            fig.savefig(path, dpi=dpi)
+        figures = build_all(folder, times, edges, notes)
+        paths = [folder / f"{name}.{fmt}" for name, _ in figures]
+        for path in paths:              # nothing is written if one of them may not be
+            kind = files.what(path)
+            if kind:
+                raise files.refusal(path, kind, "a figure (a regular file)")
+        for path, (_, fig) in zip(paths, figures):
+            files.replace_with(path, lambda f: fig.savefig(f, format=fmt, dpi=dpi))
             written.append(path)
     return written
 
@@ -131,56 +169,74 @@ def build_all(folder, times=None, edges: bool = False,
     nearest one is drawn, its title says so and a line is appended to `notes`. The probe
     histories span all times and are drawn only without `times`."""
     folder = pathlib.Path(folder)
-    summary = json.loads((folder / "summary.json").read_text())
-    scene = summary["scene"]
-    units = units_of(scene)
+    summary = read_json(folder / "summary.json")
+    with _reading(folder / "summary.json"):
+        scene = summary["scene"]
+        units = units_of(scene)
+        g = float((scene.get("contact") or {}).get("g") or 0.0)
+    steps = step_records(folder)
     notes = [] if notes is None else notes
     requested = None if not times else sorted({float(t) for t in times})
     out = []
     with matplotlib.rc_context(STYLE):
-        tables = contact_tables(folder / "contact_nodes.csv")
+        tables = contact_tables(folder / "contact_nodes.csv", len(steps))
         snapshots = folder / "snapshots.npz"
-        if snapshots.exists():
-            data = dict(np.load(snapshots))
-            available = np.asarray(data["times"], dtype=float)
-            if requested is None:
-                chosen = list(range(len(available)))
-                asked = {}
+        if files.what(snapshots) is not None:
+            with _reading(snapshots):
+                out += _snapshot_figures(load_npz(snapshots), requested, tables, units,
+                                         edges, notes)
+        with _reading(folder / "contact_nodes.csv"):
+            out += _contact_figures(tables, requested, g, units, notes)
+        if requested is None and any(step.get("probes") for step in steps):
+            with _reading(folder / "steps.jsonl"):
+                out.append(("probes", probe_histories(steps, units)))
+    return out
+
+
+def _snapshot_figures(data, requested, tables, units, edges, notes) -> list:
+    """The deformed mesh and stress figures of the snapshots `data` (build_all)."""
+    out = []
+    available = np.asarray(data["times"], dtype=float)
+    if requested is None:
+        chosen = list(range(len(available)))
+        asked = {}
+    else:
+        drawn = "stress map" + (" and deformed mesh" if data["points"].shape[1] == 2
+                                else "")
+        asked = _matches(available, requested, "snapshot", drawn, notes)
+        chosen = sorted(asked)
+    if data["points"].shape[1] == 2:
+        stem = "deformed_mesh" if requested is None else \
+            "deformed_mesh_t" + "_".join(f"{available[i]:g}" for i in chosen)
+        out.append((stem, deformed_meshes(data, chosen, units, asked=asked)))
+    for i in (chosen if requested else chosen[-1:]):
+        t = float(available[i])
+        stem = "stress" if requested is None else f"stress_t{t:g}"
+        table = tables[min(tables, key=lambda time: abs(time - t))] if tables else None
+        fig = stress_map(data, i, units, table, edges, asked=asked.get(i))
+        if fig is not None:
+            out.append((stem, fig))
+    return out
+
+
+def _contact_figures(tables, requested, g, units, notes) -> list:
+    """The contact profiles (2D) or status map (3D) of the contact tables (build_all)."""
+    out = []
+    if tables:
+        keys = np.array(sorted(tables))
+        if requested is None:
+            picks = {len(keys) - 1: None}
+        else:
+            picks = _matches(keys, requested, "contact table", "contact figures", notes)
+        for k in sorted(picks):
+            t = float(keys[k])
+            suffix = "" if requested is None else f"_t{t:g}"
+            if tables[t]["x"].shape[1] == 2:
+                for name, fig in contact_profiles(tables[t], t, g, units, picks[k]):
+                    out.append((name + suffix, fig))
             else:
-                drawn = "stress map" + (" and deformed mesh" if data["points"].shape[1] == 2
-                                        else "")
-                asked = _matches(available, requested, "snapshot", drawn, notes)
-                chosen = sorted(asked)
-            if data["points"].shape[1] == 2:
-                stem = "deformed_mesh" if requested is None else \
-                    "deformed_mesh_t" + "_".join(f"{available[i]:g}" for i in chosen)
-                out.append((stem, deformed_meshes(data, chosen, units, asked=asked)))
-            for i in (chosen if requested else chosen[-1:]):
-                t = float(available[i])
-                stem = "stress" if requested is None else f"stress_t{t:g}"
-                table = tables[min(tables, key=lambda time: abs(time - t))] if tables else None
-                fig = stress_map(data, i, units, table, edges, asked=asked.get(i))
-                if fig is not None:
-                    out.append((stem, fig))
-        if tables:
-            g = float(scene["contact"]["g"])
-            keys = np.array(sorted(tables))
-            if requested is None:
-                picks = {len(keys) - 1: None}
-            else:
-                picks = _matches(keys, requested, "contact table", "contact figures", notes)
-            for k in sorted(picks):
-                t = float(keys[k])
-                suffix = "" if requested is None else f"_t{t:g}"
-                if tables[t]["x"].shape[1] == 2:
-                    for name, fig in contact_profiles(tables[t], t, g, units, picks[k]):
-                        out.append((name + suffix, fig))
-                else:
-                    out.append(("contact_status" + suffix,
-                                contact_map(tables[t], t, units, picks[k])))
-        steps = step_records(folder)
-        if requested is None and any(step["probes"] for step in steps):
-            out.append(("probes", probe_histories(steps, units)))
+                out.append(("contact_status" + suffix,
+                            contact_map(tables[t], t, units, picks[k])))
     return out
 
 

@@ -142,7 +142,8 @@ class Run:
         self.predictor = predictor.create(scene, problem.unknowns)
         opts = scene["output"]
         self.writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
-                                    restart_count=self.resumed and self.resumed["count"]
+                                    restart_count=self.resumed and self.resumed["count"],
+                                    records=self.resumed and self.resumed.get("records")
                                     ) if out else None
 
     def loop(self, keep_tables, on_step) -> Result:
@@ -218,7 +219,8 @@ class Run:
         signum = parallel.stop_requested(self.comm)
         if self.out and self.scene["output"]["checkpoint"] and (
                 signum or self.checkpoints.due(count - 1, final)):
-            checkpoint.save(self.out, self.problem, self.comm, state.t, count, state.k)
+            checkpoint.save(self.out, self.problem, self.comm, state.t, count, state.k,
+                            records=self.writer and self.writer.record_state())
             self.checkpoints.written()
         if signum:                        # every rank stops after this same step
             raise parallel.Stopped(signum, count - 1, state.t)

@@ -41,6 +41,7 @@ import tomllib
 import numpy as np
 from mpi4py import MPI
 
+from contactvisco.io import files
 from contactvisco.model.material import dimension
 from contactvisco.scene import loader as scene_module
 from contactvisco.scene.toml_text import document_text
@@ -532,9 +533,9 @@ def write(result: dict, folder: pathlib.Path, source: str, overrides: list) -> N
     folder.mkdir(parents=True, exist_ok=True)
     if result["recommended"] is not None:
         path = folder / "recommended.toml"
-        path.write_text(recommended_toml(source, result["recommended"]["set"], result))
+        files.replace(path, recommended_toml(source, result["recommended"]["set"], result))
         result["recommended"]["scene_file"] = path.name
-    (folder / "tradeoff.json").write_text(json.dumps(result, indent=1))
+    files.replace(folder / "tradeoff.json", json.dumps(result, indent=1))
     figure(result, folder / "tradeoff.png")
 
 
@@ -605,7 +606,8 @@ def figure(result: dict, path: pathlib.Path, dpi: int = 300):
     with matplotlib.rc_context(STYLE):
         fig = Figure()
         draw(result, fig)
-        fig.savefig(path, dpi=dpi)
+        files.replace_with(path, lambda f: fig.savefig(
+            f, format=pathlib.Path(path).suffix[1:] or "png", dpi=dpi))
     return path
 
 
