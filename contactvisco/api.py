@@ -152,6 +152,7 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
     from contactvisco.solver.time_loop import simulate
     if comm is None:
         comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
+    scene = scene_module.check_given(scene)       # as changed since load_scene, if it was
     try:
         geometry = _own_geometry(scene, mesh, facet_tags, boundaries)
         result = simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
@@ -307,6 +308,7 @@ def check(scene: dict, mesh=None, facet_tags=None, boundaries=None, comm=None) -
     from contactvisco.solver.check import check as check_scene
     if comm is None:
         comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
+    scene = scene_module.check_given(scene)
     try:
         return check_scene(scene, _own_geometry(scene, mesh, facet_tags, boundaries), comm)
     except SceneError as err:
