@@ -254,39 +254,47 @@ def _run(args, petsc_args, scene_module):
     from mpi4py import MPI
     from contactvisco import api
     from contactvisco.io import parallel
-    from contactvisco.solver.newton import NewtonFailure
     comm = MPI.COMM_WORLD
     parallel.prepare(comm)
     out = args.out
     preset = [f"preset='{args.preset}'"] if args.preset else []
+    # An error on one rank alone ends every rank from inside the run, with these words.
+    parallel.describe_with(lambda err: _outcome(err, args, out))
     try:
         scene = api.load_scene(args.scene, sets=preset + args.set)
         out = args.out or f"results/{scene['name']}"
         _check_writable(out)
         api.solve(scene, out, comm=comm, progress=_progress(args), restart=args.restart,
                   overwrite=args.overwrite, keep_contact=False)
-    except SceneError as err:
-        from contactvisco.io.checkpoint import Damaged
-        from contactvisco.io.lock import FolderError
-        kind = "error" if isinstance(err, (Damaged, FolderError)) else "scene error"
-        return parallel.fail_together(comm, 2, f"contactvisco: {kind}: {err}", err)
-    except NewtonFailure as err:
-        return parallel.fail_together(comm, 3, f"contactvisco: {err}", err)
-    except parallel.Stopped as err:
-        return parallel.fail_together(comm, err.exit_code, f"contactvisco: {err}", err)
     except Exception as err:              # no bare traceback for users; --traceback shows it
-        if args.traceback:
-            import traceback
-            traceback.print_exc()
-        return parallel.fail_together(
-            comm, 1, f"contactvisco: error: {_describe(err, out)} (run again with "
-            "--traceback for the details)", err)
+        return parallel.fail_together(comm, *_outcome(err, args, out), err)
     from contactvisco.solver.newton import unused_options
     unused = unused_options(petsc_args)
     if unused and comm.rank == 0:
         print(f"contactvisco: warning: PETSc options no solver used: {', '.join(unused)} "
               "(misspelled, or for a solver this scene does not use)", file=sys.stderr)
     return 0
+
+
+def _outcome(err: Exception, args, out) -> tuple[int, str]:
+    """The exit code and message of `run` for an error: 2 for a scene or folder error, 3 for
+    a Newton failure, 128 + N for a stop by signal N, 1 for anything else."""
+    from contactvisco.io import parallel
+    from contactvisco.solver.newton import NewtonFailure
+    if isinstance(err, SceneError):
+        from contactvisco.io.checkpoint import Damaged
+        from contactvisco.io.lock import FolderError
+        kind = "error" if isinstance(err, (Damaged, FolderError)) else "scene error"
+        return 2, f"contactvisco: {kind}: {err}"
+    if isinstance(err, NewtonFailure):
+        return 3, f"contactvisco: {err}"
+    if isinstance(err, parallel.Stopped):
+        return err.exit_code, f"contactvisco: {err}"
+    if args.traceback:
+        import traceback
+        traceback.print_exception(err)
+    return 1, (f"contactvisco: error: {_describe(err, out)} (run again with --traceback for "
+               "the details)")
 
 
 def _describe(err: Exception, out) -> str:

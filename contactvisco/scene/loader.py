@@ -365,6 +365,23 @@ def _changes(old, new, where: str = "") -> set:
     return set() if same else {where}
 
 
+def differences(old: dict, new: dict) -> set:
+    """The dotted keys whose values differ between two plain scenes (list items as key.i).
+
+    Parameters
+    ----------
+    old, new : dict
+        Scenes as plain values (`plain_copy`).
+
+    Returns
+    -------
+    set of str
+        The keys k with old[k] != new[k] (NaN equal to NaN), those in one scene only
+        included.
+    """
+    return _changes(old, new)
+
+
 def check_given(scene: dict) -> Scene:
     """The scene `solve` or `check` was given, checked again as load_scene checks it: a scene
     changed in Python after load_scene (a misspelled choice, a NaN, a new key), or a plain
@@ -397,7 +414,7 @@ def check_given(scene: dict) -> Scene:
                                  key="contact")
             merged["contact"] = _merge(CONTACT_DEFAULTS, plain["contact"], "contact.")
         out = Scene.build(merged, provenance)
-        _material_pairs_agree(out["material"])
+        _material_pairs_agree(out["material"], changed)
         out["material"].normalize()
         if out["contact"] is not None:
             out["contact"].normalize(out["material"])
@@ -411,12 +428,15 @@ def check_given(scene: dict) -> Scene:
     return out
 
 
-def _material_pairs_agree(material) -> None:
-    """A loaded scene holds E and nu computed from lambda and mu when those were given: one
-    of the pairs changed alone would be dropped without a word."""
+def _material_pairs_agree(material, changed: set) -> None:
+    """A loaded scene holds E and nu computed from lambda and mu when those were given: E or
+    nu changed in Python would be overwritten from lambda and mu without a word (lambda or mu
+    changed alone: E and nu follow them)."""
     lam, mu = material["lambda"], material["mu"]
     if lam is None and mu is None:
         return
+    if not changed & {"material.E", "material.nu"}:
+        return                              # normalize() computes E and nu from them
     if not (finite(lam) and finite(mu) and mu > 0 and lam + mu > 0):
         return                              # normalize() refuses them with its message
     young = mu * (3 * lam + 2 * mu) / (lam + mu)

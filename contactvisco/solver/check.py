@@ -100,6 +100,8 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     SceneError
         What a run would refuse before its first step.
     """
+    from contactvisco.io import parallel
+    parallel.same_scene(comm, scene)
     geometry = geometry or geometry_module.build(scene, comm)
     mesh = geometry.mesh
     geometry_module.check_probes(mesh, scene["output"]["probes"])

@@ -101,6 +101,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     """
     started = clock.perf_counter()
     parallel.prepare(comm)          # collective: while every rank is still in step
+    parallel.same_scene(comm, scene)
     folder_lock = FolderLock(out, comm, restart, overwrite) if out else None
     snes, held = None, {}          # held: what must be closed however the run ends
     signals = parallel.catch_signals()
@@ -115,6 +116,8 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         # Destroying the SNES is collective: only when every rank failed.
         if not parallel.together(comm, err):
             snes = None
+            if isinstance(err, Exception):     # the others wait in a collective: end them
+                parallel.end_if_alone(comm, err)
         raise
     finally:
         parallel.restore_signals(signals)
