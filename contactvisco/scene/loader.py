@@ -144,6 +144,7 @@ def resolve(raw: dict, overrides: list[str] = (), provenance: Provenance | None 
     """Fill defaults into a raw scene dict, apply ``key=value`` overrides, and check the
     result table by table (errors name the value's origin from `provenance`)."""
     provenance = provenance or Provenance(overrides=overrides)
+    check_plain(raw, provenance)               # before any check computes with a number
     scene = _merge(DEFAULTS, {k: v for k, v in raw.items() if k != "contact"})
     if raw.get("contact") is not None:
         if not isinstance(raw["contact"], dict):
@@ -152,6 +153,8 @@ def resolve(raw: dict, overrides: list[str] = (), provenance: Provenance | None 
     # An override is `key=value` text (--set) or an Override (the Python API's values).
     assignments = [getattr(text, "assignment", None) or parse_assignment(text)
                    for text in overrides]
+    for path, value in assignments:
+        check_plain({".".join(path): value}, provenance)
     _check_material_pairs(raw.get("material", {}), overrides, assignments)
     for path, value in assignments:          # a preset from --set first, then the rest
         if path == ["preset"]:
