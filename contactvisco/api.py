@@ -185,10 +185,21 @@ def _draw_figures(out) -> None:
     import pathlib
     import sys
 
-    from contactvisco.post import figures
+    from contactvisco.io import parallel
     try:
+        from contactvisco.post import figures
         figures.draw_all(pathlib.Path(out))
-    except Exception as err:
+    except BaseException as err:
+        interrupt = parallel.interrupted_by(err)     # SIGINT, or SIGTERM under the CLI
+        if interrupt is not None:
+            name = "SIGTERM" if getattr(interrupt, "signum", 2) == 15 else "SIGINT"
+            print(f"contactvisco: figures stopped by {name}; the results in {out} are "
+                  f"complete; draw them with 'contactvisco plot {out}'", file=sys.stderr,
+                  flush=True)
+            interrupt.reported = True
+            raise interrupt from None
+        if not isinstance(err, Exception):
+            raise
         print(f"contactvisco: warning: figures failed ({type(err).__name__}: {err}); the "
               f"results in {out} are complete; retry with 'contactvisco plot {out}'",
               file=sys.stderr, flush=True)

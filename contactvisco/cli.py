@@ -76,6 +76,9 @@ def _add_run(sub) -> None:
                      help="replace the files of an earlier run in --out")
     run.add_argument("--restart", action="store_true",
                      help="continue the run in --out from its last checkpoint")
+    run.add_argument("--allow-large-output", action="store_true",
+                     help="run even when the output is estimated above output.max_bytes "
+                     "(same as --set output.max_bytes=inf)")
     run.add_argument("--traceback", action="store_true",
                      help="show the Python traceback of an unexpected error")
 
@@ -129,6 +132,26 @@ def _add_show_and_check(sub) -> None:
 
 
 def main(argv=None):
+    """The command; SIGINT and SIGTERM outside the time loop (start-up, figures) end it at
+    once with one line and exit 128 + the signal number, never a traceback."""
+    from contactvisco.io import parallel
+    previous = parallel.stop_at_once()
+    try:
+        return _main(argv)
+    except BaseException as caught:
+        err = parallel.interrupted_by(caught)       # Python may wrap it in a RuntimeError
+        if err is None:
+            raise
+        signum = getattr(err, "signum", signal.SIGINT)
+        if not getattr(err, "reported", False) and parallel.first_rank():
+            print(f"contactvisco: stopped by {signal.Signals(signum).name}", file=sys.stderr,
+                  flush=True)
+        return 128 + signum
+    finally:
+        parallel.restore_signals(previous)
+
+
+def _main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     if argv == ["--version"]:
         print(versions())
@@ -258,15 +281,19 @@ def _run(args, petsc_args, scene_module):
     parallel.prepare(comm)
     out = args.out
     preset = [f"preset='{args.preset}'"] if args.preset else []
+    allow = ["output.max_bytes=inf"] if args.allow_large_output else []
     # An error on one rank alone ends every rank from inside the run, with these words.
     parallel.describe_with(lambda err: _outcome(err, args, out))
     try:
-        scene = api.load_scene(args.scene, sets=preset + args.set)
+        scene = api.load_scene(args.scene, sets=preset + args.set + allow)
         out = args.out or f"results/{scene['name']}"
         _check_writable(out)
         api.solve(scene, out, comm=comm, progress=_progress(args), restart=args.restart,
                   overwrite=args.overwrite, keep_contact=False)
     except Exception as err:              # no bare traceback for users; --traceback shows it
+        interrupt = parallel.interrupted_by(err)
+        if interrupt is not None:         # wrapped by Python in another error
+            raise interrupt from None
         return parallel.fail_together(comm, *_outcome(err, args, out), err)
     from contactvisco.solver.newton import unused_options
     unused = unused_options(petsc_args)

@@ -43,6 +43,56 @@ class Stopped(Exception):
         return 128 + self.signum
 
 
+class Signalled(KeyboardInterrupt):
+    """SIGINT or SIGTERM outside the time loop (start-up, figures), where there is no step to
+    finish: the command ends at once with 128 + the signal number."""
+
+    def __init__(self, signum: int):
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+        self.signum = signum
+        self.reported = False            # True once a message has said what was stopped
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+def _raise_signalled(signum, frame):
+    raise Signalled(signum)
+
+
+def stop_at_once() -> dict:
+    """SIGINT and SIGTERM raise Signalled from here on (the time loop replaces this with its
+    stop after a whole step, and restores it); returns the previous handlers. Main thread
+    only."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {s: signal.signal(s, _raise_signalled) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+def interrupted_by(err: BaseException):
+    """The KeyboardInterrupt (or Signalled) that caused `err`, if one did: Python wraps an
+    interrupt raised inside some machinery (a class's __set_name__ while a module is
+    imported) in a RuntimeError."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return err
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return None
+
+
+def first_rank() -> bool:
+    """Whether this process is rank 0 of its launcher, read from the environment (usable
+    before MPI starts: Open MPI, MPICH/Hydra and PMIx name the rank); True without one."""
+    for name in ("OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK", "MPI_LOCALRANKID"):
+        if os.environ.get(name) not in (None, ""):
+            return os.environ[name] == "0"
+    return True
+
+
 _requested = {"signum": 0}
 
 

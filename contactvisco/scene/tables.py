@@ -31,6 +31,9 @@ MAX_BOX_CELLS = 1e8
 #: Most points of output.probes (each is read at every step and drawn in the figures).
 MAX_PROBES = 1000
 
+#: Default of output.max_bytes: the most a run may write (estimated before its first step).
+MAX_OUTPUT_BYTES = 10e9
+
 #: Most time steps of time.steps (the memory of eq 19 is summed over all earlier steps).
 MAX_STEPS = 1_000_000
 
@@ -524,6 +527,9 @@ class Output(Table):
                                 "an integer >= 1 (a checkpoint at every n-th step)"),
         "checkpoint_seconds": Key(0, lambda x: finite(x) and x >= 0,
                                   "a number of seconds >= 0 (0: off)"),
+        # The estimate of what a run writes (solver/check.py) is refused above this.
+        "max_bytes": Key(MAX_OUTPUT_BYTES, lambda x: (finite(x) and x > 0) or x == math.inf,
+                         "a number of bytes > 0, or inf for no limit"),
     }
 
     def rules(self, scene):

@@ -108,8 +108,13 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     try:
         geometry = geometry or geometry_module.build(scene, comm)
         problem = build(scene, geometry)
+        estimate = None
+        if out:                           # before a step, and before the solver's set-up
+            from contactvisco.solver.check import output_limit
+            estimate = output_limit(scene, problem, out)
         snes = solver_module.create(problem, comm)
         run = Run(scene, out, comm, problem, snes, progress, restart, started)
+        run.output_estimate = estimate
         held["writer"] = run.writer
         result = run.loop(keep_tables, on_step)
     except BaseException as err:
@@ -154,6 +159,8 @@ class Run:
         t_end, steps = scene["time"]["T"], scene["time"]["steps"]
         k = t_end / steps
         report.announce(scene, problem, snes, comm, self.setup_s, self.say, self.writer)
+        if getattr(self, "output_estimate", None):
+            self.say(self.output_estimate)
         result = Result(problem, linear_system=snes.system_kind,
                         linear_solver=snes.linear_solver())
         observers = [recorder(result, keep_tables), *self._file_observers(k),
