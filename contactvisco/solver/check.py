@@ -107,7 +107,7 @@ def output_limit(scene: dict, problem, out) -> str:
             f"{size_text(limit)}; write fields less often (output.field_every, "
             "output.field_times, output.xdmf = false), or allow it with --allow-large-output "
             "(output.max_bytes = inf)", key="output.max_bytes")
-    line = f"output: about {size_text(estimate)} (estimate, figures left out)"
+    line = f"output about {size_text(estimate)} (estimate, figures left out)"
     try:
         free = shutil.disk_usage(out).free
     except OSError:

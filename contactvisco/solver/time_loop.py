@@ -158,9 +158,8 @@ class Run:
         scene, problem, snes, comm = self.scene, self.problem, self.snes, self.comm
         t_end, steps = scene["time"]["T"], scene["time"]["steps"]
         k = t_end / steps
-        report.announce(scene, problem, snes, comm, self.setup_s, self.say, self.writer)
-        if getattr(self, "output_estimate", None):
-            self.say(self.output_estimate)
+        report.announce(scene, problem, snes, comm, self.setup_s, self.say, self.writer,
+                        getattr(self, "output_estimate", None))
         result = Result(problem, linear_system=snes.system_kind,
                         linear_solver=snes.linear_solver())
         observers = [recorder(result, keep_tables), *self._file_observers(k),
