@@ -337,8 +337,12 @@ def _model_error(gmsh, path, d: int) -> str | None:
     if d not in dims:
         found = f"elements of dimension {', '.join(map(str, dims))} only" if dims else \
             "no elements at all"
+        hint = ("; gmsh saves only the elements of physical groups when there are any: mark "
+                "the body with a Physical Surface (2D) or Volume (3D)"
+                if gmsh.model.getPhysicalGroups() and not gmsh.model.getPhysicalGroups(d)
+                and gmsh.model.getEntities(d) else "")
         return (f"geometry.file: mesh file {path} has no cells of dimension {d} ({found}); "
-                f"material.model needs a {d}D mesh")
+                f"material.model needs a {d}D mesh{hint}")
     if max(dims) > d:
         return (f"geometry.file: mesh file {path} has cells of dimension {max(dims)}; "
                 f"material.model needs a {d}D mesh (set material.model = '3d' for a 3D body)")
