@@ -82,7 +82,11 @@ def cell_dofs(dofmap) -> np.ndarray:
 
 def geometry_nodes(mesh) -> np.ndarray:
     """The geometry nodes of every local cell (ghosts included), one row per cell: an array
-    from DOLFINx 0.8 on, an adjacency list before."""
+    from DOLFINx 0.8 on (``dofmaps[0]`` where ``dofmap`` is deprecated), an
+    adjacency list before."""
+    dofmaps = getattr(mesh.geometry, "dofmaps", None)
+    if isinstance(dofmaps, (list, tuple)) and dofmaps:
+        return dofmaps[0]
     dofmap = mesh.geometry.dofmap
     if isinstance(dofmap, np.ndarray):
         return dofmap
