@@ -233,7 +233,10 @@ def _check(args) -> int:
               f"b = k R(0) (1 + nu) / E = {b:.3g}"
               + (" (unstable: the run will warn)" if report["unstable"] else "") + "\n"
               f"  memory of the history at the last step: {_size(report['history_bytes'])}\n"
-              f"  output (estimate, figures left out): {_size(report['output_bytes'])}")
+              f"  output (estimate, figures left out): {_size(report['output_bytes'])}"
+              + (f" (above output.max_bytes = {_size(scene['output']['max_bytes'])}: the run "
+                 "will be refused without --allow-large-output)"
+                 if report["output_bytes"] > scene["output"]["max_bytes"] else ""))
     return 0
 
 

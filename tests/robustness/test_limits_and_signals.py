@@ -105,3 +105,11 @@ def test_a_signal_while_drawing_the_figures_stops_them(tmp_path, signum):
         f"contactvisco: figures stopped by {name}; the results in {out} are complete; draw "
         f"them with 'contactvisco plot {out}'"], err
     assert len(read_steps(out)) == 4 and (out / "summary.json").exists()
+
+
+def test_check_says_when_the_output_is_above_the_limit():
+    above = run_cli("check", "paper", *SMALL, "--set", "output.max_bytes=1e4")
+    assert above.returncode == 0 and "above output.max_bytes = 10.0 kB: the run will be " \
+        "refused without --allow-large-output" in above.stdout, above.stdout
+    within = run_cli("check", "paper", *SMALL)
+    assert within.returncode == 0 and "above output.max_bytes" not in within.stdout
