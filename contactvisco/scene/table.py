@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import math
 import pathlib
+import sys
 
 from contactvisco.errors import SceneError
 
@@ -18,7 +19,7 @@ MODULUS_RANGE = 1e100
 
 # Value tests, shared by the declarations below.
 def finite(x) -> bool:
-    if isinstance(x, int) and not isinstance(x, bool) and abs(x) > 1e308:
+    if isinstance(x, int) and not isinstance(x, bool) and abs(x) > sys.float_info.max:
         return False                 # math.isfinite would raise OverflowError
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
