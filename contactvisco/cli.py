@@ -298,6 +298,8 @@ def _run(args, petsc_args, scene_module):
         if interrupt is not None:         # wrapped by Python in another error
             raise interrupt from None
         return parallel.fail_together(comm, *_outcome(err, args, out), err)
+    finally:
+        parallel.describe_with(None)
     from contactvisco.solver.newton import unused_options
     unused = unused_options(petsc_args)
     if unused and comm.rank == 0:
