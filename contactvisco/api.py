@@ -152,6 +152,7 @@ def solve(scene: dict, out=None, mesh=None, facet_tags=None, boundaries=None, on
     from contactvisco.solver.time_loop import simulate
     if comm is None:
         comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
+    scene = scene_module.check_given(scene)       # as changed since load_scene, if it was
     try:
         geometry = _own_geometry(scene, mesh, facet_tags, boundaries)
         result = simulate(scene, out, comm=comm, progress=progress, keep_tables=keep_contact,
@@ -184,10 +185,21 @@ def _draw_figures(out) -> None:
     import pathlib
     import sys
 
-    from contactvisco.post import figures
+    from contactvisco.io import parallel
     try:
+        from contactvisco.post import figures
         figures.draw_all(pathlib.Path(out))
-    except Exception as err:
+    except BaseException as err:
+        interrupt = parallel.interrupted_by(err)     # SIGINT, or SIGTERM under the CLI
+        if interrupt is not None:
+            name = "SIGTERM" if getattr(interrupt, "signum", 2) == 15 else "SIGINT"
+            print(f"contactvisco: figures stopped by {name}; the results in {out} are "
+                  f"complete; draw them with 'contactvisco plot {out}'", file=sys.stderr,
+                  flush=True)
+            interrupt.reported = True
+            raise interrupt from None
+        if not isinstance(err, Exception):
+            raise
         print(f"contactvisco: warning: figures failed ({type(err).__name__}: {err}); the "
               f"results in {out} are complete; retry with 'contactvisco plot {out}'",
               file=sys.stderr, flush=True)
@@ -307,6 +319,7 @@ def check(scene: dict, mesh=None, facet_tags=None, boundaries=None, comm=None) -
     from contactvisco.solver.check import check as check_scene
     if comm is None:
         comm = mesh.comm if mesh is not None else MPI.COMM_WORLD
+    scene = scene_module.check_given(scene)
     try:
         return check_scene(scene, _own_geometry(scene, mesh, facet_tags, boundaries), comm)
     except SceneError as err:

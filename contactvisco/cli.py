@@ -76,6 +76,9 @@ def _add_run(sub) -> None:
                      help="replace the files of an earlier run in --out")
     run.add_argument("--restart", action="store_true",
                      help="continue the run in --out from its last checkpoint")
+    run.add_argument("--allow-large-output", action="store_true",
+                     help="run even when the output is estimated above output.max_bytes "
+                     "(same as --set output.max_bytes=inf)")
     run.add_argument("--traceback", action="store_true",
                      help="show the Python traceback of an unexpected error")
 
@@ -129,6 +132,26 @@ def _add_show_and_check(sub) -> None:
 
 
 def main(argv=None):
+    """The command; SIGINT and SIGTERM outside the time loop (start-up, figures) end it at
+    once with one line and exit 128 + the signal number, never a traceback."""
+    from contactvisco.io import parallel
+    previous = parallel.stop_at_once()
+    try:
+        return _main(argv)
+    except BaseException as caught:
+        err = parallel.interrupted_by(caught)       # Python may wrap it in a RuntimeError
+        if err is None:
+            raise
+        signum = getattr(err, "signum", signal.SIGINT)
+        if not getattr(err, "reported", False) and parallel.first_rank():
+            print(f"contactvisco: stopped by {signal.Signals(signum).name}", file=sys.stderr,
+                  flush=True)
+        return 128 + signum
+    finally:
+        parallel.restore_signals(previous)
+
+
+def _main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     if argv == ["--version"]:
         print(versions())
@@ -210,7 +233,10 @@ def _check(args) -> int:
               f"b = k R(0) (1 + nu) / E = {b:.3g}"
               + (" (unstable: the run will warn)" if report["unstable"] else "") + "\n"
               f"  memory of the history at the last step: {_size(report['history_bytes'])}\n"
-              f"  output (estimate, figures left out): {_size(report['output_bytes'])}")
+              f"  output (estimate, figures left out): {_size(report['output_bytes'])}"
+              + (f" (above output.max_bytes = {_size(scene['output']['max_bytes'])}: the run "
+                 "will be refused without --allow-large-output)"
+                 if report["output_bytes"] > scene["output"]["max_bytes"] else ""))
     return 0
 
 
@@ -254,42 +280,56 @@ def _run(args, petsc_args, scene_module):
     from mpi4py import MPI
     from contactvisco import api
     from contactvisco.io import parallel
-    from contactvisco.solver.newton import NewtonFailure
     comm = MPI.COMM_WORLD
     parallel.prepare(comm)
     out = args.out
     preset = [f"preset='{args.preset}'"] if args.preset else []
+    allow = ["output.max_bytes=inf"] if args.allow_large_output else []
+    # An error on one rank alone ends every rank from inside the run, with these words.
+    parallel.describe_with(lambda err: _outcome(err, args, out))
     try:
-        scene = api.load_scene(args.scene, sets=preset + args.set)
+        scene = api.load_scene(args.scene, sets=preset + args.set + allow)
         out = args.out or f"results/{scene['name']}"
         _check_writable(out)
         api.solve(scene, out, comm=comm, progress=_progress(args), restart=args.restart,
                   overwrite=args.overwrite, keep_contact=False)
-    except SceneError as err:
-        from contactvisco.io.checkpoint import Damaged
-        from contactvisco.io.files import UnsafeEntry
-        from contactvisco.io.lock import FolderError
-        from contactvisco.io.output import DamagedFile
-        kind = "error" if isinstance(err, (Damaged, FolderError, UnsafeEntry, DamagedFile)) \
-            else "scene error"
-        return parallel.fail_together(comm, 2, f"contactvisco: {kind}: {err}", err)
-    except NewtonFailure as err:
-        return parallel.fail_together(comm, 3, f"contactvisco: {err}", err)
-    except parallel.Stopped as err:
-        return parallel.fail_together(comm, err.exit_code, f"contactvisco: {err}", err)
     except Exception as err:              # no bare traceback for users; --traceback shows it
-        if args.traceback:
-            import traceback
-            traceback.print_exc()
-        return parallel.fail_together(
-            comm, 1, f"contactvisco: error: {_describe(err, out)} (run again with "
-            "--traceback for the details)", err)
+        interrupt = parallel.interrupted_by(err)
+        if interrupt is not None:         # wrapped by Python in another error
+            raise interrupt from None
+        return parallel.fail_together(comm, *_outcome(err, args, out), err)
+    finally:
+        parallel.describe_with(None)
     from contactvisco.solver.newton import unused_options
     unused = unused_options(petsc_args)
     if unused and comm.rank == 0:
         print(f"contactvisco: warning: PETSc options no solver used: {', '.join(unused)} "
               "(misspelled, or for a solver this scene does not use)", file=sys.stderr)
     return 0
+
+
+def _outcome(err: Exception, args, out) -> tuple[int, str]:
+    """The exit code and message of `run` for an error: 2 for a scene or folder error, 3 for
+    a Newton failure, 128 + N for a stop by signal N, 1 for anything else."""
+    from contactvisco.io import parallel
+    from contactvisco.solver.newton import NewtonFailure
+    if isinstance(err, SceneError):
+        from contactvisco.io.checkpoint import Damaged
+        from contactvisco.io.files import UnsafeEntry
+        from contactvisco.io.lock import FolderError
+        from contactvisco.io.output import DamagedFile
+        kind = "error" if isinstance(err, (Damaged, FolderError, UnsafeEntry, DamagedFile)) \
+            else "scene error"
+        return 2, f"contactvisco: {kind}: {err}"
+    if isinstance(err, NewtonFailure):
+        return 3, f"contactvisco: {err}"
+    if isinstance(err, parallel.Stopped):
+        return err.exit_code, f"contactvisco: {err}"
+    if args.traceback:
+        import traceback
+        traceback.print_exception(err)
+    return 1, (f"contactvisco: error: {_describe(err, out)} (run again with --traceback for "
+               "the details)")
 
 
 def _describe(err: Exception, out) -> str:

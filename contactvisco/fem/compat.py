@@ -87,6 +87,21 @@ def cell_dofs(dofmap) -> np.ndarray:
     return layout.array.reshape(-1, dofmap.dof_layout.num_dofs)
 
 
+def geometry_nodes(mesh) -> np.ndarray:
+    """The geometry nodes of every local cell (ghosts included), one row per cell: an array
+    from DOLFINx 0.8 on (``dofmaps[0]`` where ``dofmap`` is deprecated), an
+    adjacency list before."""
+    dofmaps = getattr(mesh.geometry, "dofmaps", None)
+    if isinstance(dofmaps, (list, tuple)) and dofmaps:
+        return dofmaps[0]
+    dofmap = mesh.geometry.dofmap
+    if isinstance(dofmap, np.ndarray):
+        return dofmap
+    tdim = mesh.topology.dim
+    index_map = mesh.topology.index_map(tdim)
+    return dofmap.array.reshape(index_map.size_local + index_map.num_ghosts, -1)
+
+
 # ------------------------------------------------------------------ coordinate element
 
 def settle_coordinate_element(mesh) -> None:

@@ -99,6 +99,91 @@ def check_probes(mesh, points) -> None:
                      key=f"output.probes[{i}]")
 
 
+#: A cell is degenerate when its volume is below this times its longest edge to the power d.
+DEGENERATE = 1e-10
+
+
+def check_cells(mesh, source: str) -> None:
+    """Refuse a mesh with degenerate cells (|det J| of a cell, from its vertices, below
+    DEGENERATE h_max^d: the stiffness matrix is singular there) or inverted cells (a cell
+    folded over a neighbour: the vertices opposite an interior facet shared by two cells lie
+    on the same side of it, sign(det[f_1 - f_0, ..., p - f_0]) equal for both cells), naming
+    their number and the location of the first. Collective over the mesh's communicator.
+
+    Parameters
+    ----------
+    mesh : dolfinx.mesh.Mesh
+        The mesh (its vertices are the first d + 1 geometry nodes of each cell).
+    source : str
+        What the mesh came from, for the message (a file, "solve(mesh=...)").
+    """
+    d = mesh.topology.dim
+    if mesh.geometry.dim != d:
+        return
+    x = mesh.geometry.x[:, :d]
+    nodes = compat.geometry_nodes(mesh)[:, :d + 1]
+    owned = mesh.topology.index_map(d).size_local
+    edges = x[nodes[:, 1:]] - x[nodes[:, :1]]               # (cells, d, d)
+    volume = _det(edges)
+    longest = np.zeros(len(nodes))
+    for i in range(d + 1):
+        for j in range(i + 1, d + 1):
+            longest = np.maximum(longest, np.linalg.norm(x[nodes[:, i]] - x[nodes[:, j]],
+                                                         axis=1))
+    degenerate = np.flatnonzero(np.abs(volume[:owned]) <= DEGENERATE * longest[:owned] ** d)
+    folded = _folded(mesh, x, nodes, owned, d)
+    for cells, what, why in ((degenerate, "degenerate", "of (nearly) zero volume: the "
+                              "stiffness is singular there"),
+                             (folded, "inverted", "folded over a neighbour (the vertices "
+                              "opposite a shared facet lie on the same side of it)")):
+        count = mesh.comm.allreduce(len(cells))
+        if not count:
+            continue
+        first = x[nodes[cells[0]]].mean(axis=0).round(6).tolist() if len(cells) else None
+        first = next(p for p in mesh.comm.allgather(first) if p is not None)
+        raise SceneError(f"{source}: {count} {what} cell(s), {why}; the first at x = {first}; "
+                         "remesh it", key=source if "." in source else None)
+
+
+def _det(m: np.ndarray) -> np.ndarray:
+    """Determinants of a stack of 1x1, 2x2 or 3x3 matrices, written out (numpy's batched LU
+    is ten times slower on small matrices)."""
+    if m.shape[1] == 1:
+        return m[:, 0, 0]
+    if m.shape[1] == 2:
+        return m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
+    return (m[:, 0, 0] * (m[:, 1, 1] * m[:, 2, 2] - m[:, 1, 2] * m[:, 2, 1])
+            - m[:, 0, 1] * (m[:, 1, 0] * m[:, 2, 2] - m[:, 1, 2] * m[:, 2, 0])
+            + m[:, 0, 2] * (m[:, 1, 0] * m[:, 2, 1] - m[:, 1, 1] * m[:, 2, 0]))
+
+
+def _folded(mesh, x, nodes, owned, d) -> np.ndarray:
+    """The owned cells folded over a neighbour across an interior facet that this rank
+    sees with both of its cells."""
+    fdim = d - 1
+    mesh.topology.create_connectivity(fdim, d)
+    f2c = mesh.topology.connectivity(fdim, d)
+    counts = np.diff(f2c.offsets)
+    pairs = f2c.array[np.repeat(counts, counts) == 2].reshape(-1, 2)
+    if not len(pairs):
+        return np.zeros(0, dtype=np.int64)
+    a, b = nodes[pairs[:, 0]], nodes[pairs[:, 1]]
+    in_b = (a[:, :, None] == b[:, None, :]).any(axis=2)     # a's nodes shared with b
+    in_a = (b[:, :, None] == a[:, None, :]).any(axis=2)
+    keep = (in_b.sum(axis=1) == d) & (in_a.sum(axis=1) == d)
+    a, b, in_b, in_a, pairs = a[keep], b[keep], in_b[keep], in_a[keep], pairs[keep]
+    shared = a[in_b].reshape(-1, d)
+    p = a[~in_b]
+    q = b[~in_a]
+    base = x[shared[:, 0]]
+    span = x[shared[:, 1:]] - base[:, None, :]               # (pairs, d - 1, d)
+    side_p = _det(np.concatenate([span, (x[p] - base)[:, None, :]], axis=1))
+    side_q = _det(np.concatenate([span, (x[q] - base)[:, None, :]], axis=1))
+    bad = side_p * side_q > 0
+    cells = np.unique(pairs[bad].ravel())
+    return cells[cells < owned]
+
+
 def _box(geo, comm) -> Geometry:
     lower, upper, cells = geo["lower"], geo["upper"], geo["cells"]
     d = len(lower)
@@ -230,10 +315,41 @@ def _gmsh(geo, d: int, comm) -> Geometry:
     names = comm.bcast(names, root=0)
     if isinstance(names, str):
         raise SceneError(names, key=source)
+    if not isinstance(names, str) and comm.rank == 0:
+        names = _model_error(gmsh, path, d) or names
+        if isinstance(names, str):
+            gmsh.finalize()
+    names = comm.bcast(names, root=0)
+    if isinstance(names, str):
+        raise SceneError(names, key=source)
     mesh, facet_tags = compat.model_to_mesh(gmsh.model, comm, 0, gdim=d)
     if comm.rank == 0:
         gmsh.finalize()
-    if not names:
-        raise SceneError(f"{path}: the mesh has no named physical groups of dimension {d - 1} "
-                         "(the boundaries a scene refers to)", key=source)
+    check_cells(mesh, f"{source} {path}" if geo["file"] is not None else source)
     return Geometry(mesh, facet_tags, names)
+
+
+def _model_error(gmsh, path, d: int) -> str | None:
+    """Why the merged gmsh model cannot be a d-dimensional body with named boundaries, or
+    None: cells of dimension d, a physical group of them, named physical groups of facets."""
+    dims = sorted({dim for dim in range(4)
+                   if len(gmsh.model.mesh.getElements(dim)[0])})
+    if d not in dims:
+        found = f"elements of dimension {', '.join(map(str, dims))} only" if dims else \
+            "no elements at all"
+        hint = ("; gmsh saves only the elements of physical groups when there are any: mark "
+                "the body with a Physical Surface (2D) or Volume (3D)"
+                if gmsh.model.getPhysicalGroups() and not gmsh.model.getPhysicalGroups(d)
+                and gmsh.model.getEntities(d) else "")
+        return (f"geometry.file: mesh file {path} has no cells of dimension {d} ({found}); "
+                f"material.model needs a {d}D mesh{hint}")
+    if max(dims) > d:
+        return (f"geometry.file: mesh file {path} has cells of dimension {max(dims)}; "
+                f"material.model needs a {d}D mesh (set material.model = '3d' for a 3D body)")
+    if not gmsh.model.getPhysicalGroups(d):
+        return (f"geometry.file: mesh file {path} has no physical group of dimension {d} (the "
+                "body's cells); mark the body with a Physical Surface (2D) or Volume (3D)")
+    if not gmsh.model.getPhysicalGroups(d - 1):
+        return (f"geometry.file: mesh file {path} has no named physical groups of dimension "
+                f"{d - 1} (the boundaries a scene refers to)")
+    return None

@@ -7,7 +7,7 @@ import numbers
 from mpi4py import MPI
 
 from contactvisco.errors import SceneError
-from contactvisco.fem.geometry import Geometry, check_probes
+from contactvisco.fem.geometry import Geometry, check_cells, check_probes
 from contactvisco.model.material import dimension
 
 
@@ -57,6 +57,7 @@ def from_mesh(scene: dict, mesh, facet_tags, boundaries) -> Geometry:
             raise SceneError(f"solve: boundaries['{name}'] = {tag} tags no facet of the mesh "
                              f"(the tag values are "
                              f"{sorted(set().union(*mesh.comm.allgather(present)))})")
+    check_cells(mesh, "solve(mesh=...)")
     geometry = Geometry(mesh, facet_tags,
                         {name: int(tag) for name, tag in boundaries.items()})
     check_probes(mesh, scene["output"]["probes"])

@@ -43,6 +43,56 @@ class Stopped(Exception):
         return 128 + self.signum
 
 
+class Signalled(KeyboardInterrupt):
+    """SIGINT or SIGTERM outside the time loop (start-up, figures), where there is no step to
+    finish: the command ends at once with 128 + the signal number."""
+
+    def __init__(self, signum: int):
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+        self.signum = signum
+        self.reported = False            # True once a message has said what was stopped
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+def _raise_signalled(signum, frame):
+    raise Signalled(signum)
+
+
+def stop_at_once() -> dict:
+    """SIGINT and SIGTERM raise Signalled from here on (the time loop replaces this with its
+    stop after a whole step, and restores it); returns the previous handlers. Main thread
+    only."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {s: signal.signal(s, _raise_signalled) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+def interrupted_by(err: BaseException):
+    """The KeyboardInterrupt (or Signalled) that caused `err`, if one did: Python wraps an
+    interrupt raised inside some machinery (a class's __set_name__ while a module is
+    imported) in a RuntimeError."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return err
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return None
+
+
+def first_rank() -> bool:
+    """Whether this process is rank 0 of its launcher, read from the environment (usable
+    before MPI starts: Open MPI, MPICH/Hydra and PMIx name the rank); True without one."""
+    for name in ("OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK", "MPI_LOCALRANKID"):
+        if os.environ.get(name) not in (None, ""):
+            return os.environ[name] == "0"
+    return True
+
+
 _requested = {"signum": 0}
 
 
@@ -133,6 +183,69 @@ def prepare(comm):
     """Create the agreement communicator while every rank is still in step (collective)."""
     if comm.size > 1:
         _agreement_comm(comm)
+
+
+#: How an error that only this rank raised is reported before every rank ends:
+#: err -> (exit code, message). The command line sets its own (`describe_with`).
+_describe = {"function": None}
+
+
+def describe_with(function) -> None:
+    """Report errors raised on one rank alone with `function(err) -> (code, message)`."""
+    _describe["function"] = function
+
+
+def _default_description(err: BaseException) -> tuple[int, str]:
+    """Exit 2 for a scene error, 128 + N for a stop by signal N, else 1; the message names
+    the error and the line that raised it (the caller's code for an on_step callback)."""
+    import traceback
+
+    from contactvisco.errors import SceneError
+    if isinstance(err, SceneError):
+        return 2, f"contactvisco: scene error: {err}"
+    frames = traceback.extract_tb(err.__traceback__)
+    where = f" ({frames[-1].filename}, line {frames[-1].lineno}, in {frames[-1].name})" \
+        if frames else ""
+    return getattr(err, "exit_code", 1), f"contactvisco: error: {type(err).__name__}: {err}{where}"
+
+
+def end_if_alone(comm, err: BaseException) -> None:
+    """Called by a rank that caught `err` inside a collective phase (the time loop, a user's
+    on_step): if the other ranks did not raise too, they wait in a collective that will never
+    complete, and raising `err` to the caller would leave them there for ever; every rank is
+    then ended with one message (fail_together). Returns when the error is collective."""
+    if comm.size == 1 or together(comm, err):
+        return
+    code, message = (_describe["function"] or _default_description)(err)
+    fail_together(comm, code, message, err)
+
+
+def same_scene(comm, scene) -> None:
+    """Every rank runs the same scene (collective): a digest of the scene's canonical text is
+    compared across the ranks before anything is built, since ranks that build different
+    meshes or forms wait for each other for ever. Different scenes raise SceneError on every
+    rank, naming the keys that differ from rank 0's."""
+    if comm.size == 1:
+        return
+    import hashlib
+    import json
+
+    from contactvisco.errors import SceneError
+    from contactvisco.scene.loader import differences, plain_copy
+    plain = plain_copy(scene)
+    text = json.dumps(plain, sort_keys=True, default=repr)
+    digests = comm.allgather(hashlib.sha256(text.encode()).hexdigest())
+    if len(set(digests)) == 1:
+        return
+    first = comm.bcast(plain if comm.rank == 0 else None, root=0)
+    keys = sorted(differences(first, plain))
+    named = comm.allgather(keys)
+    ranks = [r for r, d in enumerate(digests) if d != digests[0]]
+    keys = sorted({k for ks in named for k in ks})
+    raise SceneError(f"the ranks were given different scenes: rank(s) "
+                     f"{', '.join(map(str, ranks))} differ from rank 0 in "
+                     f"{', '.join(keys[:5]) + (' ...' if len(keys) > 5 else '')}; start every "
+                     "rank with the same scene file and --set values")
 
 
 def _print(message: str):

@@ -11,10 +11,12 @@ from __future__ import annotations
 import copy
 import difflib
 import math
+import numbers
 import pathlib
+import sys
 import tomllib
 
-from contactvisco.scene.table import Provenance, is_mesh_size
+from contactvisco.scene.table import Provenance, finite, is_mesh_size
 from contactvisco.scene.tables import TABLE_LISTS, Contact, Scene
 from contactvisco.errors import SceneError
 
@@ -89,6 +91,9 @@ def parse_assignment(text: str) -> tuple[list[str], object]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw.strip()
+    except RecursionError:
+        raise SceneError(f"--set {key.strip()}: the value nests arrays or tables too deeply "
+                         f"(at most {MAX_DEPTH} levels)", key=key.strip()) from None
     if isinstance(value, str) and value.lower() in ("inf", "+inf"):
         value = math.inf
     return key.strip().split("."), value
@@ -139,6 +144,7 @@ def resolve(raw: dict, overrides: list[str] = (), provenance: Provenance | None 
     """Fill defaults into a raw scene dict, apply ``key=value`` overrides, and check the
     result table by table (errors name the value's origin from `provenance`)."""
     provenance = provenance or Provenance(overrides=overrides)
+    check_plain(raw, provenance)               # before any check computes with a number
     scene = _merge(DEFAULTS, {k: v for k, v in raw.items() if k != "contact"})
     if raw.get("contact") is not None:
         if not isinstance(raw["contact"], dict):
@@ -147,6 +153,8 @@ def resolve(raw: dict, overrides: list[str] = (), provenance: Provenance | None 
     # An override is `key=value` text (--set) or an Override (the Python API's values).
     assignments = [getattr(text, "assignment", None) or parse_assignment(text)
                    for text in overrides]
+    for path, value in assignments:
+        check_plain({".".join(path): value}, provenance)
     _check_material_pairs(raw.get("material", {}), overrides, assignments)
     for path, value in assignments:          # a preset from --set first, then the rest
         if path == ["preset"]:
@@ -156,11 +164,13 @@ def resolve(raw: dict, overrides: list[str] = (), provenance: Provenance | None 
     for text, (path, value) in zip(overrides, assignments):
         if path != ["preset"]:
             _apply_set(scene, path, value, getattr(text, "source", "--set"))
+    check_plain(scene, provenance)
     scene = Scene.build(scene, provenance)
     scene["material"].normalize()
     if scene["contact"] is not None:
         scene["contact"].normalize(scene["material"])
     scene.validate()
+    scene.as_loaded = plain_copy(scene)
     return scene
 
 
@@ -201,6 +211,9 @@ def load(name_or_path: str, overrides: list[str] = ()) -> Scene:
         raise SceneError(f"cannot read scene file {path}: {err}") from None
     except tomllib.TOMLDecodeError as err:
         raise SceneError(f"{path}: {err}") from None
+    except RecursionError:
+        raise SceneError(f"{path}: arrays or tables nested too deeply to be read (a scene "
+                         f"nests a few levels, at most {MAX_DEPTH})") from None
     provenance = Provenance(path, text, overrides)
     try:
         return resolve(raw, overrides, provenance)
@@ -251,3 +264,191 @@ def apply_preset(scene: dict, name: str) -> None:
     scene["discretization"]["degree"] = preset["degree"]
     if preset["degree"] > 1:
         scene["discretization"]["contact_quadrature"] = "gauss"
+
+
+# The scene where it is used: solve() and check() take a dict that Python code may have
+# changed after load_scene; it is checked again here, with load_scene's messages.
+
+#: Deepest nesting of arrays and tables in a scene (a scene nests three or four levels).
+MAX_DEPTH = 32
+
+#: Largest magnitude of a number in a scene: what a double holds.
+MAX_NUMBER = sys.float_info.max
+
+
+def plain_copy(value, depth: int = 0):
+    """`value` as plain dicts, lists and scalars (tables, numpy scalars and arrays, tuples
+    converted as the TOML reader would give them)."""
+    if depth > MAX_DEPTH:
+        raise SceneError(f"the scene nests arrays or tables more than {MAX_DEPTH} levels deep")
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        return float(value)
+    if isinstance(value, dict):
+        return {k: plain_copy(v, depth + 1) for k, v in value.items()}
+    if isinstance(value, (list, tuple)) or hasattr(value, "tolist"):
+        items = value.tolist() if hasattr(value, "tolist") else value
+        if not isinstance(items, list):          # a numpy scalar's tolist() is a scalar
+            return plain_copy(items, depth + 1)
+        return [plain_copy(v, depth + 1) for v in items]
+    return value
+
+
+def check_plain(scene: dict, provenance: Provenance | None = None) -> None:
+    """Every value of the scene is a float-sized number, a string, a boolean or a list or
+    table of them nested at most MAX_DEPTH levels: an integer such as 10**400 (valid TOML) is
+    refused naming its key, before any check computes with it."""
+    stack = [("", scene, 0)]
+    while stack:
+        where, value, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            key = ".".join(where.split("[")[0].split(".")[:3])
+            raise SceneError(f"{key}: arrays or tables nested more than {MAX_DEPTH} levels "
+                             "deep" + _origin(provenance, key), key=key, located=True)
+        if isinstance(value, dict):
+            stack.extend((f"{where}.{k}" if where else str(k), v, depth + 1)
+                         for k, v in value.items())
+        elif isinstance(value, (list, tuple)):
+            stack.extend((f"{where}[{i}]", v, depth + 1) for i, v in enumerate(value))
+        elif (isinstance(value, numbers.Integral) and not isinstance(value, bool)
+              and abs(int(value)) > MAX_NUMBER):
+            raise SceneError(f"{where} = {_short(value)} does not fit a floating-point number "
+                             f"(at most {MAX_NUMBER:.3g} in magnitude; change the units)"
+                             + _origin(provenance, where), key=where, located=True)
+
+
+def _short(value) -> str:
+    """A number of any size, shortened for a message (10**400 has 401 digits)."""
+    text = str(value) if not isinstance(value, int) or abs(value) < 10 ** 30 else \
+        f"{'-' if value < 0 else ''}{str(abs(value))[:6]}... ({len(str(abs(value)))} digits)"
+    return text
+
+
+def _origin(provenance, where: str) -> str:
+    return provenance.origin(where) if provenance is not None else ""
+
+
+class ChangedProvenance(Provenance):
+    """The provenance of a loaded scene, for a scene changed in Python after load_scene: a
+    changed value is said to be so, the others keep their file line or override."""
+
+    def __init__(self, loaded: Provenance | None, changed: set):
+        super().__init__(getattr(loaded, "path", None), getattr(loaded, "text", ""),
+                         getattr(loaded, "overrides", ()))
+        self.loaded, self.changed = loaded, changed
+
+    def origin(self, key: str) -> str:
+        dotted = key.replace("[", ".").replace("]", "")
+        if any(dotted == c or dotted.startswith(c + ".") or c.startswith(dotted + ".")
+               for c in self.changed):
+            return " (changed in Python after load_scene)"
+        return self.loaded.origin(key) if self.loaded is not None else " (given to solve)"
+
+
+def _changes(old, new, where: str = "") -> set:
+    """The dotted keys (list items as key.i) whose values differ between two plain scenes."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        out = set()
+        for key in set(old) | set(new):
+            inner = f"{where}.{key}" if where else str(key)
+            if key not in old or key not in new:
+                out.add(inner)
+            else:
+                out |= _changes(old[key], new[key], inner)
+        return out
+    if isinstance(old, list) and isinstance(new, list) and len(old) == len(new):
+        out = set()
+        for i, (a, b) in enumerate(zip(old, new)):
+            out |= _changes(a, b, f"{where}.{i}")
+        return out
+    same = type(old) is type(new) and (old == new or (old != old and new != new))
+    return set() if same else {where}
+
+
+def differences(old: dict, new: dict) -> set:
+    """The dotted keys whose values differ between two plain scenes (list items as key.i).
+
+    Parameters
+    ----------
+    old, new : dict
+        Scenes as plain values (`plain_copy`).
+
+    Returns
+    -------
+    set of str
+        The keys k with old[k] != new[k] (NaN equal to NaN), those in one scene only
+        included.
+    """
+    return _changes(old, new)
+
+
+def check_given(scene: dict) -> Scene:
+    """The scene `solve` or `check` was given, checked again as load_scene checks it: a scene
+    changed in Python after load_scene (a misspelled choice, a NaN, a new key), or a plain
+    dict, is refused with load_scene's messages; a value changed in Python is said to be so.
+
+    Parameters
+    ----------
+    scene : dict
+        A scene from load_scene, maybe changed since, or a dict of the same tables.
+
+    Returns
+    -------
+    Scene
+        The checked scene (a new object; the preset is not applied again, the material's
+        E and nu follow lambda and mu when those are given).
+    """
+    if not isinstance(scene, dict):
+        raise SceneError(f"a scene must be a dict from load_scene, got {type(scene).__name__}")
+    loaded = getattr(scene, "provenance", None)
+    plain = plain_copy(scene)
+    before = getattr(scene, "as_loaded", None)
+    changed = _changes(before, plain) if before is not None else set()
+    provenance = ChangedProvenance(loaded, changed) if (changed or loaded is None) else loaded
+    try:
+        check_plain(plain, provenance)
+        merged = _merge(DEFAULTS, {k: v for k, v in plain.items() if k != "contact"})
+        if plain.get("contact") is not None:
+            if not isinstance(plain["contact"], dict):
+                raise SceneError(f"contact must be a table, got {plain['contact']!r}",
+                                 key="contact")
+            merged["contact"] = _merge(CONTACT_DEFAULTS, plain["contact"], "contact.")
+        out = Scene.build(merged, provenance)
+        _material_pairs_agree(out["material"], changed)
+        out["material"].normalize()
+        if out["contact"] is not None:
+            out["contact"].normalize(out["material"])
+        out.validate()
+    except SceneError as err:
+        if err.located or err.key is None:
+            raise
+        raise SceneError(f"{err}{provenance.origin(err.key)}", key=err.key,
+                         located=True) from None
+    out.as_loaded = plain_copy(out)
+    return out
+
+
+def _material_pairs_agree(material, changed: set) -> None:
+    """A loaded scene holds E and nu computed from lambda and mu when those were given: E or
+    nu changed in Python would be overwritten from lambda and mu without a word (lambda or mu
+    changed alone: E and nu follow them)."""
+    lam, mu = material["lambda"], material["mu"]
+    if lam is None and mu is None:
+        return
+    if not changed & {"material.E", "material.nu"}:
+        return                              # normalize() computes E and nu from them
+    if not (finite(lam) and finite(mu) and mu > 0 and lam + mu > 0):
+        return                              # normalize() refuses them with its message
+    young = mu * (3 * lam + 2 * mu) / (lam + mu)
+    nu = lam / (2 * (lam + mu))
+    E_given, nu_given = material["E"], material["nu"]
+    agree = (finite(E_given) and finite(nu_given)
+             and math.isclose(E_given, young, rel_tol=1e-12)
+             and math.isclose(nu_given, nu, rel_tol=1e-12, abs_tol=1e-15))
+    material.need(agree, "E", f"material.E = {E_given!r} and material.nu = {nu_given!r} "
+                              f"disagree with material.lambda = {lam!r} and material.mu = "
+                              f"{mu!r} (which give E = {young:.6g}, nu = {nu:.6g}): give "
+                              "either E and nu or lambda and mu (set the other pair to None)")

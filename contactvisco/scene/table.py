@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import math
 import pathlib
+import sys
 
 from contactvisco.errors import SceneError
 
@@ -18,6 +19,8 @@ MODULUS_RANGE = 1e100
 
 # Value tests, shared by the declarations below.
 def finite(x) -> bool:
+    if isinstance(x, int) and not isinstance(x, bool) and abs(x) > sys.float_info.max:
+        return False                 # math.isfinite would raise OverflowError
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
@@ -39,6 +42,27 @@ def boolean(x) -> bool:
 
 def number_list(x) -> bool:
     return isinstance(x, list) and all(finite(v) for v in x)
+
+
+def repeated(items) -> tuple | None:
+    """(first index, second index, entry) of the first entry of `items` that equals an
+    earlier one, or None when all differ."""
+    seen = {}
+    for j, item in enumerate(items):
+        key = _hashable(item)
+        if key in seen:
+            return seen[key], j, item
+        seen[key] = j
+    return None
+
+
+def _hashable(value):
+    """A key equal for equal values (1 and 1.0 alike, as == has them)."""
+    if isinstance(value, dict):
+        return ("table", tuple(sorted((str(k), _hashable(v)) for k, v in value.items())))
+    if isinstance(value, (list, tuple)):
+        return ("list", tuple(_hashable(v) for v in value))
+    return value
 
 
 def is_mesh_size(key: str) -> bool:
@@ -80,14 +104,19 @@ class Provenance:
         for given in reversed(self.overrides):       # the last override of a key wins
             set_key = given.split("=", 1)[0].strip()
             if dotted == set_key or dotted.startswith(set_key + "."):
-                return f" (from {getattr(given, 'source', '--set')} {given})"
+                return f" (from {getattr(given, 'source', '--set')} {_cut(given)})"
         if self.path is None:
             return ""
         found = _line_of(dotted, self.text)
         if found:
             number, line = found
-            return f" ({self.path.name}, line {number}: {line.strip()})"
+            return f" ({self.path.name}, line {number}: {_cut(line.strip())})"
         return " (a default value)"
+
+
+def _cut(text: str, most: int = 100) -> str:
+    """A text shortened for a message (a scene line may be a megabyte long)."""
+    return text if len(text) <= most else f"{text[:most]}... ({len(text)} characters)"
 
 
 def _line_of(dotted: str, text: str):
@@ -142,6 +171,15 @@ class Table(dict):
     def need(self, ok: bool, name: str, message: str) -> None:
         if not ok:
             self.fail(name, message)
+
+    def no_repeats(self, name: str, items, what: str, instead: str) -> None:
+        """A list-valued key lists each entry once: a repeated entry would act twice, or one
+        would override the other, without a word."""
+        found = repeated(items) if isinstance(items, list) else None
+        if found:
+            i, j, item = found
+            self.fail(name, f"{self.key(name)} lists {what} {item!r} twice (entries {i} and "
+                            f"{j}); {instead}")
 
     def validate(self, scene: dict) -> None:
         """Each declared test, then the table's rules."""

@@ -21,7 +21,7 @@ from contactvisco.model.memory import PARTS
 from contactvisco.model.memory_kernel import as_list
 from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
                                       choices, finite, integer, is_mesh_size, modulus,
-                                      number_list, one_of)
+                                      number_list, one_of, repeated)
 
 
 #: Most cells a gmsh script may be asked for, estimated as (largest length / smallest size)^d.
@@ -29,6 +29,15 @@ MAX_SCRIPT_CELLS = 1e7
 
 #: Most boxes (each 2 triangles or 6 tetrahedra) of a box geometry.
 MAX_BOX_CELLS = 1e8
+
+#: Most points of output.probes (each is read at every step and drawn in the figures).
+MAX_PROBES = 1000
+
+#: Default of output.max_bytes: the most a run may write (estimated before its first step).
+MAX_OUTPUT_BYTES = 10e9
+
+#: Most time steps of time.steps (the memory of eq 19 is summed over all earlier steps).
+MAX_STEPS = 1_000_000
 
 
 #: contact.friction_law: the friction ball's radius is mu p_nu(u_nu) or mu (p_nu(u_nu) + R_nu).
@@ -302,6 +311,9 @@ class Memory(Table):
                   f"memory.tau must be > 0, got {taus}")
         self.need(all(finite(a) for a in alphas), "alpha",
                   f"memory.alpha must be numbers, got {alphas}")
+        self.no_repeats("tau", taus, "the time scale",
+                        "two terms with one tau are one term: give it once with the sum of "
+                        "their alphas")
 
     def _prony(self) -> None:
         terms = self["terms"]
@@ -319,6 +331,14 @@ class Memory(Table):
                       f"terms[{i}].tau", f"{where}.tau must be > 0 (inf: constant), got {tau}")
             self.need(term.get("part", "full") in PARTS, f"terms[{i}].part",
                       f"{where}.part must be full, deviatoric or volumetric")
+        scales = [(term.get("tau", math.inf), term.get("part", "full")) for term in terms]
+        found = repeated(scales)
+        if found:
+            i, j, (tau, part) = found
+            self.fail(f"terms[{j}]", f"memory.terms lists the term tau = {tau!r}, part = "
+                                     f"{part!r} twice (entries {i} and {j}): two terms with "
+                                     "one tau and part are one term; give it once with the "
+                                     "sum of their alphas")
 
     def _table(self) -> None:
         times, values = self["times"], self["values"]
@@ -484,6 +504,9 @@ class Contact(Table):
                                              and all(isinstance(b, str) for b in names)),
                   "boundary", f"contact.boundary must be a boundary name or a list of names, "
                               f"got {names!r}")
+        self.no_repeats("boundary", names, "the boundary",
+                        "a contact boundary listed twice would get the compliance twice; list "
+                        "each once")
         g = self["g"]
         self.need(isinstance(g, (int, float)) and not isinstance(g, bool) and g >= 0, "g",
                   f"contact.g must be >= 0 (inf: no bound), got {g}")
@@ -535,7 +558,7 @@ def check_contact_laws(table: Table, scene) -> None:
     None
         A refused function raises a SceneError naming the key.
     """
-    from contactvisco.scene.expressions import parse, value_at
+    from contactvisco.scene.expressions import parse
     given = [name for name in ("p_nu", "p_tau") if table[name] is not None]
     if not given:
         return
@@ -634,8 +657,12 @@ class Time(Table):
 
     def rules(self, scene):
         from contactvisco.model.stability import amplifies, stability_number, steps_for_stability
-        b = stability_number(scene)
         steps = self["steps"]
+        self.need(steps <= MAX_STEPS, "steps",
+                  f"time.steps = {steps} is more than {MAX_STEPS} steps (the memory of eq 19 "
+                  "sums over every earlier step and each step writes its records): take fewer, "
+                  "larger steps (time.rule = 'trapezoid' is second order)")
+        b = stability_number(scene)
         self.need(self["rule"] != "paper" or not amplifies(b, steps) or self["allow_unstable"],
                   "steps",
                   f"time.steps = {steps}: the paper's time rule is unstable here (b = "
@@ -707,6 +734,9 @@ class Output(Table):
                                 "an integer >= 1 (a checkpoint at every n-th step)"),
         "checkpoint_seconds": Key(0, lambda x: finite(x) and x >= 0,
                                   "a number of seconds >= 0 (0: off)"),
+        # The estimate of what a run writes (solver/check.py) is refused above this.
+        "max_bytes": Key(MAX_OUTPUT_BYTES, lambda x: (finite(x) and x > 0) or x == math.inf,
+                         "a number of bytes > 0, or inf for no limit"),
     }
 
     def rules(self, scene):
@@ -714,6 +744,13 @@ class Output(Table):
         for i, point in enumerate(self["probes"]):
             self.need(number_list(point) and len(point) == d, "probes",
                       f"output.probes[{i}] must be a list of {d} finite numbers, got {point!r}")
+        self.need(len(self["probes"]) <= MAX_PROBES, "probes",
+                  f"output.probes lists {len(self['probes'])} points, at most {MAX_PROBES} "
+                  "(each is a column of every step record and a curve of the figures; for a "
+                  "field over many points use output.fields)")
+        self.no_repeats("probes", self["probes"], "the point", "list each point once")
+        for name in ("fields", "figure_times", "field_times"):
+            self.no_repeats(name, self[name], "the entry", "list each once")
         t_end = scene["time"]["T"]
         for i, t in enumerate(self["field_times"]):
             self.need(t <= t_end, "field_times",
@@ -822,6 +859,28 @@ class Scene(Table):
                 self[name].validate(self)
         for item in (item for name in TABLE_LISTS for item in self[name]):
             item.validate(self)
+        self._repeated_boundaries()
+
+    def _repeated_boundaries(self) -> None:
+        """A boundary in two [[traction]] tables would be loaded twice; in two [[dirichlet]]
+        tables with a component in common, one value would override the other."""
+        d = self.dimension
+        for name, instead in (("traction", "give one [[traction]] table per boundary, with "
+                                           "the sum of the loads as its value"),
+                              ("dirichlet", "one value would override the other; give each "
+                                            "component of a boundary once")):
+            seen = {}
+            for j, item in enumerate(self[name]):
+                comps = item.get("components", "all")
+                comps = set(range(d)) if comps == "all" else set(comps)
+                for i, earlier in seen.get(item["boundary"], []):
+                    common = comps & earlier if name == "dirichlet" else comps
+                    if common:
+                        item.fail("boundary", f"{name}[{i}] and {name}[{j}] both act on the "
+                                              f"boundary {item['boundary']!r}"
+                                  + (f" (component {sorted(common)[0]})" if name ==
+                                     "dirichlet" else "") + f": {instead}")
+                seen.setdefault(item["boundary"], []).append((j, comps))
 
     def locate(self, err: SceneError) -> SceneError:
         """`err` (raised while building) with the origin of its key appended, once."""

@@ -73,6 +73,59 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
     return records + field_steps * (FLOAT * values + XDMF_STEP)
 
 
+def output_limit(scene: dict, problem, out) -> str:
+    """The estimated size of the run's output (`output_bytes`), refused above
+    output.max_bytes (a SceneError on every rank: the estimate is the same on all), with a
+    warning when it exceeds the free space of the output folder's disk.
+
+    Parameters
+    ----------
+    scene : dict
+        The scene.
+    problem : contactvisco.fem.problem.Problem
+        The built problem (its mesh, contact nodes and spaces give the sizes).
+    out : path-like
+        The output folder.
+
+    Returns
+    -------
+    str
+        The line that says the estimate (and warns when the disk has less free space).
+    """
+    import shutil
+
+    from contactvisco.errors import SceneError
+    estimate = output_bytes(scene, problem, problem.count_unknowns(),
+                            _global_dofs(problem.tensor_space))
+    limit = scene["output"]["max_bytes"]
+    if estimate > limit:
+        raise SceneError(
+            f"output.max_bytes: the run would write about {size_text(estimate)} into {out} "
+            f"(time.steps = {scene['time']['steps']}, output.fields = "
+            f"{scene['output']['fields']}, output.field_every = "
+            f"{scene['output']['field_every']}), more than output.max_bytes = "
+            f"{size_text(limit)}; write fields less often (output.field_every, "
+            "output.field_times, output.xdmf = false), or allow it with --allow-large-output "
+            "(output.max_bytes = inf)", key="output.max_bytes")
+    line = f"output about {size_text(estimate)} (estimate, figures left out)"
+    try:
+        free = shutil.disk_usage(out).free
+    except OSError:
+        free = None
+    if free is not None and estimate > free:
+        line += f"; warning: more than the {size_text(free)} free on the disk of {out}"
+    return line
+
+
+def size_text(n: float) -> str:
+    """A number of bytes in B, kB, MB, GB or TB (powers of 1000)."""
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000:
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return f"{n:.1f} TB" if n < 1e15 else f"{n:.3g} TB"
+
+
 def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     """Build a scene's mesh, problem and solver, run every check a run makes before solving,
     and report the size of the run. Collective.
@@ -100,6 +153,8 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     SceneError
         What a run would refuse before its first step.
     """
+    from contactvisco.io import parallel
+    parallel.same_scene(comm, scene)
     geometry = geometry or geometry_module.build(scene, comm)
     mesh = geometry.mesh
     geometry_module.check_probes(mesh, scene["output"]["probes"])

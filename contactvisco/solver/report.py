@@ -26,9 +26,10 @@ def printer(comm, enabled):
     return say
 
 
-def announce(scene, problem, snes, comm, setup_s, say, writer=None):
-    """The output folder, the header line, the memory note and the time-rule warning; with a
-    verbose `say`, a line per Newton iteration from then on."""
+def announce(scene, problem, snes, comm, setup_s, say, writer=None, output=None):
+    """The output folder, the header line (ending with `output`, the estimate of what the run
+    writes, when given), the memory note and the time-rule warning; with a verbose `say`, a
+    line per Newton iteration from then on."""
     if writer is not None:
         say(f"writing to {writer.folder}")
     if getattr(say, "verbose", False):
@@ -40,7 +41,7 @@ def announce(scene, problem, snes, comm, setup_s, say, writer=None):
         f"displacement unknowns"
         + (f", {contact_nodes} contact nodes ({multipliers})" if contact_nodes else "")
         + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
-        f"{setup_s:.2f} s")
+        f"{setup_s:.2f} s" + (f"; {output}" if output else ""))
     note = memory_note(problem)
     if note:
         say(note)

@@ -101,20 +101,28 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     """
     started = clock.perf_counter()
     parallel.prepare(comm)          # collective: while every rank is still in step
+    parallel.same_scene(comm, scene)
     folder_lock = FolderLock(out, comm, restart, overwrite) if out else None
     snes, held = None, {}          # held: what must be closed however the run ends
     signals = parallel.catch_signals()
     try:
         geometry = geometry or geometry_module.build(scene, comm)
         problem = build(scene, geometry)
+        estimate = None
+        if out:                           # before a step, and before the solver's set-up
+            from contactvisco.solver.check import output_limit
+            estimate = output_limit(scene, problem, out)
         snes = solver_module.create(problem, comm)
         run = Run(scene, out, comm, problem, snes, progress, restart, started)
+        run.output_estimate = estimate
         held["writer"] = run.writer
         result = run.loop(keep_tables, on_step)
     except BaseException as err:
         # Destroying the SNES is collective: only when every rank failed.
         if not parallel.together(comm, err):
             snes = None
+            if isinstance(err, Exception):     # the others wait in a collective: end them
+                parallel.end_if_alone(comm, err)
         raise
     finally:
         parallel.restore_signals(signals)
@@ -152,7 +160,8 @@ class Run:
         scene, problem, snes, comm = self.scene, self.problem, self.snes, self.comm
         t_end, steps = scene["time"]["T"], scene["time"]["steps"]
         k = t_end / steps
-        report.announce(scene, problem, snes, comm, self.setup_s, self.say, self.writer)
+        report.announce(scene, problem, snes, comm, self.setup_s, self.say, self.writer,
+                        getattr(self, "output_estimate", None))
         result = Result(problem, linear_system=snes.system_kind,
                         linear_solver=snes.linear_solver())
         observers = [recorder(result, keep_tables), *self._file_observers(k),

@@ -41,6 +41,7 @@ import tomllib
 import numpy as np
 from mpi4py import MPI
 
+from contactvisco.errors import SceneError
 from contactvisco.io import files
 from contactvisco.model.material import dimension
 from contactvisco.scene import loader as scene_module
@@ -371,8 +372,7 @@ def tradeoff(source: str, target: float, overrides=(), measure: str = "contact_p
         raise TradeoffError(f"unknown measure '{measure}'; allowed: {', '.join(MEASURES)}")
     if not target > 0:
         raise TradeoffError(f"--target must be > 0 (a relative error), got {target}")
-    if levels < 2:
-        raise TradeoffError(f"--levels must be >= 2, got {levels}")
+    check_options(target, levels, coarsest, degrees, budget)
     overrides = list(overrides)
     scene = scene_module.load(source, overrides)
     if measure != "probe" and scene["contact"] is None:
@@ -381,6 +381,7 @@ def tradeoff(source: str, target: float, overrides=(), measure: str = "contact_p
         raise TradeoffError(f"scene '{scene['name']}' has no output.probes for --measure probe")
     d = dimension(scene)
     ladder = rungs(scene, levels, coarsest, degrees)
+    _check_ends(source, overrides, ladder)
     say = say if comm.rank == 0 else (lambda *a, **k: None)
     started = clock.perf_counter()
     stopped = None
@@ -413,6 +414,68 @@ def tradeoff(source: str, target: float, overrides=(), measure: str = "contact_p
         write(result, pathlib.Path(out), source, overrides)
     comm.barrier()
     return result
+
+
+#: Most mesh levels of a ladder: each doubles the cells per direction (4^levels in 2D).
+MAX_LEVELS = 8
+
+
+def check_options(target: float, levels, coarsest: float, degrees, budget: float) -> None:
+    """The ladder's options at their edges: a relative error target in (0, 1), an integer
+    number of levels from 2 to MAX_LEVELS, a finite coarsest mesh factor > 0, distinct
+    degrees 1 or 2, a budget of seconds > 0 (inf: none).
+
+    Parameters
+    ----------
+    target, levels, coarsest, degrees, budget
+        As for `tradeoff`.
+
+    Raises
+    ------
+    TradeoffError
+        Naming the option, the value and what is allowed.
+    """
+    def number(x) -> bool:
+        return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+    if not (number(target) and 0 < target < 1):
+        raise TradeoffError(f"--target must be a relative error between 0 and 1 (e.g. 0.01), "
+                            f"got {target}")
+    if not (isinstance(levels, int) and not isinstance(levels, bool)
+            and 2 <= levels <= MAX_LEVELS):
+        raise TradeoffError(f"--levels must be an integer from 2 to {MAX_LEVELS} (each level "
+                            f"doubles the cells in every direction), got {levels}")
+    if not (number(coarsest) and math.isfinite(coarsest) and coarsest > 0):
+        raise TradeoffError(f"--coarsest must be a finite mesh factor > 0 (0.25: a quarter of "
+                            f"the scene's cells per direction), got {coarsest}")
+    degrees = tuple(degrees)
+    if not degrees or any(d not in (1, 2) for d in degrees) or len(set(degrees)) < len(degrees):
+        raise TradeoffError(f"--degrees must list 1 and/or 2, each once, got "
+                            f"{','.join(map(str, degrees)) or 'nothing'}")
+    if not (number(budget) and budget > 0):
+        raise TradeoffError(f"--budget must be a number of seconds > 0 (inf: no bound), got "
+                            f"{budget}")
+
+
+def _check_ends(source: str, overrides: list, ladder: list) -> None:
+    """The coarsest and the finest rung are scenes that load (a mesh of at least a cell, not
+    beyond the scene limits), before any run: a refused rung must not end the climb halfway."""
+    for rung in (ladder[0], max(ladder, key=lambda r: (r["mesh"], r["steps"], r["degree"]))):
+        try:
+            scene_module.load(source, overrides + rung["set"])
+        except SceneError as err:
+            raise TradeoffError(f"mesh x{rung['mesh']:g}, {rung['steps']} steps, "
+                                f"P{rung['degree']} of the ladder cannot run: {err}; change "
+                                "--coarsest or --levels") from None
+    meshes = {}
+    for rung in ladder:
+        lines = tuple(line for line in rung["set"] if line.startswith("geometry."))
+        meshes.setdefault(rung["level"], lines)
+    for level in range(1, len(meshes)):
+        if meshes[level] == meshes[level - 1]:
+            raise TradeoffError(f"--coarsest: mesh levels {level} and {level + 1} of the "
+                                f"ladder are the same mesh ({', '.join(meshes[level])}): the "
+                                "coarsest level is below one cell; raise --coarsest")
 
 
 def _predict(rung: dict, done: list, d: int) -> float | None:

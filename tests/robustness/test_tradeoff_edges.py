@@ -1,0 +1,59 @@
+"""The tradeoff study's options at their edges (zero, tiny, negative, not finite, too many
+levels): a TradeoffError naming the option before any run, and exit 2 on the command line."""
+import math
+
+import pytest
+
+from contactvisco.studies import tradeoff
+from helpers import run_cli
+
+GOOD = dict(target=0.01, levels=3, coarsest=0.25, degrees=(1, 2), budget=math.inf)
+
+EDGES = [
+    ("target", 0.0, "--target must be > 0"),
+    ("target", -0.01, "--target must be > 0"),
+    ("target", math.nan, "--target must be > 0"),
+    ("target", math.inf, "--target must be a relative error between 0 and 1"),
+    ("target", 1.0, "--target must be a relative error between 0 and 1"),
+    ("levels", 1, "--levels must be an integer from 2 to 8"),
+    ("levels", 0, "--levels must be an integer from 2 to 8"),
+    ("levels", -2, "--levels must be an integer from 2 to 8"),
+    ("levels", 1000, "--levels must be an integer from 2 to 8"),
+    ("levels", True, "--levels must be an integer from 2 to 8"),
+    ("coarsest", 0.0, "--coarsest must be a finite mesh factor > 0"),
+    ("coarsest", -0.25, "--coarsest must be a finite mesh factor > 0"),
+    ("coarsest", math.nan, "--coarsest must be a finite mesh factor > 0"),
+    ("coarsest", math.inf, "--coarsest must be a finite mesh factor > 0"),
+    ("coarsest", 1e-300, "--coarsest: mesh levels 1 and 2 of the ladder are the same mesh"),
+    ("coarsest", 1e6, "of the ladder cannot run: geometry.cells"),
+    ("degrees", (1, 1), "--degrees must list 1 and/or 2, each once"),
+    ("degrees", (), "--degrees must list 1 and/or 2, each once"),
+    ("degrees", (3,), "--degrees must list 1 and/or 2, each once"),
+    ("budget", 0.0, "--budget must be a number of seconds > 0"),
+    ("budget", -1.0, "--budget must be a number of seconds > 0"),
+    ("budget", math.nan, "--budget must be a number of seconds > 0"),
+]
+
+
+@pytest.mark.parametrize("option, value, words", EDGES,
+                         ids=[f"{o}={v!r}" for o, v, _ in EDGES])
+def test_an_option_at_its_edge_is_refused_before_any_run(tmp_path, option, value, words):
+    args = dict(GOOD, **{option: value})
+    with pytest.raises(tradeoff.TradeoffError, match=words.replace("(", r"\(")):
+        tradeoff.tradeoff("paper", out=tmp_path / "t", **args)
+    assert not (tmp_path / "t").exists()
+
+
+def test_the_options_inside_their_edges_pass():
+    tradeoff.check_options(1e-12, 2, 1e-3, (2,), 1e-9)
+    tradeoff.check_options(0.999, tradeoff.MAX_LEVELS, 4.0, (1, 2), math.inf)
+
+
+@pytest.mark.parametrize("args", [["--target", "0"], ["--target", "0.01", "--levels", "0"],
+                                  ["--target", "0.01", "--coarsest", "-1"],
+                                  ["--target", "0.01", "--budget", "nan"],
+                                  ["--target", "0.01", "--degrees", "2,2"]])
+def test_the_command_line_exits_2_with_one_line(tmp_path, args):
+    proc = run_cli("tradeoff", "paper", "--out", tmp_path / "t", *args, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
