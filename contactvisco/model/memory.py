@@ -80,7 +80,7 @@ class History:
             self.sums = [np.zeros_like(eps) for _ in self.terms]
         else:
             for total, (_, tau, part) in zip(self.sums, self.terms):
-                dec = math.exp(-k / tau)              # 1 if tau = inf
+                dec = _decay(k, tau)                  # 1 if tau = inf
                 total *= dec
                 total += (0.5 * k * dec) * self.last[part] + (0.5 * k) * parts[part]
         self.last = parts
@@ -91,7 +91,7 @@ class History:
         c = 1.0 if self.rule == "paper" else 0.5
         out = np.zeros_like(self.sums[0])
         for (a, tau, part), total in zip(self.terms, self.sums):
-            dec = math.exp(-k / tau)
+            dec = _decay(k, tau)
             out += (a * dec) * total + (a * c * k * dec) * self.last[part]
         return out
 
@@ -116,6 +116,78 @@ class History:
         self.sums = [state[f"sum{i}"].copy() for i in range(count)] or None
         self.last = {key[5:]: value.copy() for key, value in state.items()
                      if key.startswith("last_")} or None
+
+
+def _decay(k, tau: float):
+    """exp(-k/tau) of a step k: a number, or an array of reduced-time increments per value."""
+    return np.exp(-k / tau) if isinstance(k, np.ndarray) else math.exp(-k / tau)
+
+
+class ReducedTimeHistory:
+    """A Prony :class:`History` advanced in reduced time (time-temperature superposition):
+    d xi = dt / a_T(theta) at each point, so a step of size k is, point by point, the reduced
+    increment (trapezoid rule in t)
+
+        dxi = k/2 (1/a_T(theta_n) + 1/a_T(theta_{n+1})),
+
+    and the recursion of :class:`History` runs with exp(-dxi/tau_i) and the trapezoid weights
+    dxi/2 per point instead of exp(-k/tau_i) and k/2: still O(1) work and memory per step.
+    With eps = 0 before t = 0, sigma(t) = int phi(xi(t) - xi(s)) d eps(s) is eq (7) in xi:
+    A eps(t) + int_0^xi(t) R(xi(t) - xi') eps(xi') dxi'. The implicit weight of the trapezoid
+    rule, dxi/2 R(0), is then a field (one value per point).
+
+    Parameters
+    ----------
+    history : History
+        The isothermal recursion of the kernel (terms in reduced time).
+    block : int
+        Values per point of the strain arrays (d * d).
+    """
+
+    def __init__(self, history: History, block: int):
+        self.history, self.block = history, block
+        self.k, self.rule, self.d, self.direct = history.k, history.rule, history.d, False
+        self.staged: np.ndarray | None = None      # 1/a_T at the staged time, per point
+        self.committed: np.ndarray | None = None   # 1/a_T at the committed time
+
+    def stage(self, inverse_shift: np.ndarray):
+        """Take 1/a_T(theta) per point at the time the problem was moved to."""
+        self.staged = np.asarray(inverse_shift, float).copy()
+
+    def increment(self, k: float) -> np.ndarray:
+        """The reduced-time increment per point of a step of size k from the committed time to
+        the staged time (the time of the last :meth:`stage`)."""
+        return 0.5 * k * (self.committed + self.staged)
+
+    def commit(self, eps: np.ndarray, k: float | None):
+        """Take the strain of a converged state reached by a step of size k (None at t_0)."""
+        dxi = None if k is None else np.repeat(self.increment(k), self.block)
+        self.history.commit(eps, dxi)
+        self.committed = self.staged.copy()
+
+    def explicit(self, k: float) -> np.ndarray:
+        """The history stress (explicit part) of a step of size k to the staged time."""
+        return self.history.explicit(np.repeat(self.increment(k), self.block))
+
+    def implicit(self, k: float) -> dict:
+        """Per part, the weight dxi/2 R(0) per point (trapezoid rule; a number 0 before a
+        step is prepared)."""
+        if self.committed is None or self.staged is None:
+            return self.history.implicit(0.0)
+        return self.history.implicit(self.increment(k))
+
+    def state(self) -> dict:
+        out = self.history.state()
+        if self.committed is not None:
+            out["inverse_shift"] = np.repeat(self.committed, self.block)
+        return out
+
+    def restore(self, state: dict):
+        state = dict(state)
+        inverse = state.pop("inverse_shift", None)
+        self.history.restore(state)
+        if inverse is not None:
+            self.committed = np.asarray(inverse)[::self.block].copy()
 
 
 class StrainRecord:

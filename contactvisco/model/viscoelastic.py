@@ -286,10 +286,10 @@ def log10_shift(shift: dict, theta):
     Parameters
     ----------
     shift : dict
-        ``{"type": "wlf", "T_ref", "C1", "C2"}``: log10 a_T = -C1 (T - T_ref) / (C2 + T - T_ref)
-        (Williams, Landel and Ferry 1955); ``{"type": "arrhenius", "T_ref", "activation_energy"}``
-        (J/mol, temperatures in kelvin): log10 a_T = Ea / (R ln 10) (1/T - 1/T_ref);
-        ``{"type": "none"}``: 0.
+        ``{"shift": "wlf", "T_ref", "C1", "C2"}``: log10 a_T = -C1 (T - T_ref) /
+        (C2 + T - T_ref) (Williams, Landel and Ferry 1955); ``{"shift": "arrhenius", "T_ref",
+        "activation_energy"}`` (J/mol, temperatures in kelvin): log10 a_T =
+        Ea / (R ln 10) (1/T - 1/T_ref); ``{"shift": "none"}``: 0 (a [viscoelastic] table).
     theta : float or array
         Temperatures.
 
@@ -299,7 +299,7 @@ def log10_shift(shift: dict, theta):
         log10 a_T; a_T > 1 below T_ref (slower), < 1 above.
     """
     theta = np.asarray(theta, float)
-    kind = shift.get("type", "none")
+    kind = shift.get("shift", "none")
     if kind == "none":
         return 0.0 * theta
     d = theta - float(shift["T_ref"])
@@ -309,6 +309,72 @@ def log10_shift(shift: dict, theta):
         return (float(shift["activation_energy"]) / (GAS_CONSTANT * math.log(10.0))
                 * (1.0 / theta - 1.0 / float(shift["T_ref"])))
     raise ValueError(f"unknown shift type {kind!r}")
+
+
+#: Largest |log10 a_T| taken: beyond, 1/a_T is 0 or overflows in double precision.
+MAX_LOG10_SHIFT = 300.0
+
+
+def shift_error(shift: dict, theta) -> str | None:
+    """Why the shift function cannot be taken at the temperatures theta, or None.
+
+    Parameters
+    ----------
+    shift : dict
+        As for :func:`log10_shift`.
+    theta : float or array
+        Temperatures.
+
+    Returns
+    -------
+    str or None
+        WLF with C2 + T - T_ref <= 0 (outside its range), Arrhenius with T <= 0 (kelvin), or
+        |log10 a_T| > MAX_LOG10_SHIFT; None when every temperature is fine.
+    """
+    theta = np.atleast_1d(np.asarray(theta, float))
+    kind = shift.get("shift", "none")
+    if theta.size == 0 or kind == "none":
+        return None
+    if not np.all(np.isfinite(theta)):
+        return "viscoelastic.temperature is not a finite number"
+    if kind == "wlf":
+        den = float(shift["C2"]) + theta - float(shift["T_ref"])
+        if np.any(den <= 0):
+            i = int(np.argmin(den))
+            return (f"viscoelastic.temperature = {theta[i]:.6g}: C2 + T - T_ref = {den[i]:.6g} "
+                    f"<= 0, outside the range of the WLF shift (T must exceed T_ref - C2 = "
+                    f"{float(shift['T_ref']) - float(shift['C2']):.6g})")
+    if kind == "arrhenius" and np.any(theta <= 0):
+        return (f"viscoelastic.temperature = {theta.min():.6g}: the Arrhenius shift takes "
+                "absolute temperatures (kelvin), > 0")
+    log10_aT = log10_shift(shift, theta)
+    if np.any(np.abs(log10_aT) > MAX_LOG10_SHIFT):
+        i = int(np.argmax(np.abs(log10_aT)))
+        return (f"viscoelastic.temperature = {theta[i]:.6g}: log10 a_T = {log10_aT[i]:.6g} is "
+                f"beyond +-{MAX_LOG10_SHIFT:g} (the relaxation times would be 0 or infinite)")
+    return None
+
+
+def inverse_shift(shift: dict, theta) -> tuple[np.ndarray, str | None]:
+    """1/a_T(theta), the rate of reduced time d xi / dt, and why it cannot be taken.
+
+    Parameters
+    ----------
+    shift : dict
+        As for :func:`log10_shift` (a [viscoelastic] table).
+    theta : array
+        Temperatures.
+
+    Returns
+    -------
+    tuple
+        (1/a_T = 10^(-log10 a_T) per temperature, :func:`shift_error` or None); where there is
+        an error the values are not to be used.
+    """
+    error = shift_error(shift, theta)
+    if error is not None:
+        return np.ones_like(np.asarray(theta, float)), error
+    return 10.0 ** -log10_shift(shift, theta), None
 
 
 def shifted(phi: PronySeries, log10_aT: float) -> PronySeries:

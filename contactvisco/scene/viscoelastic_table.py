@@ -21,6 +21,9 @@ from contactvisco.scene.table import MODULUS_RANGE, Key, Table, finite, modulus,
 SERIES_KEYS = ("instantaneous", "long_term", "tau", "moduli", "fractions", "file", "values",
                "scale", "time_scale")
 
+#: viscoelastic.shift: the shift functions a_T of time-temperature superposition.
+SHIFTS = ("none", "wlf", "arrhenius")
+
 #: Material keys that [viscoelastic] derives.
 DERIVED_MATERIAL = ("E", "nu", "lambda", "mu")
 
@@ -40,7 +43,42 @@ class Viscoelastic(Table):
         "nu": Key(None, lambda x: x is None or finite(x), "a finite number"),
         "T_ref": Key(None, lambda x: x is None or finite(x),
                      "a finite number (the temperature of the Prony terms)"),
+        "temperature": Key(None),
+        "shift": Key("none", one_of(*SHIFTS), "none, wlf or arrhenius"),
+        "C1": Key(None, lambda x: x is None or finite(x), "a finite number"),
+        "C2": Key(None, lambda x: x is None or (finite(x) and x > 0), "a number > 0"),
+        "activation_energy": Key(None, lambda x: x is None or (finite(x) and x > 0),
+                                 "a number > 0 (J/mol)"),
     }
+
+    def rules(self, scene):
+        """The shift function's constants, and a temperature only with a shift function (a
+        number is checked here; an expression at each step, point by point)."""
+        shift = self["shift"]
+        needed = {"none": (), "wlf": ("T_ref", "C1", "C2"),
+                  "arrhenius": ("T_ref", "activation_energy")}[shift]
+        for name in needed:
+            self.need(self[name] is not None, name,
+                      f"viscoelastic.shift = '{shift}' needs viscoelastic.{name}")
+        for name in ("C1", "C2", "activation_energy"):
+            self.need(self[name] is None or name in needed, name,
+                      f"viscoelastic.{name} belongs to another shift function than "
+                      f"viscoelastic.shift = '{shift}'")
+        if shift == "arrhenius":
+            self.need(self["T_ref"] > 0, "T_ref", "viscoelastic.T_ref must be > 0 (kelvin) "
+                                                  "for the Arrhenius shift")
+        theta = self["temperature"]
+        if theta is None:
+            return
+        self.need(shift != "none", "temperature",
+                  "viscoelastic.temperature needs a shift function (viscoelastic.shift = "
+                  "'wlf' or 'arrhenius') to act on the relaxation times")
+        self.expression("temperature", theta, scene.dimension)
+        if finite(theta):
+            error = ve.shift_error(self, theta)
+            self.need(error is None, "temperature", str(error))
+        self.need(scene["memory"]["kernel"] in ("prony", "none"), "temperature",
+                  "viscoelastic.temperature: reduced time runs the Prony recursion")
 
     def series(self, name: str, base: pathlib.Path | None) -> ve.PronySeries:
         """The checked Prony series of viscoelastic.<name> (a file read from `base`)."""

@@ -74,7 +74,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
             "output": {"xdmf": False, "figures": False, "checkpoint": False}}
 
 
-def block_stress(raw: dict, comm=MPI.COMM_WORLD) -> tuple[np.ndarray, np.ndarray]:
+def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     """Run a raw scene step by step and return the mean stress of the body at each step.
 
     Parameters
@@ -83,12 +83,15 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD) -> tuple[np.ndarray, np.ndarray
         A raw scene (e.g. :func:`block_scene`).
     comm : mpi4py.MPI.Comm, optional
         The communicator (collective).
+    per_point : bool, optional
+        True: the stress at each point of the stress space this rank owns, not the mean.
 
     Returns
     -------
     tuple of numpy.ndarray
         The times t_n = n T / N and the stresses, shape (N + 1, d, d): the mean over the cells
-        of the stress's values (the stress of a homogeneous state).
+        of the stress's values (the stress of a homogeneous state); with per_point, shape
+        (N + 1, points, d, d), then the points' coordinates (points, 3).
     """
     scene = loader.resolve(raw)
     geometry = geometry_module.build(scene, comm)
@@ -107,10 +110,16 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD) -> tuple[np.ndarray, np.ndarray
         problem.time.commit()
         sigma.interpolate(problem.sigma_expression)
         values = sigma.x.array[:owned * bs].reshape(-1, d, d)
+        times.append(n * T / N)
+        if per_point:
+            out.append(values.copy())
+            continue
         total = comm.allreduce(values.sum(axis=0), MPI.SUM)
         count = comm.allreduce(values.shape[0], MPI.SUM)
-        times.append(n * T / N)
         out.append(total / count)
+    if per_point:
+        points = problem.tensor_space.tabulate_dof_coordinates()[:owned]
+        return np.array(times), np.array(out), points
     return np.array(times), np.array(out)
 
 

@@ -258,3 +258,82 @@ def test_csv_missing_and_mixed(tmp_path):
     path = csv_scene(tmp_path, "tau,G\n1,1\n", tau=[1.0])
     with pytest.raises(SceneError, match="leave out"):
         loader.load(path)
+
+
+# --- Time-temperature superposition --------------------------------------------------------
+
+WLF = {"shift": "wlf", "T_ref": 50.0, "C1": 17.44, "C2": 51.6}
+
+
+@pytest.mark.parametrize("theta", [53.0, 45.0])
+def test_constant_temperature_is_scaled_time(theta):
+    """A constant theta != T_ref runs the T_ref material with time scaled by a_T: the ramp
+    eps = t E over [0, T] at theta equals the ramp eps = a_T t E over [0, T/a_T] at T_ref,
+    with the same number of steps, to round-off (a_T = 0.110 and 74.3 here)."""
+    visco = dict(MATERIALS["both"][0], **WLF)
+    a = 10 ** float(ve.log10_shift(visco, theta))
+    assert abs(math.log10(a)) > 0.9                   # a real change of time scale
+    _, hot = rl.block_stress(rl.block_scene(dict(visco, temperature=theta), "plane_strain",
+                                            STRAIN_2D, "ramp", 2.0, 12))
+    _, ref = rl.block_stress(rl.block_scene(visco, "plane_strain", STRAIN_2D, "ramp", 2.0 / a,
+                                            12, rate=a))
+    _, iso = rl.block_stress(rl.block_scene(visco, "plane_strain", STRAIN_2D, "ramp", 2.0, 12))
+    assert np.abs(hot - ref).max() <= 1e-13 * np.abs(ref).max()
+    assert np.abs(hot - iso).max() > 1e-2 * np.abs(iso).max()
+
+
+def maxwell_reduced(theta_of, t, tau=0.5, g=0.4, G0=10.0, gamma=0.01, fine=20000):
+    """sigma_12 of a shear step gamma at t = 0 for G(xi) = G0 (1 - g + g exp(-xi/tau)), xi(t) =
+    int_0^t 1/a_T(theta(s)) ds by Simpson's rule on `fine` intervals (to 1e-14)."""
+    s = np.linspace(0.0, t, fine + 1)
+    rate = 10.0 ** -ve.log10_shift(WLF, theta_of(s))
+    xi = (t / fine / 3) * (rate[0] + rate[-1] + 4 * rate[1:-1:2].sum() + 2 * rate[2:-1:2].sum())
+    return 2 * gamma * G0 * (1 - g + g * math.exp(-xi / tau))
+
+
+def test_temperature_ramp_and_field():
+    """A shear step under a temperature rising in t and varying in x (theta = 50 + 2 t +
+    1.5 x[0], a_T from 1 to 0.11): at each of the two cells' points, sigma_12 is the single Maxwell term in reduced
+    time xi(t) = int dt / a_T; the error decreases with order 2 (the trapezoid rule in xi, and
+    in t for xi)."""
+    visco = dict(WLF, temperature="50.0 + 2.0 * t + 1.5 * x[0]",
+                 shear={"instantaneous": 10.0, "tau": [0.5], "fractions": [0.4]},
+                 bulk={"instantaneous": 25.0})
+    strain = [[0.0, 0.01], [0.01, 0.0]]
+    errors = []
+    for steps in (20, 40, 80):
+        t, sigma, points = rl.block_stress(rl.block_scene(visco, "plane_strain", strain, "step",
+                                                          1.0, steps), MPI.COMM_SELF,
+                                           per_point=True)
+        exact = [[maxwell_reduced(lambda s, x=p[0]: 50.0 + 2.0 * s + 1.5 * x, tn)
+                  for p in points] for tn in t]
+        errors.append(np.abs(sigma[:, :, 0, 1] - np.array(exact)).max())
+    middle = sigma[len(t) // 4, :, 0, 1]
+    assert np.ptp(middle) > 1e-2 * abs(middle[0])   # the points relax differently
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert all(abs(p - 2.0) < 0.1 for p in orders), (errors, orders)
+
+
+@pytest.mark.parametrize("extra, key, words", [
+    ({"temperature": 60.0}, "viscoelastic.temperature", "needs a shift function"),
+    (dict(WLF, temperature=-10.0), "viscoelastic.temperature", "outside the range of the WLF"),
+    (dict(WLF, temperature=0.0), "viscoelastic.temperature", "log10 a_T = 545 is beyond"),
+    ({"shift": "wlf", "T_ref": 50.0, "C1": 17.44}, "viscoelastic.C2", "needs viscoelastic.C2"),
+    ({"shift": "arrhenius", "T_ref": 300.0, "activation_energy": 1e5, "temperature": -3.0},
+     "viscoelastic.temperature", "kelvin"),
+    (dict(WLF, activation_energy=1e5), "viscoelastic.activation_energy", "another shift"),
+])
+def test_temperature_refused(extra, key, words):
+    with pytest.raises(SceneError) as err:
+        loader.resolve(scene_with(**MATERIALS["both"][0], **extra))
+    assert err.value.key == key and words in str(err.value), str(err.value)
+
+
+def test_wlf_range_at_run_time():
+    """An expression that leaves the WLF range during the run stops it with the key and the
+    time (every rank)."""
+    visco = dict(MATERIALS["both"][0], **WLF, temperature="50.0 - 60.0 * t")
+    raw = rl.block_scene(visco, "plane_strain", STRAIN_2D, "step", 1.0, 4)
+    with pytest.raises(SceneError, match=r"outside the range of the WLF.*at t = 1\)") as err:
+        rl.block_stress(raw)
+    assert err.value.key == "viscoelastic.temperature"
