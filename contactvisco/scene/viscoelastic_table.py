@@ -223,6 +223,9 @@ class Viscoelastic(Table):
                       "bulk), or viscoelastic.young with a constant nu, or use plane_strain or "
                       "3d")
         E, nu, terms = ve.paper_form(model, shear, bulk)
+        # the functions as entered, for the figures (an attribute: not a scene key)
+        self.functions = ({"young": self.series("young", base)} if self["young"] is not None
+                          else {"shear": shear, "bulk": bulk})
         scene["material"]["E"], scene["material"]["nu"] = E, nu
         memory = scene["memory"]
         memory["kernel"] = "prony" if terms else "none"

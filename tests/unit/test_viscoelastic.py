@@ -337,3 +337,37 @@ def test_wlf_range_at_run_time():
     with pytest.raises(SceneError, match=r"outside the range of the WLF.*at t = 1\)") as err:
         rl.block_stress(raw)
     assert err.value.key == "viscoelastic.temperature"
+
+
+# --- Outputs -------------------------------------------------------------------------------
+
+def test_relaxation_figure_closed_forms():
+    """The figure's loss modulus of one Maxwell term peaks at w = 1/tau with G1/2, and at w =
+    1/(a_T tau) on the master curve shifted to another temperature; the relaxation modulus
+    runs from G(0) to G_inf."""
+    from contactvisco.post.figures import relaxation_figure
+    visco = dict(WLF, shear={"instantaneous": 10.0, "tau": [0.5], "fractions": [0.4]},
+                 bulk={"instantaneous": 25.0})
+    scene = loader.resolve(scene_with(**visco))
+    omegas = np.geomspace(1e-4, 1e4, 8001)
+    fig = relaxation_figure(scene, temperatures=[55.0], omegas=omegas)
+    relax, storage, loss = fig.axes
+    shear_ref, shear_hot = (line.get_ydata() for line in loss.lines[:2])   # then bulk's
+    a = 10 ** float(ve.log10_shift(visco, 55.0))
+    for values, peak in ((shear_ref, 1 / 0.5), (shear_hot, 1 / (0.5 * a))):
+        assert omegas[np.argmax(values)] == pytest.approx(peak, rel=3e-3)
+        assert values.max() == pytest.approx(4.0 / 2, rel=1e-6)
+    G = relax.lines[0].get_ydata()
+    assert G[0] == pytest.approx(10.0, rel=1e-3) and G[-1] == pytest.approx(6.0, rel=1e-3)
+    with pytest.raises(SceneError, match="needs a scene with"):
+        relaxation_figure(loader.load("paper"))
+
+
+def test_relaxation_command(tmp_path):
+    from helpers import run_cli
+    path = csv_scene(tmp_path, "tau,G\n0.3,3\n2,2\n")
+    out = tmp_path / "moduli.png"
+    done = run_cli("relaxation", path, "--out", out, timeout=120)
+    assert done.returncode == 0 and out.stat().st_size > 1000, done.stderr
+    done = run_cli("relaxation", path, "--temperature", "40", timeout=120)
+    assert done.returncode == 2 and "viscoelastic.shift" in done.stderr
