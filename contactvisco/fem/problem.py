@@ -541,7 +541,7 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
     theta = fem.Function(scalars, name="temperature")
     follow = _interpolator(theta, context.scalar(visco["temperature"],
                                                  "viscoelastic.temperature"), scalars)
-    owned = scalars.dofmap.index_map.size_local
+    reduced.owned = scalars.dofmap.index_map.size_local    # points of this rank (then ghosts)
 
     def stage():
         follow()
@@ -550,7 +550,7 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
         if error:
             raise SceneError(f"{error} (at t = {float(context.t.value):g})",
                              key="viscoelastic.temperature")
-        reduced.stage(inverse)
+        reduced.stage(inverse, theta.x.array)
 
     updates.append(stage)
     constants = {f"memory_implicit_{part}": fem.Function(scalars)

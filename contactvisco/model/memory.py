@@ -149,10 +149,14 @@ class ReducedTimeHistory:
         self.k, self.rule, self.d, self.direct = history.k, history.rule, history.d, False
         self.staged: np.ndarray | None = None      # 1/a_T at the staged time, per point
         self.committed: np.ndarray | None = None   # 1/a_T at the committed time
+        self.temperature: np.ndarray | None = None  # theta at the staged time, per point
+        self.reduced_time: np.ndarray | None = None  # xi at the committed time, per point
 
-    def stage(self, inverse_shift: np.ndarray):
-        """Take 1/a_T(theta) per point at the time the problem was moved to."""
+    def stage(self, inverse_shift: np.ndarray, temperature: np.ndarray | None = None):
+        """Take 1/a_T(theta) (and theta) per point at the time the problem was moved to."""
         self.staged = np.asarray(inverse_shift, float).copy()
+        if temperature is not None:
+            self.temperature = np.asarray(temperature, float).copy()
 
     def increment(self, k: float) -> np.ndarray:
         """The reduced-time increment per point of a step of size k from the committed time to
@@ -161,8 +165,13 @@ class ReducedTimeHistory:
 
     def commit(self, eps: np.ndarray, k: float | None):
         """Take the strain of a converged state reached by a step of size k (None at t_0)."""
-        dxi = None if k is None else np.repeat(self.increment(k), self.block)
-        self.history.commit(eps, dxi)
+        if k is None:
+            self.history.commit(eps, None)
+            self.reduced_time = np.zeros_like(self.staged)
+        else:
+            increment = self.increment(k)
+            self.history.commit(eps, np.repeat(increment, self.block))
+            self.reduced_time = self.reduced_time + increment
         self.committed = self.staged.copy()
 
     def explicit(self, k: float) -> np.ndarray:
@@ -180,14 +189,17 @@ class ReducedTimeHistory:
         out = self.history.state()
         if self.committed is not None:
             out["inverse_shift"] = np.repeat(self.committed, self.block)
+            out["reduced_time"] = np.repeat(self.reduced_time, self.block)
         return out
 
     def restore(self, state: dict):
         state = dict(state)
         inverse = state.pop("inverse_shift", None)
+        reduced = state.pop("reduced_time", None)
         self.history.restore(state)
         if inverse is not None:
             self.committed = np.asarray(inverse)[::self.block].copy()
+            self.reduced_time = np.asarray(reduced)[::self.block].copy()
 
 
 class StrainRecord:

@@ -52,8 +52,46 @@ class Viscoelastic(Table):
     }
 
     def rules(self, scene):
-        """The shift function's constants, and a temperature only with a shift function (a
-        number is checked here; an expression at each step, point by point)."""
+        """The shift function's constants, a temperature only with a shift function (a
+        number is checked here; an expression at each step, point by point), and a time step
+        that keeps the trapezoid rule's operator positive."""
+        self._shift_rules(scene)
+        self._implicit_operator(scene)
+
+    def _implicit_operator(self, scene) -> None:
+        """With the trapezoid rule the step solves (A + k/2 R(0)) eps = ..., R(0) < 0 for a
+        relaxing material: per part, the instantaneous modulus plus k/2 R(0) must stay > 0, or
+        the discrete material has a negative stiffness (k in reduced time, k / a_T, for a
+        constant temperature; a step cut halves k)."""
+        time, memory = scene["time"], scene["memory"]
+        if time["rule"] != "trapezoid" or memory["kernel"] != "prony":
+            return
+        from contactvisco.model.material import lame_constants
+        mat = scene["material"]
+        lam, mu = lame_constants(mat["model"], mat["E"], mat["nu"])
+        d = scene.dimension
+        A = {"deviatoric": 2 * mu, "volumetric": d * lam + 2 * mu}
+        k = time["T"] / time["steps"]
+        theta = self["temperature"]
+        if finite(theta) and self["shift"] != "none":
+            k /= 10.0 ** float(ve.log10_shift(self, theta))
+        elif theta is not None:
+            return                                  # a field: not known before the run
+        R0 = {}
+        for term in memory["terms"]:
+            R0[term["part"]] = R0.get(term["part"], 0.0) + term["alpha"]
+        for part, r in R0.items():
+            k_max = 2 * A[part] / -r if r < 0 else math.inf
+            name = ("young" if self["young"] is not None else
+                    "shear" if part == "deviatoric" else "bulk")
+            self.need(k < k_max, name,
+                      f"time.steps = {time['steps']}: the step k = {k:.4g}"
+                      + (" (in reduced time, k / a_T)" if theta is not None else "")
+                      + f" makes the {part} stiffness of the trapezoid rule, A + k/2 R(0) = "
+                      f"{A[part]:.4g} - {k / 2 * -r:.4g}, <= 0 (the relaxation terms are too "
+                      f"fast for the step); take k < {k_max:.4g} (more time steps)")
+
+    def _shift_rules(self, scene) -> None:
         shift = self["shift"]
         needed = {"none": (), "wlf": ("T_ref", "C1", "C2"),
                   "arrhenius": ("T_ref", "activation_energy")}[shift]

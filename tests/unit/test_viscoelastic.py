@@ -181,6 +181,16 @@ def test_refused(visco, key, words):
     assert err.value.key == key and words in str(err.value), str(err.value)
 
 
+def test_step_too_large_for_the_trapezoid_rule():
+    """2 G(0) + k/2 R(0) <= 0 for the deviatoric part at k = 2 (R(0) = -2 (3/0.3 + 2/2) =
+    -22, 2 G(0) = 20): refused with the limit k < 40/22; at k = 1 it runs."""
+    raw = rl.block_scene(MATERIALS["shear"][0], "3d", STRAIN_3D, "step", 4.0, 2)
+    with pytest.raises(SceneError, match="take k < 1.818") as err:
+        loader.resolve(raw)
+    assert err.value.key == "viscoelastic.shear"
+    loader.resolve(rl.block_scene(MATERIALS["shear"][0], "3d", STRAIN_3D, "step", 4.0, 4))
+
+
 def test_plane_stress_needs_proportional_relaxation():
     raw = rl.block_scene(MATERIALS["both"][0], "plane_stress", STRAIN_2D, "step", 1.0, 2)
     with pytest.raises(SceneError, match="3 K~\\(s\\) \\+ 4 G~\\(s\\)") as err:
@@ -322,6 +332,7 @@ def test_temperature_ramp_and_field():
     ({"shift": "arrhenius", "T_ref": 300.0, "activation_energy": 1e5, "temperature": -3.0},
      "viscoelastic.temperature", "kelvin"),
     (dict(WLF, activation_energy=1e5), "viscoelastic.activation_energy", "another shift"),
+    (dict(WLF, temperature=58.0), "viscoelastic.shear", "stiffness of the trapezoid rule"),
 ])
 def test_temperature_refused(extra, key, words):
     with pytest.raises(SceneError) as err:
