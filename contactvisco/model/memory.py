@@ -155,6 +155,7 @@ class ReducedTimeHistory:
     def stage(self, inverse_shift: np.ndarray, temperature: np.ndarray | None = None):
         """Take 1/a_T(theta) (and theta) per point at the time the problem was moved to."""
         self.staged = np.asarray(inverse_shift, float).copy()
+        self._version = getattr(self, "_version", 0) + 1     # a new step: new factors
         if temperature is not None:
             self.temperature = np.asarray(temperature, float).copy()
 
@@ -163,20 +164,55 @@ class ReducedTimeHistory:
         the staged time (the time of the last :meth:`stage`)."""
         return 0.5 * k * (self.committed + self.staged)
 
+    def _factors(self, k: float):
+        """dxi (points, 1) and exp(-dxi/tau_i) per term (None for tau = inf) of the step of
+        size k to the staged time, computed once for its explicit part and its commit."""
+        key = (k, self._version)
+        if getattr(self, "_cached", None) is None or self._cached[0] != key:
+            dxi = self.increment(k)[:, None]
+            decays = [None if math.isinf(tau) else np.exp(-dxi / tau)
+                      for _, tau, _ in self.history.terms]
+            self._cached = (key, dxi, decays)
+        return self._cached[1], self._cached[2]
+
     def commit(self, eps: np.ndarray, k: float | None):
-        """Take the strain of a converged state reached by a step of size k (None at t_0)."""
+        """Take the strain of a converged state reached by a step of size k (None at t_0):
+        P_{n+1} = d P_n + dxi/2 (d e_n + e_{n+1}) per point, d = exp(-dxi/tau)."""
+        h, block = self.history, self.block
         if k is None:
-            self.history.commit(eps, None)
+            h.commit(eps, None)
             self.reduced_time = np.zeros_like(self.staged)
         else:
-            increment = self.increment(k)
-            self.history.commit(eps, np.repeat(increment, self.block))
-            self.reduced_time = self.reduced_time + increment
+            dxi, decays = self._factors(k)
+            half = 0.5 * dxi
+            parts = {part: project(eps, part, h.d).reshape(-1, block)
+                     for part in {part for _, _, part in h.terms}}
+            # P <- d (P + dxi/2 e_n) + dxi/2 e_{n+1}: the products per part computed once
+            old = {part: half * h.last[part].reshape(-1, block) for part in parts}
+            new = {part: half * value for part, value in parts.items()}
+            for total, (_, _, part), dec in zip(h.sums, h.terms, decays):
+                total = total.reshape(-1, block)          # a view: updated in place
+                total += old[part]
+                if dec is not None:
+                    total *= dec
+                total += new[part]
+            h.last = {part: value.reshape(-1).copy() for part, value in parts.items()}
+            self.reduced_time = self.reduced_time + dxi[:, 0]
         self.committed = self.staged.copy()
 
     def explicit(self, k: float) -> np.ndarray:
-        """The history stress (explicit part) of a step of size k to the staged time."""
-        return self.history.explicit(np.repeat(self.increment(k), self.block))
+        """The history stress (explicit part) of a step of size k to the staged time:
+        sum_i alpha_i (d_i P_i,n + c dxi d_i e_i,n), c = 1 (paper's rule) or 1/2."""
+        h, block = self.history, self.block
+        dxi, decays = self._factors(k)
+        c = 1.0 if h.rule == "paper" else 0.5
+        out = np.zeros((h.sums[0].size // block, block))
+        last = {part: (c * dxi) * h.last[part].reshape(-1, block)
+                for part in {part for _, _, part in h.terms}}
+        for (a, _, part), total, dec in zip(h.terms, h.sums, decays):
+            # alpha d (P + c dxi e_n), with the product c dxi e_n per part computed once
+            out += (a if dec is None else a * dec) * (total.reshape(-1, block) + last[part])
+        return out.reshape(-1)
 
     def implicit(self, k: float) -> dict:
         """Per part, the weight dxi/2 R(0) per point (trapezoid rule; a number 0 before a

@@ -371,9 +371,16 @@ def inverse_shift(shift: dict, theta) -> tuple[np.ndarray, str | None]:
         (1/a_T = 10^(-log10 a_T) per temperature, :func:`shift_error` or None); where there is
         an error the values are not to be used.
     """
+    theta = np.asarray(theta, float)
+    if shift.get("shift", "none") == "wlf" and theta.size and np.all(np.isfinite(theta)):
+        den = float(shift["C2"]) + theta - float(shift["T_ref"])
+        if np.all(den > 0):              # the common case: one pass, no second evaluation
+            log10_aT = -float(shift["C1"]) * (theta - float(shift["T_ref"])) / den
+            if np.all(np.abs(log10_aT) <= MAX_LOG10_SHIFT):
+                return 10.0 ** -log10_aT, None
     error = shift_error(shift, theta)
     if error is not None:
-        return np.ones_like(np.asarray(theta, float)), error
+        return np.ones_like(theta), error
     return 10.0 ** -log10_shift(shift, theta), None
 
 

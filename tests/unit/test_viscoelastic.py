@@ -374,6 +374,7 @@ def test_relaxation_figure_closed_forms():
         relaxation_figure(loader.load("paper"))
 
 
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="starts its own process; run on one rank")
 def test_relaxation_command(tmp_path):
     from helpers import run_cli
     path = csv_scene(tmp_path, "tau,G\n0.3,3\n2,2\n")
