@@ -94,3 +94,41 @@ def test_ranks_agree(tmp_path):
     everywhere, alone = run(scene), run(scene, MPI.COMM_SELF)
     assert everywhere[3] == alone[3] and np.array_equal(everywhere[2], alone[2])
     assert np.abs(everywhere[0] - alone[0]).max() <= 1e-10 * np.abs(alone[0]).max()
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch):
+    """A run with a temperature field stopped after its checkpoint of step 3 and restarted
+    reaches the uninterrupted run's answer and reduced time: the checkpoint holds 1/a_T and xi
+    at each point besides the Prony sums."""
+    from contactvisco.io import checkpoint
+    comm = MPI.COMM_WORLD
+    folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
+               for name in ("csv", "whole", "stopped")]
+    import pathlib
+    scene = prony_scene(pathlib.Path(folders[0]), steps=6,
+                        temperature="50.0 + 0.5 * t + 0.5 * x[0]")
+    whole = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True)
+    save = checkpoint.save
+
+    def stop_after_step_3(folder, problem, comm, t, count, step):
+        save(folder, problem, comm, t, count, step)
+        if count == 4:
+            raise _Stop
+
+    monkeypatch.setattr(checkpoint, "save", stop_after_step_3)
+    with pytest.raises(_Stop):
+        simulate(scene, out=folders[2], comm=comm, progress=False)
+    monkeypatch.setattr(checkpoint, "save", save)
+    restarted = simulate(scene, out=folders[2], comm=comm, progress=False, keep_tables=True,
+                         restart=True)
+    assert [s["t"] for s in restarted.steps] == [s["t"] for s in whole.steps][4:], \
+        ([s["t"] for s in restarted.steps], [s["t"] for s in whole.steps])
+    a, b = whole.tables[-1], restarted.tables[-1]
+    assert np.max(np.abs(a["u_nu"] - b["u_nu"])) <= 1e-12 * np.max(np.abs(a["u_nu"]))
+    assert restarted.steps[-1]["reduced_time"] == pytest.approx(
+        whole.steps[-1]["reduced_time"], rel=1e-13)
+    assert whole.steps[-1]["reduced_time"][1] > 1.5 * whole.steps[-1]["reduced_time"][0] > 0
