@@ -89,8 +89,10 @@ def test_raised_temperature_sinks_on_the_shifted_time_scale(tmp_path):
 
 @pytest.mark.mpi
 def test_ranks_agree(tmp_path):
-    """A temperature varying in x and t: the run over the ranks equals the run on one rank."""
-    scene = prony_scene(tmp_path, temperature="50.0 + 0.5 * t + 0.5 * x[0]")
+    """A temperature varying in x and t: the run over the ranks equals the run on one rank
+    (16 steps: k / a_T stays below the trapezoid rule's limit, so that no step is cut; where
+    and whether Newton cuts a hard step depends on round-off, and so on the rank count)."""
+    scene = prony_scene(tmp_path, steps=16, temperature="50.0 + 0.5 * t + 0.5 * x[0]")
     everywhere, alone = run(scene), run(scene, MPI.COMM_SELF)
     assert everywhere[3] == alone[3] and np.array_equal(everywhere[2], alone[2])
     assert np.abs(everywhere[0] - alone[0]).max() <= 1e-10 * np.abs(alone[0]).max()
@@ -109,7 +111,7 @@ def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch):
     folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
                for name in ("csv", "whole", "stopped")]
     import pathlib
-    scene = prony_scene(pathlib.Path(folders[0]), steps=6,
+    scene = prony_scene(pathlib.Path(folders[0]), steps=16,
                         temperature="50.0 + 0.5 * t + 0.5 * x[0]")
     whole = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True)
     save = checkpoint.save
