@@ -51,7 +51,7 @@ _PUBLIC = {
     "hertz": "studies.verification", "cattaneo_mindlin": "studies.coulomb",
     "cattaneo_traction": "studies.coulomb",
     "quick": "post.notebook", "show_images": "post.notebook", "show_figure": "post.notebook",
-    "cattaneo_mindlin_figure": "post.figures",
+    "cattaneo_mindlin_figure": "post.figures", "relaxation_figure": "post.figures",
 }
 #: Public modules, by the name they are reached under: the speed-accuracy trade of a scene
 #: (contactvisco tradeoff).

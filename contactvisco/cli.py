@@ -54,7 +54,21 @@ def _parser():
     _add_plot(sub)
     _add_tradeoff(sub)
     _add_show_and_check(sub)
+    _add_relaxation(sub)
     return parser
+
+
+def _add_relaxation(sub) -> None:
+    relax = sub.add_parser("relaxation", help="draw the relaxation, storage and loss moduli "
+                           "of a scene's [viscoelastic] material",
+                           description="Draw phi(t), E'(w) and E''(w) of the Prony series of "
+                           "a scene's [viscoelastic] table, at T_ref and shifted to other "
+                           "temperatures (master curves).")
+    _scene_arguments(relax)
+    relax.add_argument("--temperature", type=float, action="append", default=[],
+                       help="also draw the curves at this temperature (repeatable)")
+    relax.add_argument("--out", default="relaxation.png", help="the figure file "
+                       "(default: relaxation.png)")
 
 
 def _add_run(sub) -> None:
@@ -182,6 +196,8 @@ def _main(argv=None):
         return _run(args, petsc_args, scene_module)
     if args.command == "check":
         return _check(args)
+    if args.command == "relaxation":
+        return _relaxation(args)
     # Printing commands end quietly when their reader does (`show paper | head`).
     signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     try:
@@ -351,6 +367,25 @@ def _check_writable(folder):
             pass
     except OSError as err:
         raise SceneError(f"output folder '{folder}' is not writable: {err.strerror}") from None
+
+
+def _relaxation(args) -> int:
+    """`contactvisco relaxation`: the moduli of a [viscoelastic] material as a figure file."""
+    from contactvisco import api
+    from contactvisco.post.figures import relaxation_figure
+    try:
+        scene = api.load_scene(args.scene, sets=args.set)
+        fig = relaxation_figure(scene, args.temperature)
+    except SceneError as err:
+        print(f"contactvisco: scene error: {err}", file=sys.stderr)
+        return 2
+    try:
+        fig.savefig(args.out, dpi=200)
+    except (OSError, ValueError) as err:
+        print(f"contactvisco: cannot write {args.out}: {err}", file=sys.stderr)
+        return 2
+    print(args.out)
+    return 0
 
 
 def _plot(args):

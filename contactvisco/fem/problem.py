@@ -40,7 +40,7 @@ from contactvisco.model.material import (elasticity, energy_stress, hencky_energ
                                          invariants, lame_constants, strain)
 from contactvisco.fem.tangent import TangentCheck
 from contactvisco.scene.expressions import Context
-from contactvisco.model.memory import DirectHistory, History, table_kernel
+from contactvisco.model.memory import DirectHistory, History, ReducedTimeHistory, table_kernel
 from contactvisco.errors import SceneError
 from contactvisco.model.memory_kernel import memory_power, memory_table, memory_terms
 from contactvisco.model import kernels
@@ -152,7 +152,10 @@ class TimeState:
             return
         weights = memory.history.implicit(k)
         for constant, part in memory.implicit_terms:
-            constant.value = weights[part]
+            if isinstance(constant, fem.Function):      # a weight per point (reduced time)
+                constant.x.array[:] = weights[part]
+            else:
+                constant.value = weights[part]
         memory.H.x.array[:] = memory.history.explicit(k)
 
     def record(self, k: float | None):
@@ -264,7 +267,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
 
     V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
-    sigma, constants, memory = _stress(scene, mesh, u, context)
+    sigma, constants, memory = _stress(scene, mesh, u, context, updates)
     constants["t"] = context.t
 
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
@@ -306,7 +309,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     return problem
 
 
-def _stress(scene, mesh, u, context=None):
+def _stress(scene, mesh, u, context=None, updates=None):
     """sigma(u) = A eps(u) + H + sum_part w_part P_part eps(u) (eq 19: the elastic stress,
     the history stress of the memory part and its implicit weights, none without memory).
     Returns sigma, the Constants it uses by name (the Lame constants lame_lambda, lame_mu
@@ -321,7 +324,7 @@ def _stress(scene, mesh, u, context=None):
         energy = material_energy(mat, constants, context or Context(mesh))
         sigma, C = energy_stress(strain(u), energy)
         constants["tangent"] = TangentCheck(C, u, lame_mu)
-    memory = _memory(scene, mesh, u)
+    memory = _memory(scene, mesh, u, context, updates)
     if memory is not None:
         sigma = sigma + memory.H
         for constant, part in memory.implicit_terms:
@@ -565,7 +568,7 @@ def _gap(expression, Q, context, updates):
     return value, function
 
 
-def _memory(scene, mesh, u) -> MemoryPart | None:
+def _memory(scene, mesh, u, context=None, updates=None) -> MemoryPart | None:
     """The history of eq (19) (None without memory): H, a known DG field, and for the
     trapezoid rule the implicit weights w of w P eps(u) (w = k/2 R(0), or the
     product-integration weight of the fractional kernel: history.implicit), as Constants
@@ -583,10 +586,50 @@ def _memory(scene, mesh, u) -> MemoryPart | None:
         history = kernels.history(power, time, scene["solver"]["max_cuts"], d)
     else:
         history = History(terms, dt, time["rule"], d)
+    visco = scene.get("viscoelastic")
+    if visco is not None and visco["temperature"] is not None:
+        return _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates)
     constants = {f"memory_implicit_{part}": _scalar(mesh, 0.0)
                  for part in history.implicit(dt)}
     return MemoryPart(
         history=history, H=fem.Function(tensor_space, name="history_stress"),
+        eps_function=fem.Function(tensor_space),
+        eps_expression=fem.Expression(strain(u), compat.interpolation_points(tensor_space)),
+        tensor_space=tensor_space, constants=constants,
+        implicit_terms=[(c, name[len("memory_implicit_"):]) for name, c in constants.items()])
+
+
+def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates):
+    """The memory part of a scene with a temperature: the Prony history advanced in reduced
+    time (ReducedTimeHistory), 1/a_T(theta) taken at each point whenever the time moves, and
+    the implicit weights as fields (one value per point)."""
+    from contactvisco.model.viscoelastic import inverse_shift
+    d = mesh.geometry.dim
+    degree = scene["discretization"]["degree"] - 1
+    scalars = compat.scalar_space(mesh, "DG", degree)
+    reduced = ReducedTimeHistory(history, d * d)
+    visco = scene["viscoelastic"]
+    theta = fem.Function(scalars, name="temperature")
+    follow = _interpolator(theta, context.scalar(visco["temperature"],
+                                                 "viscoelastic.temperature"), scalars)
+    reduced.owned = scalars.dofmap.index_map.size_local    # points of this rank (then ghosts)
+
+    def stage():
+        follow()
+        owned = reduced.owned                   # ghosts: taken along, never an error
+        inverse, error = inverse_shift(visco, theta.x.array[:owned])
+        inverse = np.concatenate([inverse, inverse_shift(visco, theta.x.array[owned:])[0]])
+        error = next((e for e in mesh.comm.allgather(error) if e), None)   # every rank stops
+        if error:
+            raise SceneError(f"{error} (at t = {float(context.t.value):g})",
+                             key="viscoelastic.temperature")
+        reduced.stage(inverse, theta.x.array)
+
+    updates.append(stage)
+    constants = {f"memory_implicit_{part}": fem.Function(scalars)
+                 for part in reduced.implicit(0.0)}
+    return MemoryPart(
+        history=reduced, H=fem.Function(tensor_space, name="history_stress"),
         eps_function=fem.Function(tensor_space),
         eps_expression=fem.Expression(strain(u), compat.interpolation_points(tensor_space)),
         tensor_space=tensor_space, constants=constants,

@@ -80,7 +80,7 @@ class History:
             self.sums = [np.zeros_like(eps) for _ in self.terms]
         else:
             for total, (_, tau, part) in zip(self.sums, self.terms):
-                dec = math.exp(-k / tau)              # 1 if tau = inf
+                dec = _decay(k, tau)                  # 1 if tau = inf
                 total *= dec
                 total += (0.5 * k * dec) * self.last[part] + (0.5 * k) * parts[part]
         self.last = parts
@@ -91,7 +91,7 @@ class History:
         c = 1.0 if self.rule == "paper" else 0.5
         out = np.zeros_like(self.sums[0])
         for (a, tau, part), total in zip(self.terms, self.sums):
-            dec = math.exp(-k / tau)
+            dec = _decay(k, tau)
             out += (a * dec) * total + (a * c * k * dec) * self.last[part]
         return out
 
@@ -116,6 +116,126 @@ class History:
         self.sums = [state[f"sum{i}"].copy() for i in range(count)] or None
         self.last = {key[5:]: value.copy() for key, value in state.items()
                      if key.startswith("last_")} or None
+
+
+def _decay(k, tau: float):
+    """exp(-k/tau) of a step k: a number, or an array of reduced-time increments per value."""
+    return np.exp(-k / tau) if isinstance(k, np.ndarray) else math.exp(-k / tau)
+
+
+class ReducedTimeHistory:
+    """A Prony :class:`History` advanced in reduced time (time-temperature superposition):
+    d xi = dt / a_T(theta) at each point, so a step of size k is, point by point, the reduced
+    increment (trapezoid rule in t)
+
+        dxi = k/2 (1/a_T(theta_n) + 1/a_T(theta_{n+1})),
+
+    and the recursion of :class:`History` runs with exp(-dxi/tau_i) and the trapezoid weights
+    dxi/2 per point instead of exp(-k/tau_i) and k/2: still O(1) work and memory per step.
+    With eps = 0 before t = 0, sigma(t) = int phi(xi(t) - xi(s)) d eps(s) is eq (7) in xi:
+    A eps(t) + int_0^xi(t) R(xi(t) - xi') eps(xi') dxi'. The implicit weight of the trapezoid
+    rule, dxi/2 R(0), is then a field (one value per point).
+
+    Parameters
+    ----------
+    history : History
+        The isothermal recursion of the kernel (terms in reduced time).
+    block : int
+        Values per point of the strain arrays (d * d).
+    """
+
+    def __init__(self, history: History, block: int):
+        self.history, self.block = history, block
+        self.k, self.rule, self.d, self.direct = history.k, history.rule, history.d, False
+        self.staged: np.ndarray | None = None      # 1/a_T at the staged time, per point
+        self.committed: np.ndarray | None = None   # 1/a_T at the committed time
+        self.temperature: np.ndarray | None = None  # theta at the staged time, per point
+        self.reduced_time: np.ndarray | None = None  # xi at the committed time, per point
+
+    def stage(self, inverse_shift: np.ndarray, temperature: np.ndarray | None = None):
+        """Take 1/a_T(theta) (and theta) per point at the time the problem was moved to."""
+        self.staged = np.asarray(inverse_shift, float).copy()
+        self._version = getattr(self, "_version", 0) + 1     # a new step: new factors
+        if temperature is not None:
+            self.temperature = np.asarray(temperature, float).copy()
+
+    def increment(self, k: float) -> np.ndarray:
+        """The reduced-time increment per point of a step of size k from the committed time to
+        the staged time (the time of the last :meth:`stage`)."""
+        return 0.5 * k * (self.committed + self.staged)
+
+    def _factors(self, k: float):
+        """dxi (points, 1) and exp(-dxi/tau_i) per term (None for tau = inf) of the step of
+        size k to the staged time, computed once for its explicit part and its commit."""
+        key = (k, self._version)
+        if getattr(self, "_cached", None) is None or self._cached[0] != key:
+            dxi = self.increment(k)[:, None]
+            decays = [None if math.isinf(tau) else np.exp(-dxi / tau)
+                      for _, tau, _ in self.history.terms]
+            self._cached = (key, dxi, decays)
+        return self._cached[1], self._cached[2]
+
+    def commit(self, eps: np.ndarray, k: float | None):
+        """Take the strain of a converged state reached by a step of size k (None at t_0):
+        P_{n+1} = d P_n + dxi/2 (d e_n + e_{n+1}) per point, d = exp(-dxi/tau)."""
+        h, block = self.history, self.block
+        if k is None:
+            h.commit(eps, None)
+            self.reduced_time = np.zeros_like(self.staged)
+        else:
+            dxi, decays = self._factors(k)
+            half = 0.5 * dxi
+            parts = {part: project(eps, part, h.d).reshape(-1, block)
+                     for part in {part for _, _, part in h.terms}}
+            # P <- d (P + dxi/2 e_n) + dxi/2 e_{n+1}: the products per part computed once
+            old = {part: half * h.last[part].reshape(-1, block) for part in parts}
+            new = {part: half * value for part, value in parts.items()}
+            for total, (_, _, part), dec in zip(h.sums, h.terms, decays):
+                total = total.reshape(-1, block)          # a view: updated in place
+                total += old[part]
+                if dec is not None:
+                    total *= dec
+                total += new[part]
+            h.last = {part: value.reshape(-1).copy() for part, value in parts.items()}
+            self.reduced_time = self.reduced_time + dxi[:, 0]
+        self.committed = self.staged.copy()
+
+    def explicit(self, k: float) -> np.ndarray:
+        """The history stress (explicit part) of a step of size k to the staged time:
+        sum_i alpha_i (d_i P_i,n + c dxi d_i e_i,n), c = 1 (paper's rule) or 1/2."""
+        h, block = self.history, self.block
+        dxi, decays = self._factors(k)
+        c = 1.0 if h.rule == "paper" else 0.5
+        out = np.zeros((h.sums[0].size // block, block))
+        last = {part: (c * dxi) * h.last[part].reshape(-1, block)
+                for part in {part for _, _, part in h.terms}}
+        for (a, _, part), total, dec in zip(h.terms, h.sums, decays):
+            # alpha d (P + c dxi e_n), with the product c dxi e_n per part computed once
+            out += (a if dec is None else a * dec) * (total.reshape(-1, block) + last[part])
+        return out.reshape(-1)
+
+    def implicit(self, k: float) -> dict:
+        """Per part, the weight dxi/2 R(0) per point (trapezoid rule; a number 0 before a
+        step is prepared)."""
+        if self.committed is None or self.staged is None:
+            return self.history.implicit(0.0)
+        return self.history.implicit(self.increment(k))
+
+    def state(self) -> dict:
+        out = self.history.state()
+        if self.committed is not None:
+            out["inverse_shift"] = np.repeat(self.committed, self.block)
+            out["reduced_time"] = np.repeat(self.reduced_time, self.block)
+        return out
+
+    def restore(self, state: dict):
+        state = dict(state)
+        inverse = state.pop("inverse_shift", None)
+        reduced = state.pop("reduced_time", None)
+        self.history.restore(state)
+        if inverse is not None:
+            self.committed = np.asarray(inverse)[::self.block].copy()
+            self.reduced_time = np.asarray(reduced)[::self.block].copy()
 
 
 class StrainRecord:

@@ -647,6 +647,85 @@ def _cattaneo_mindlin(results, traction):
     return fig
 
 
+def relaxation_figure(scene: dict, temperatures=(), times=None, omegas=None) -> Figure:
+    """The relaxation moduli of a scene's [viscoelastic] material as entered (shear and bulk,
+    or Young's), their storage and loss moduli, and the master curves shifted to other
+    temperatures (contactvisco.model.viscoelastic).
+
+    Parameters
+    ----------
+    scene : dict
+        A resolved scene with a [viscoelastic] table.
+    temperatures : sequence of float, optional
+        Temperatures at which to draw the shifted curves besides T_ref (they need
+        viscoelastic.shift): phi(t / a_T), E'(a_T w), E''(a_T w).
+    times, omegas : array_like, optional
+        The times and angular frequencies; by default four decades beyond the relaxation
+        times at every temperature drawn.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Three panels: phi(t) = phi_inf + sum_i phi_i exp(-t/tau_i);
+        E'(w) = phi_inf + sum_i phi_i w^2 tau_i^2 / (1 + w^2 tau_i^2);
+        E''(w) = sum_i phi_i w tau_i / (1 + w^2 tau_i^2).
+    """
+    from contactvisco.errors import SceneError
+    from contactvisco.model import viscoelastic as ve
+    table = scene.get("viscoelastic")
+    if table is None or not hasattr(table, "functions"):
+        raise SceneError("the relaxation figure needs a scene with [viscoelastic]",
+                         key="viscoelastic")
+    temperatures = [float(x) for x in temperatures]
+    if temperatures and table["shift"] == "none":
+        raise SceneError("temperatures other than T_ref need viscoelastic.shift",
+                         key="viscoelastic.shift")
+    for theta in temperatures:
+        error = ve.shift_error(table, theta)
+        if error:
+            raise SceneError(error, key="viscoelastic.temperature")
+    shifts = [(None, 1.0)] + [(x, 10.0 ** float(ve.log10_shift(table, x)))
+                              for x in temperatures]
+    taus = [tau * a for phi in table.functions.values() for tau in phi.taus
+            for _, a in shifts] or [1.0]
+    times = np.geomspace(min(taus) / 1e2, max(taus) * 1e2, 300) if times is None else times
+    omegas = (np.geomspace(1e-2 / max(taus), 1e2 / min(taus), 300) if omegas is None
+              else omegas)
+    with matplotlib.rc_context(STYLE):
+        fig = Figure(figsize=(PAGE, 2.6), layout="constrained")
+        axes = fig.subplots(1, 3)
+        units = units_of(scene)
+        modulus_unit = unit("stress", units)
+        suffix = f" [{modulus_unit}]" if modulus_unit else ""
+        T_ref = table["T_ref"]
+        for j, (name, phi) in enumerate(table.functions.items()):
+            for i, (theta, a) in enumerate(shifts):
+                shifted = ve.shifted(phi, math.log10(a))
+                at = (f"T_ref = {T_ref:g}" if theta is None and T_ref is not None else
+                      "T_ref" if theta is None else f"T = {theta:g}")
+                style = dict(color=f"C{j}", ls=("-", "--", ":", "-.")[i % 4], lw=0.9)
+                storage, loss = ve.storage_loss(shifted, omegas)
+                axes[0].plot(times, ve.relaxation(shifted, times), label=f"{name}, {at}",
+                             **style)
+                axes[1].plot(omegas, storage, **style)
+                axes[2].plot(omegas, loss, **style)
+        for ax, title in zip(axes, ("relaxation modulus", "storage modulus",
+                                    "loss modulus")):
+            ax.set_xscale("log")
+            ax.set_title(title)
+        axes[1].set_yscale("log")
+        if np.any([np.any(line.get_ydata() > 0) for line in axes[2].lines]):
+            axes[2].set_yscale("log")
+        time_unit = unit("time", units)
+        axes[0].set_xlabel("t" + (f" [{time_unit}]" if time_unit else ""))
+        axes[0].set_ylabel("$\\phi(t)$" + suffix)
+        for ax, name in ((axes[1], "$E\'(\\omega)$"), (axes[2], "$E\'\'(\\omega)$")):
+            ax.set_xlabel("$\\omega$" + (f" [1/{time_unit}]" if time_unit else ""))
+            ax.set_ylabel(name + suffix)
+        axes[0].legend(frameon=False, fontsize="small")
+    return fig
+
+
 # --- what a figure shows, for checking committed figures ------------------------------------
 
 

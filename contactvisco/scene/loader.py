@@ -18,6 +18,7 @@ import tomllib
 
 from contactvisco.scene.table import Provenance, finite, is_mesh_size
 from contactvisco.scene.tables import TABLE_LISTS, Contact, Scene
+from contactvisco.scene import viscoelastic_table
 from contactvisco.errors import SceneError
 
 SCENE_DIR = pathlib.Path(__file__).parent.parent / "scenes"
@@ -41,6 +42,9 @@ PRESETS = {
 
 #: Defaults of the [contact] table, used when a scene has one.
 CONTACT_DEFAULTS = Contact.defaults()
+
+#: Defaults of the [viscoelastic] table, used when a scene has one.
+VISCOELASTIC_DEFAULTS = viscoelastic_table.Viscoelastic.defaults()
 
 #: Keys of the tables in the lists [[dirichlet]] and [[traction]].
 ITEM_KEYS = {name: tuple(table.KEYS) for name, table in TABLE_LISTS.items()}
@@ -118,18 +122,25 @@ def _apply_set(scene: dict, path: list[str], value, source: str = "--set") -> No
             raise SceneError(f"{source}: no scene key '{dotted}'")
         if node[key] is None and key == "contact":
             node[key] = dict(CONTACT_DEFAULTS)
+        if node[key] is None and key == "viscoelastic" and i == 0:
+            node[key] = dict(VISCOELASTIC_DEFAULTS)
+        if node[key] is None and path[0] == "viscoelastic" and i == 1:
+            node[key] = {}                     # a relaxation function, free-form
+
         node = node[key]
     last = key
     if isinstance(node, list):
         node[last] = value
         return
-    free_form = tuple(path[:-1]) in (("geometry", "parameters"), ("solver", "petsc_options"))
+    free_form = tuple(path[:-1]) in (("geometry", "parameters"), ("solver", "petsc_options"),
+                                     *(("viscoelastic", f) for f in ("shear", "bulk", "young")))
     allowed = ITEM_KEYS.get(path[0], ()) if len(path) == 3 else list(node)
     if last not in node and last not in allowed and not free_form:
         hint = difflib.get_close_matches(last, list(allowed), n=1)
         suggestion = f" (did you mean '{hint[0]}'?)" if hint else ""
         raise SceneError(f"{source}: unknown scene key '{'.'.join(path)}'{suggestion}")
-    table = node.get(last) or (CONTACT_DEFAULTS if path == ["contact"] else None)
+    table = node.get(last) or {"contact": CONTACT_DEFAULTS, "viscoelastic":
+                               VISCOELASTIC_DEFAULTS}.get(".".join(path))
     if isinstance(table, dict) and table and not free_form:
         # A whole table: its keys are checked and the defaults kept.
         if not isinstance(value, dict):
@@ -145,17 +156,20 @@ def resolve(raw: dict, overrides: list[str] = (), provenance: Provenance | None 
     result table by table (errors name the value's origin from `provenance`)."""
     provenance = provenance or Provenance(overrides=overrides)
     check_plain(raw, provenance)               # before any check computes with a number
-    scene = _merge(DEFAULTS, {k: v for k, v in raw.items() if k != "contact"})
-    if raw.get("contact") is not None:
-        if not isinstance(raw["contact"], dict):
-            raise SceneError(f"contact must be a table, got {raw['contact']!r}", key="contact")
-        scene["contact"] = _merge(CONTACT_DEFAULTS, raw["contact"], "contact.")
+    optional = {"contact": CONTACT_DEFAULTS, "viscoelastic": VISCOELASTIC_DEFAULTS}
+    scene = _merge(DEFAULTS, {k: v for k, v in raw.items() if k not in optional})
+    for name, defaults in optional.items():
+        if raw.get(name) is not None:
+            if not isinstance(raw[name], dict):
+                raise SceneError(f"{name} must be a table, got {raw[name]!r}", key=name)
+            scene[name] = _merge(defaults, raw[name], f"{name}.")
     # An override is `key=value` text (--set) or an Override (the Python API's values).
     assignments = [getattr(text, "assignment", None) or parse_assignment(text)
                    for text in overrides]
     for path, value in assignments:
         check_plain({".".join(path): value}, provenance)
     _check_material_pairs(raw.get("material", {}), overrides, assignments)
+    viscoelastic_table.check_alone(raw, assignments)
     for path, value in assignments:          # a preset from --set first, then the rest
         if path == ["preset"]:
             scene["preset"] = value
@@ -167,6 +181,9 @@ def resolve(raw: dict, overrides: list[str] = (), provenance: Provenance | None 
     check_plain(scene, provenance)
     scene = Scene.build(scene, provenance)
     scene["material"].normalize()
+    if scene["viscoelastic"] is not None:
+        base = provenance.path.parent if provenance.path is not None else None
+        scene["viscoelastic"].convert(scene, base)
     if scene["contact"] is not None:
         scene["contact"].normalize(scene["material"])
     scene.validate()

@@ -19,6 +19,7 @@ from contactvisco.errors import SceneError
 from contactvisco.model.material import LAWS, dimension
 from contactvisco.model.memory import PARTS
 from contactvisco.model.memory_kernel import as_list
+from contactvisco.scene.viscoelastic_table import Viscoelastic
 from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
                                       choices, finite, integer, is_mesh_size, modulus,
                                       number_list, one_of, repeated)
@@ -777,7 +778,8 @@ class Units(Table):
 #: The tables of a scene, in the order they are checked (the material first: the dimension
 #: of the other tables' vectors follows from it).
 TABLES = {
-    "material": Material, "geometry": Geometry, "discretization": Discretization,
+    "material": Material, "viscoelastic": Viscoelastic, "geometry": Geometry,
+    "discretization": Discretization,
     "body_force": BodyForce, "memory": Memory, "time": Time, "contact": Contact,
     "solver": Solver, "output": Output, "units": Units,
 }
@@ -813,6 +815,7 @@ class Scene(Table):
         out["body_force"] = BodyForce.defaults()
         out["traction"] = []
         out["contact"] = None
+        out["viscoelastic"] = None          # absent: the material in the paper's form
         for name in ("time", "discretization", "solver", "output", "units"):
             out[name] = TABLES[name].defaults()
         return out
@@ -828,7 +831,7 @@ class Scene(Table):
         scene = cls(values, "", provenance)
         for name, table in TABLES.items():
             value = scene[name]
-            if name == "contact" and value is None:
+            if name in ("contact", "viscoelastic") and value is None:
                 continue
             scene.need(isinstance(value, dict), name,
                        f"{name} must be a table ([{name}] in TOML), got {value!r}")

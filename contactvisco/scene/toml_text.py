@@ -20,6 +20,10 @@ _ALWAYS = {"geometry": ("type",), "material": ("model",), "memory": ("kernel",),
            "contact": ("boundary",)}
 
 
+#: Keys a [viscoelastic] table derives (material.E, nu, ...; the whole [memory] table).
+_DERIVED = {"material": ("E", "nu", "lambda", "mu"), "memory": tuple(TABLES["memory"].KEYS)}
+
+
 def _key(name: str) -> str:
     return name if _BARE_KEY.match(name) else json.dumps(name)
 
@@ -108,6 +112,9 @@ def scene_text(scene: Scene, every_value: bool = False) -> str:
             document[name] = [{**defaults, **item} for item in scene[name]]
             continue
         values = dict(scene[name])
+        if scene.get("viscoelastic") is not None and name in _DERIVED:
+            # derived from [viscoelastic] when read back: written once, there
+            values = {k: v for k, v in values.items() if k not in _DERIVED[name]}
         if name in TABLES and not every_value:
             values = _changed(values, TABLES[name].defaults(), _ALWAYS.get(name, ()))
         if values:

@@ -1,5 +1,6 @@
-"""What a run prints: the start-up announcement (unknown counts, the memory note, the warning
-of an unstable time rule), one progress line per accepted state and the closing line. Lines
+"""What a run prints: the start-up announcement (unknown counts, the converted (A, R) of a
+[viscoelastic] material, the memory note, the warning of an unstable time rule), one progress
+line per accepted state and the closing line. Lines
 go to stdout on rank 0; the warning goes to stderr, and notes and warnings also to the output
 folder's summary.json when a writer is given.
 """
@@ -10,6 +11,7 @@ import sys
 import weakref
 
 from contactvisco.model.stability import stability_number
+from contactvisco.scene.viscoelastic_table import describe
 
 #: The memory note of a kernel whose history has no recursion (and no note of its own).
 DIRECT_SUM_NOTE = ("memory: a general (table) kernel has no recursion: eq (19) is summed "
@@ -42,6 +44,11 @@ def announce(scene, problem, snes, comm, setup_s, say, writer=None, output=None)
         + (f", {contact_nodes} contact nodes ({multipliers})" if contact_nodes else "")
         + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
         f"{setup_s:.2f} s" + (f"; {output}" if output else ""))
+    converted = describe(scene)
+    if converted:
+        say(converted)
+        if writer is not None:
+            writer.note("notes", converted)
     note = memory_note(problem)
     if note:
         say(note)

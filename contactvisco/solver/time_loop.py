@@ -10,6 +10,7 @@ final one.
 """
 from __future__ import annotations
 
+import math
 import pathlib
 import time as clock
 from dataclasses import dataclass, field
@@ -206,7 +207,8 @@ class Run:
                 "krylov_iterations": snes.krylov_iterations,
                 "preconditioner_setups": snes.setups,
                 "status_counts": contact_state.status_counts(table),
-                "probes": probes.values(self.problem.u, self.comm) if probes else []}
+                "probes": probes.values(self.problem.u, self.comm) if probes else [],
+                **thermal_record(self.problem, self.comm)}
 
     def _file_observers(self, k) -> list:
         """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""
@@ -247,6 +249,23 @@ class Run:
             writer.finish(final)
         self.say(report.closing_line(final, t_end))
         return final
+
+
+def thermal_record(problem, comm) -> dict:
+    """With a temperature ([viscoelastic] temperature): the range over the points of the
+    temperature theta and of the reduced time xi = int dt / a_T(theta) at the committed state,
+    as ``temperature`` and ``reduced_time`` [min, max] (collective); else nothing."""
+    history = problem.memory and problem.memory.history
+    if getattr(history, "reduced_time", None) is None:
+        return {}
+    out = {}
+    for name, values in (("temperature", history.temperature),
+                         ("reduced_time", history.reduced_time)):
+        mine = values[:history.owned]
+        lo = comm.allreduce(float(mine.min()) if mine.size else math.inf, op=MPI.MIN)
+        hi = comm.allreduce(float(mine.max()) if mine.size else -math.inf, op=MPI.MAX)
+        out[name] = [lo, hi]
+    return out
 
 
 def recorder(result: Result, keep_tables):

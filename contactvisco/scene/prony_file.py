@@ -1,0 +1,126 @@
+"""A Prony table read from a CSV file, as fitting tools export it: a header row, then one row
+per term, the relaxation time first and its modulus (or normalized fraction) second.
+
+Only data is read: the file the scene names (relative to the scene file's folder, or to the
+working directory for a scene given as values), at most :data:`MAX_BYTES`, through the csv
+module; every cell must be a finite number. An empty table, a row of the wrong length, a
+value that is not a finite number, a relaxation time <= 0, a negative modulus, times that do
+not increase (unsorted or duplicated rows) and more than :data:`MAX_TERMS` rows are refused,
+naming the file and the row (its line in the file).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import pathlib
+
+from contactvisco.errors import SceneError
+
+#: Largest Prony file read (a table of terms is a few kilobytes).
+MAX_BYTES = 1_000_000
+
+#: Most terms of a Prony series: each keeps a history field of the size of the strain.
+MAX_TERMS = 100
+
+
+def resolve_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
+    """The path of a Prony file: `name` as given when absolute, else relative to `base` (the
+    scene file's folder; None: the working directory).
+
+    Parameters
+    ----------
+    name : str
+        The file name the scene gives.
+    base : pathlib.Path or None
+        The scene file's folder.
+    key : str
+        The dotted key, for errors.
+
+    Returns
+    -------
+    pathlib.Path
+        The path (an existing regular file).
+    """
+    if not isinstance(name, str) or not name:
+        raise SceneError(f"{key} must be the name of a CSV file, got {name!r}", key=key)
+    path = pathlib.Path(name)
+    if not path.is_absolute() and base is not None:
+        path = base / path
+    if not path.is_file():          # a device or a pipe could be read for ever
+        raise SceneError(f"{key}: no Prony file '{path}' (a path relative to the scene file's "
+                         "folder, or absolute)", key=key)
+    return path
+
+
+def read(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
+    """The relaxation times and moduli (or fractions) of a Prony CSV file.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file (see :func:`resolve_path`).
+    key : str
+        The dotted key that names it, for errors.
+
+    Returns
+    -------
+    tuple of list of float
+        (taus, values): the first and second column of every row after the header, taus
+        increasing.
+    """
+    def fail(message, line=None):
+        where = f"{path}, row {line}" if line is not None else f"{path}"
+        raise SceneError(f"{key}: Prony file {where}: {message}", key=key)
+
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_BYTES + 1)
+    except OSError as err:
+        fail(f"cannot be read ({err.strerror})")
+    if len(data) > MAX_BYTES:
+        fail(f"larger than {MAX_BYTES} bytes: not a Prony table")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        fail("not a UTF-8 text file")
+    rows = [(number, row) for number, row in enumerate(csv.reader(io.StringIO(text)), start=1)
+            if any(cell.strip() for cell in row)]
+    if not rows:
+        fail("empty (a header row, then one row of tau, modulus per term)")
+    number, header = rows[0]
+    if len(header) != 2 or any(_number(cell) is not None for cell in header):
+        fail(f"the first row must be a header of two column names (the relaxation time, "
+             f"then the modulus), got {header!r}", number)
+    rows = rows[1:]
+    if not rows:
+        fail("has a header but no terms")
+    if len(rows) > MAX_TERMS:
+        fail(f"more than {MAX_TERMS} terms", rows[MAX_TERMS][0])
+    taus, values = [], []
+    for number, row in rows:
+        if len(row) != 2:
+            fail(f"needs 2 values (tau, modulus), got {len(row)}: {row!r}", number)
+        tau, value = (_number(cell) for cell in row)
+        if tau is None or value is None:
+            fail(f"values must be finite numbers, got {row!r}", number)
+        if tau <= 0:
+            fail(f"the relaxation time must be > 0, got {tau!r}", number)
+        if value < 0:
+            fail(f"the modulus must be >= 0, got {value!r}", number)
+        if taus and tau <= taus[-1]:
+            what = "duplicates" if tau == taus[-1] else "is below"
+            fail(f"tau = {tau!r} {what} the previous row's {taus[-1]!r}: the rows must be "
+                 "sorted by increasing relaxation time, each time once", number)
+        taus.append(tau)
+        values.append(value)
+    return taus, values
+
+
+def _number(cell: str) -> float | None:
+    """The finite number a cell holds, else None (nan, inf and text are not numbers)."""
+    try:
+        value = float(cell.strip())
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None

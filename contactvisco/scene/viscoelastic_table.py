@@ -1,0 +1,328 @@
+"""The [viscoelastic] table: the material as relaxation moduli with Prony terms (shear and bulk,
+or Young's modulus with a constant Poisson ratio), entered inline or from a CSV file, and
+converted exactly to the material.E, material.nu and memory.terms of eq (7)
+(contactvisco.model.viscoelastic.paper_form) before the scene is checked, so that the run
+uses the memory machinery of the paper's form unchanged.
+
+A scene with [viscoelastic] states its material there only: material.E, nu, lambda, mu and
+the [memory] table are then derived, and giving them too is refused.
+"""
+from __future__ import annotations
+
+import math
+import pathlib
+
+from contactvisco.errors import SceneError
+from contactvisco.model import viscoelastic as ve
+from contactvisco.scene import prony_file
+from contactvisco.scene.table import MODULUS_RANGE, Key, Table, finite, modulus, one_of
+
+#: The keys of one relaxation function (viscoelastic.shear, bulk, young).
+SERIES_KEYS = ("instantaneous", "long_term", "tau", "moduli", "fractions", "file", "values",
+               "scale", "time_scale")
+
+#: viscoelastic.shift: the shift functions a_T of time-temperature superposition.
+SHIFTS = ("none", "wlf", "arrhenius")
+
+#: Material keys that [viscoelastic] derives.
+DERIVED_MATERIAL = ("E", "nu", "lambda", "mu")
+
+
+def _series_table(x) -> bool:
+    return x is None or isinstance(x, dict)
+
+
+class Viscoelastic(Table):
+    """shear and bulk, or young and nu: each relaxation function a table of SERIES_KEYS."""
+
+    KEYS = {
+        "shear": Key(None, _series_table, "a table {instantaneous or long_term, tau, moduli "
+                                          "or fractions, or file}"),
+        "bulk": Key(None, _series_table, "a table like viscoelastic.shear"),
+        "young": Key(None, _series_table, "a table like viscoelastic.shear"),
+        "nu": Key(None, lambda x: x is None or finite(x), "a finite number"),
+        "T_ref": Key(None, lambda x: x is None or finite(x),
+                     "a finite number (the temperature of the Prony terms)"),
+        "temperature": Key(None),
+        "shift": Key("none", one_of(*SHIFTS), "none, wlf or arrhenius"),
+        "C1": Key(None, lambda x: x is None or finite(x), "a finite number"),
+        "C2": Key(None, lambda x: x is None or (finite(x) and x > 0), "a number > 0"),
+        "activation_energy": Key(None, lambda x: x is None or (finite(x) and x > 0),
+                                 "a number > 0 (J/mol)"),
+    }
+
+    def rules(self, scene):
+        """The shift function's constants, a temperature only with a shift function (a
+        number is checked here; an expression at each step, point by point), and a time step
+        that keeps the trapezoid rule's operator positive."""
+        self._shift_rules(scene)
+        self._implicit_operator(scene)
+
+    def _implicit_operator(self, scene) -> None:
+        """With the trapezoid rule the step solves (A + k/2 R(0)) eps = ..., R(0) < 0 for a
+        relaxing material: per part, the instantaneous modulus plus k/2 R(0) must stay > 0, or
+        the discrete material has a negative stiffness (k in reduced time, k / a_T, for a
+        constant temperature; a step cut halves k)."""
+        time, memory = scene["time"], scene["memory"]
+        if time["rule"] != "trapezoid" or memory["kernel"] != "prony":
+            return
+        from contactvisco.model.material import lame_constants
+        mat = scene["material"]
+        lam, mu = lame_constants(mat["model"], mat["E"], mat["nu"])
+        d = scene.dimension
+        A = {"deviatoric": 2 * mu, "volumetric": d * lam + 2 * mu}
+        k = time["T"] / time["steps"]
+        theta = self["temperature"]
+        if finite(theta) and self["shift"] != "none":
+            k /= 10.0 ** float(ve.log10_shift(self, theta))
+        elif theta is not None:
+            return                                  # a field: not known before the run
+        R0 = {}
+        for term in memory["terms"]:
+            R0[term["part"]] = R0.get(term["part"], 0.0) + term["alpha"]
+        for part, r in R0.items():
+            k_max = 2 * A[part] / -r if r < 0 else math.inf
+            name = ("young" if self["young"] is not None else
+                    "shear" if part == "deviatoric" else "bulk")
+            self.need(k < k_max, name,
+                      f"time.steps = {time['steps']}: the step k = {k:.4g}"
+                      + (" (in reduced time, k / a_T)" if theta is not None else "")
+                      + f" makes the {part} stiffness of the trapezoid rule, A + k/2 R(0) = "
+                      f"{A[part]:.4g} - {k / 2 * -r:.4g}, <= 0 (the relaxation terms are too "
+                      f"fast for the step); take k < {k_max:.4g} (more time steps)")
+
+    def _shift_rules(self, scene) -> None:
+        shift = self["shift"]
+        needed = {"none": (), "wlf": ("T_ref", "C1", "C2"),
+                  "arrhenius": ("T_ref", "activation_energy")}[shift]
+        for name in needed:
+            self.need(self[name] is not None, name,
+                      f"viscoelastic.shift = '{shift}' needs viscoelastic.{name}")
+        for name in ("C1", "C2", "activation_energy"):
+            self.need(self[name] is None or name in needed, name,
+                      f"viscoelastic.{name} belongs to another shift function than "
+                      f"viscoelastic.shift = '{shift}'")
+        if shift == "arrhenius":
+            self.need(self["T_ref"] > 0, "T_ref", "viscoelastic.T_ref must be > 0 (kelvin) "
+                                                  "for the Arrhenius shift")
+        theta = self["temperature"]
+        if theta is None:
+            return
+        self.need(shift != "none", "temperature",
+                  "viscoelastic.temperature needs a shift function (viscoelastic.shift = "
+                  "'wlf' or 'arrhenius') to act on the relaxation times")
+        self.expression("temperature", theta, scene.dimension)
+        if finite(theta):
+            error = ve.shift_error(self, theta)
+            self.need(error is None, "temperature", str(error))
+        self.need(scene["memory"]["kernel"] in ("prony", "none"), "temperature",
+                  "viscoelastic.temperature: reduced time runs the Prony recursion")
+
+    def series(self, name: str, base: pathlib.Path | None) -> ve.PronySeries:
+        """The checked Prony series of viscoelastic.<name> (a file read from `base`)."""
+        spec = self[name]
+        where = self.key(name)
+        unknown = sorted(set(spec) - set(SERIES_KEYS))
+        if unknown:
+            self.fail(f"{name}.{unknown[0]}", f"{where}.{unknown[0]}: unknown key; a relaxation "
+                                              f"function has {', '.join(SERIES_KEYS)}")
+        ends = [k for k in ("instantaneous", "long_term") if spec.get(k) is not None]
+        self.need(len(ends) == 1, name, f"{where} needs exactly one of instantaneous (phi(0)) "
+                                        f"and long_term (phi_inf), got {ends or 'neither'}")
+        end = ends[0]
+        value = spec[end]
+        self.need(finite(value) and value > 0 and modulus(value), f"{name}.{end}",
+                  f"{where}.{end} must be a modulus > 0 in [{1 / MODULUS_RANGE:g}, "
+                  f"{MODULUS_RANGE:g}], got {value!r}")
+        kind = self._kind(name, spec)
+        taus, values = self._terms(name, spec, kind, base)
+        return self._checked(name, end, value, kind, taus, values)
+
+    def _kind(self, name: str, spec: dict) -> str:
+        where = self.key(name)
+        given = [k for k in ("moduli", "fractions") if spec.get(k) is not None]
+        if spec.get("file") is not None:
+            self.need(not given and spec.get("tau") is None, f"{name}.file",
+                      f"{where}.file gives the terms: leave out {where}.tau, moduli and "
+                      "fractions")
+            kind = spec.get("values", "moduli")
+            self.need(one_of("moduli", "fractions")(kind), f"{name}.values",
+                      f"{where}.values must be 'moduli' or 'fractions' (what the file's second "
+                      f"column holds), got {kind!r}")
+            return kind
+        self.need(spec.get("values") is None, f"{name}.values",
+                  f"{where}.values says what a file holds; without {where}.file give "
+                  f"{where}.moduli or {where}.fractions")
+        self.need(len(given) <= 1, f"{name}.fractions",
+                  f"{where}: give moduli (absolute) or fractions (normalized), not both")
+        if not given:
+            self.need(spec.get("tau") in (None, []), f"{name}.tau",
+                      f"{where}.tau needs {where}.moduli or {where}.fractions")
+        return given[0] if given else "moduli"
+
+    def _terms(self, name: str, spec: dict, kind: str, base) -> tuple[list, list]:
+        where = self.key(name)
+        for factor in ("scale", "time_scale"):
+            value = spec.get(factor, 1.0)
+            self.need(finite(value) and value > 0, f"{name}.{factor}",
+                      f"{where}.{factor} must be a number > 0 (the factor from the file's "
+                      f"units to the scene's), got {value!r}")
+        if spec.get("file") is not None:
+            key = f"{where}.file"
+            try:
+                path = prony_file.resolve_path(spec["file"], base, key)
+                taus, values = prony_file.read(path, key)
+            except SceneError as err:
+                self.fail(f"{name}.file", str(err))
+            scale = float(spec.get("scale", 1.0)) if kind == "moduli" else 1.0
+            return ([float(spec.get("time_scale", 1.0)) * t for t in taus],
+                    [scale * v for v in values])
+        self.need(spec.get("scale") is None and spec.get("time_scale") is None,
+                  f"{name}.scale", f"{where}.scale and time_scale convert a file's units; "
+                                   "inline terms are in the scene's units")
+        taus = spec.get("tau") or []
+        values = spec.get(kind) or []
+        for key, items in (("tau", taus), (kind, values)):
+            self.need(isinstance(items, list) and all(finite(v) for v in items),
+                      f"{name}.{key}", f"{where}.{key} must be a list of finite numbers, got "
+                                       f"{items!r}")
+        self.need(len(taus) == len(values), f"{name}.tau",
+                  f"{where}.tau and {where}.{kind} must have the same length, got "
+                  f"{len(taus)} and {len(values)}")
+        self.need(len(taus) <= prony_file.MAX_TERMS, f"{name}.tau",
+                  f"{where}: at most {prony_file.MAX_TERMS} terms, got {len(taus)}")
+        return list(map(float, taus)), list(map(float, values))
+
+    def _checked(self, name, end, value, kind, taus, values) -> ve.PronySeries:
+        where = self.key(name)
+        for i, tau in enumerate(taus):
+            self.need(tau > 0, f"{name}.tau", f"{where}.tau[{i}] = {tau!r}: a relaxation time "
+                                              "must be > 0")
+        for i, v in enumerate(values):
+            self.need(v > 0, f"{name}.{kind}",
+                      f"{where}.{kind}[{i}] = {v!r}: a Prony {kind[:-1]} must be > 0 (a "
+                      "negative modulus has no physical meaning; leave a zero term out)")
+        order = sorted(range(len(taus)), key=taus.__getitem__)
+        for a, b in zip(order, order[1:]):
+            self.need(taus[b] - taus[a] > ve.SAME_TIME * taus[b], f"{name}.tau",
+                      f"{where}.tau[{a}] and tau[{b}] = {taus[a]!r}, {taus[b]!r}: terms with the "
+                      "same relaxation time duplicate each other (add their moduli into one)")
+        if kind == "fractions":
+            total = sum(values)
+            self.need(total < 1.0, f"{name}.fractions",
+                      f"{where}.fractions sum to {total:.6g}: normalized Prony fractions must "
+                      "sum to less than 1 (the long-term modulus phi(0) (1 - sum g_i) must be "
+                      "> 0; at 1 or more the material creeps without bound)")
+            out = ve.series(**{end: value}, taus=taus, fractions=values)
+        else:
+            out = ve.series(**{end: value}, taus=taus, moduli=values)
+        self.need(out.long_term > 0 and out.long_term >= 1e-12 * out.instantaneous,
+                  f"{name}.{end}",
+                  f"{where}: the relaxed (long-term) modulus phi(0) - sum phi_i = "
+                  f"{out.long_term:.6g} must be > 0 (at 0 or below the material creeps "
+                  f"without bound); the instantaneous modulus is {out.instantaneous:.6g}")
+        self.need(modulus(out.instantaneous), f"{name}.{end}",
+                  f"{where}: the instantaneous modulus {out.instantaneous:.6g} must lie in "
+                  f"[{1 / MODULUS_RANGE:g}, {MODULUS_RANGE:g}] (change the units)")
+        return out
+
+    def shear_bulk(self, model: str, base) -> tuple[ve.PronySeries, ve.PronySeries]:
+        """G(t) and K(t), from shear and bulk or from young and nu (all checked)."""
+        given = [k for k in ("shear", "bulk", "young") if self[k] is not None]
+        if self["young"] is not None:
+            self.need(given == ["young"], given[0] if given[0] != "young" else "shear",
+                      "[viscoelastic] takes young (with nu) or shear and bulk, not both")
+            nu = self["nu"]
+            self.need(nu is not None and -1.0 < nu < 0.5, "nu",
+                      f"viscoelastic.nu (constant in time) must lie in (-1, 0.5) with "
+                      f"viscoelastic.young (the bulk modulus E / (3 (1 - 2 nu)) must be > 0, "
+                      f"in plane stress too), got {nu!r}")
+            return ve.young_series(self.series("young", base), float(nu))
+        self.need(given == ["shear", "bulk"], "shear" if "shear" not in given else "bulk",
+                  "[viscoelastic] needs shear and bulk (each a relaxation function; a table "
+                  "without terms is elastic), or young and nu; got "
+                  + (", ".join(given) or "none of them"))
+        self.need(self["nu"] is None, "nu", "viscoelastic.nu goes with viscoelastic.young; "
+                                            "with shear and bulk it follows from them")
+        return self.series("shear", base), self.series("bulk", base)
+
+    def convert(self, scene, base: pathlib.Path | None) -> None:
+        """Set material.E, material.nu and the [memory] table of `scene` from the relaxation
+        functions: A = the instantaneous moduli, R = their derivative (paper_form)."""
+        model = scene["material"]["model"]
+        shear, bulk = self.shear_bulk(model, base)
+        if model == "plane_stress" and not ve.proportional(shear, bulk):
+            self.fail("bulk" if self["young"] is None else "young",
+                      "material.model = 'plane_stress' with shear and bulk relaxing "
+                      "differently is not converted: sigma_33 = 0 makes the in-plane bulk "
+                      "modulus 9 K G / (3 K + 4 G), whose relaxation times are the zeros of "
+                      "3 K~(s) + 4 G~(s) in Laplace variables, neither those of G nor of K. "
+                      "Give proportional terms (the same tau_i and fractions in shear and "
+                      "bulk), or viscoelastic.young with a constant nu, or use plane_strain or "
+                      "3d")
+        E, nu, terms = ve.paper_form(model, shear, bulk)
+        # the functions as entered, for the figures (an attribute: not a scene key)
+        self.functions = ({"young": self.series("young", base)} if self["young"] is not None
+                          else {"shear": shear, "bulk": bulk})
+        scene["material"]["E"], scene["material"]["nu"] = E, nu
+        memory = scene["memory"]
+        memory["kernel"] = "prony" if terms else "none"
+        memory["terms"] = [{"alpha": a, "tau": tau, "part": part} for a, tau, part in terms]
+
+
+def check_alone(raw: dict, assignments) -> None:
+    """[viscoelastic] derives material.E, nu (lambda, mu) and [memory]: giving them as well (in
+    the file or by overrides) is refused, naming the key.
+
+    Parameters
+    ----------
+    raw : dict
+        The scene as read.
+    assignments : list
+        The overrides as (path, value).
+    """
+    given = raw.get("viscoelastic") is not None or any(
+        path[0] == "viscoelastic" for path, _ in assignments)
+    if not given:
+        return
+    keys = [f"material.{k}" for k in (raw.get("material") or {}) if k in DERIVED_MATERIAL]
+    keys += [f"memory.{k}" for k in (raw.get("memory") or {})]
+    for path, value in assignments:
+        if path[0] == "material" and len(path) == 2 and path[1] in DERIVED_MATERIAL:
+            keys.append(".".join(path))
+        elif path[0] == "material" and len(path) == 1 and isinstance(value, dict):
+            keys += [f"material.{k}" for k in value if k in DERIVED_MATERIAL]
+        elif path[0] == "memory":
+            keys.append(".".join(path))
+    if keys:
+        raise SceneError(f"{keys[0]}: a scene with [viscoelastic] states its material there; "
+                         f"material.E, nu, lambda, mu and [memory] are derived from it (give "
+                         f"one form or the other)", key=keys[0])
+
+
+def describe(scene) -> str | None:
+    """The converted (A, R) of a scene with [viscoelastic], as the run prints it; else None.
+
+    Parameters
+    ----------
+    scene : dict
+        A resolved scene.
+
+    Returns
+    -------
+    str or None
+        A, as E, nu and the Lame constants, and R(t) term by term.
+    """
+    if scene.get("viscoelastic") is None:
+        return None
+    from contactvisco.model.material import lame_constants
+    mat = scene["material"]
+    lam, mu = lame_constants(mat["model"], mat["E"], mat["nu"])
+    lines = [f"viscoelastic: converted to eq (7): A with E = {mat['E']:.6g}, nu = "
+             f"{mat['nu']:.6g} ({mat['model']}: lambda = {lam:.6g}, mu = {mu:.6g})"]
+    terms = scene["memory"]["terms"] if scene["memory"]["kernel"] == "prony" else []
+    if not terms:
+        lines.append("  R = 0 (no Prony terms: elastic)")
+    for t in terms:
+        lines.append(f"  R += {t['alpha']:.6g} exp(-t/{t['tau']:.6g}) {t['part']}")
+    return "\n".join(lines)
