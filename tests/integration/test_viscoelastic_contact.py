@@ -115,8 +115,8 @@ def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch):
     whole = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True)
     save = checkpoint.save
 
-    def stop_after_step_3(folder, problem, comm, t, count, step):
-        save(folder, problem, comm, t, count, step)
+    def stop_after_step_3(folder, problem, comm, t, count, step, **records):
+        save(folder, problem, comm, t, count, step, **records)
         if count == 4:
             raise _Stop
 
