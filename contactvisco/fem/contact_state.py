@@ -63,19 +63,25 @@ def state_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
 def _node_fields(problem, own: np.ndarray) -> dict[str, np.ndarray | None]:
     """The fields at the owned contact nodes `own`: u (n, d), gap h, lambda_nu (zero without
     a bound), sigma_tau_vector = lambda_tau (zero without friction) and u_previous (None
-    unless the slip is an increment). P1: node i of the multiplier spaces is dof block i of
+    unless the slip is an increment); with an obstacle, u and u_previous relative to it
+    (u - d, u_previous - d(t_{n-1})). P1: node i of the multiplier spaces is dof block i of
     V."""
     d = problem.geometry.mesh.geometry.dim
     part = problem.contact
     u = _nodal_displacement(problem)[own]
+    u_previous = (part.u_previous.x.array.reshape(-1, d)[own]
+                  if part.u_previous is not None else None)
+    if part.obstacle is not None:           # the law acts on u relative to the obstacle
+        u = u - part.obstacle.D.x.array.reshape(-1, d)[own]
+        if u_previous is not None:
+            u_previous = u_previous - part.obstacle.D_previous.x.array.reshape(-1, d)[own]
     return dict(
         u=u, gap=part.gap.x.array[own],
         lambda_nu=(part.lambda_nu.x.array[own] if part.lambda_nu is not None
                    else np.zeros(len(own))),
         sigma_tau_vector=(part.lambda_tau.x.array.reshape(-1, d)[own]
                           if part.lambda_tau is not None else np.zeros_like(u)),
-        u_previous=(part.u_previous.x.array.reshape(-1, d)[own]
-                    if part.u_previous is not None else None))
+        u_previous=u_previous)
 
 
 def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -> dict:

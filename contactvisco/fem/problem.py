@@ -34,6 +34,7 @@ from petsc4py import PETSc
 
 from contactvisco.fem import compat
 from contactvisco.model import contact_law as law
+from contactvisco.fem import obstacle as obstacle_module
 from contactvisco.fem import rigid
 from contactvisco.fem.geometry import Geometry
 from contactvisco.model.material import elasticity, lame_constants, strain
@@ -95,6 +96,7 @@ class ContactPart:
     u_p1: fem.Function | None
     constants: dict                            # r, g, stiffness, mu (those the law needs)
     corner_forms: dict | None = None           # corner_forms() (None without corners)
+    obstacle: object | None = None             # fem.obstacle.ObstaclePart (None: none)
 
 
 @dataclass
@@ -116,6 +118,7 @@ class TimeState:
     u_previous: fem.Function | None            # the slip's origin (slip = "increment")
     committed: float | None = None             # the last committed time (None: none yet)
     staged: float | None = None
+    obstacle: object | None = None             # fem.obstacle.ObstaclePart (None: none)
 
     def stage(self, t: float):
         """Move to time t and prepare the step from the committed state."""
@@ -145,6 +148,8 @@ class TimeState:
         step's output still sees it."""
         if self.u_previous is not None:
             self.u_previous.x.array[:] = self.u.x.array
+            if self.obstacle is not None:
+                self.obstacle.prepare(self.committed)
         memory = self.memory
         if memory is None:
             return
@@ -294,7 +299,8 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         scene=scene, geometry=geometry, V=V, u=u, F=F, J=_block_jacobian(F, unknowns, spaces),
         bcs=bcs + multiplier_bcs, bcs_u=list(bcs), u_fixed=fixed_components,
         multiplier_free=multiplier_free, constants=constants, context=context,
-        time=TimeState(context.t, updates, u, memory, contact and contact.u_previous),
+        time=TimeState(context.t, updates, u, memory, contact and contact.u_previous,
+                       obstacle=contact and contact.obstacle),
         loads=loads, tensor_space=tensor_space,
         sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
         length_scale=_length_scale(mesh), memory=memory, contact=contact)
@@ -389,12 +395,17 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     if degree == 1 and not np.allclose(u.function_space.tabulate_dof_coordinates(),
                                        W.tabulate_dof_coordinates()):
         raise RuntimeError("displacement and multiplier node numberings differ")
-    normal = _contact_normal(mesh, Q, W, dsc, nodes)
-    gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
+    obstacle = _obstacle(scene, Q, W, nodes, context, updates)
+    if obstacle is None:
+        normal = _contact_normal(mesh, Q, W, dsc, nodes)
+        gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
+    else:
+        normal, gap_value, gap_function = obstacle.normal, obstacle.gap, obstacle.gap
 
     constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
-    terms = law.law_terms(law.UFL, u, normal, gap_value, lambda_nu, lambda_tau, u_previous,
-                          constants, contact["friction_law"])
+    relative, previous = _relative_motion(u, u_previous, obstacle)
+    terms = law.law_terms(law.UFL, relative, normal, gap_value, lambda_nu, lambda_tau,
+                          previous, constants, contact["friction_law"])
     F_u = None
     pairs = []
     if terms["normal_force"] is not None:
@@ -415,8 +426,31 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                        Q_coordinates=Q.tabulate_dof_coordinates(),
                        u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
                        corner_forms=_corner_forms(terms, u, normal, Q, W, dsc) if corners
-                       else None)
+                       else None, obstacle=obstacle)
     return part, F_u, pairs
+
+
+def _obstacle(scene, Q, W, nodes, context, updates):
+    """The scene's rigid obstacle (contactvisco.fem.obstacle; None without one): its normal nu
+    and gap h at the contact nodes, re-evaluated at each time when it moves. The contact
+    nodes' normals become the obstacle's; no node is a corner (one normal per node)."""
+    table = scene.get("obstacle")
+    if table is None or table["shape"] == "none":
+        return None
+    part = obstacle_module.build(scene, Q, W, nodes, context.t)
+    nodes.corners = np.zeros(0, dtype=nodes.nodes.dtype)
+    if table["displacement"] is not None and context.depends_on_time(table["displacement"]):
+        updates.append(part.move_to)
+    return part
+
+
+def _relative_motion(u, u_previous, obstacle):
+    """What the law acts on: u and u(t_{n-1}) relative to the obstacle, u - d and
+    u(t_{n-1}) - d(t_{n-1}) (u and u_previous themselves without an obstacle)."""
+    if obstacle is None:
+        return u, u_previous
+    previous = None if u_previous is None else u_previous - obstacle.D_previous
+    return u - obstacle.D, previous
 
 
 def _contact_unknowns(contact: dict, u, Q, W):

@@ -418,6 +418,103 @@ class Contact(Table):
                   "total normal pressure")
 
 
+#: obstacle.shape: the rigid obstacle's geometry ("none": the body's own normal and contact.gap).
+OBSTACLE_SHAPES = ("none", "plane", "cylinder", "sphere", "surface")
+
+
+def _vector(x, d) -> bool:
+    return number_list(x) and len(x) == d
+
+
+class Obstacle(Table):
+    """The rigid obstacle the contact boundary meets: its shape (a signed distance phi, > 0 on
+    the body's side) and its prescribed rigid translation d(t). At a contact node x the gap is
+    phi(x - d) and the contact direction nu = -grad phi (fem.obstacle)."""
+
+    KEYS = {
+        "shape": choice("none", *OBSTACLE_SHAPES),
+        "point": Key(None),
+        "normal": Key(None),
+        "centre": Key(None),
+        "radius": Key(None),
+        "axis": Key(None),
+        "distance": Key(None),
+        "displacement": Key(None),
+    }
+
+    #: The keys each shape needs (axis: a cylinder in 3D).
+    NEEDS = {"none": (), "plane": ("point", "normal"), "cylinder": ("centre", "radius"),
+             "sphere": ("centre", "radius"), "surface": ("distance",)}
+
+    def rules(self, scene):
+        shape, d = self["shape"], scene.dimension
+        if shape == "none":
+            given = [k for k in self.KEYS if k != "shape" and self[k] is not None]
+            self.need(not given, given[0] if given else "shape",
+                      f"obstacle.{given[0] if given else ''} is given but obstacle.shape is "
+                      f"'none'; set obstacle.shape to {choices(*OBSTACLE_SHAPES[1:])}")
+            return
+        self.need(scene["contact"] is not None, "shape",
+                  "an [obstacle] needs a [contact] table: the contact boundary it meets")
+        self.need(scene["contact"]["gap"] == 0, "shape",
+                  "an [obstacle] gives the gap itself (its distance to the contact nodes); "
+                  "leave contact.gap at 0")
+        needs = self.NEEDS[shape] + (("axis",) if shape == "cylinder" and d == 3 else ())
+        for name in needs:
+            self.need(self[name] is not None, name,
+                      f"obstacle.shape = '{shape}' needs obstacle.{name}")
+        extra = [k for k in ("point", "normal", "centre", "radius", "axis", "distance")
+                 if self[k] is not None and k not in needs]
+        self.need(not extra, extra[0] if extra else "shape",
+                  f"obstacle.{extra[0] if extra else ''} has no meaning for obstacle.shape = "
+                  f"'{shape}' (it takes {', '.join(needs)})")
+        for name in ("point", "normal", "centre", "axis"):
+            if self[name] is not None:
+                self.need(_vector(self[name], d), name,
+                          f"obstacle.{name} must be a list of {d} finite numbers, got "
+                          f"{self[name]!r}")
+        for name in ("normal", "axis"):
+            if self[name] is not None:
+                length = math.sqrt(sum(v * v for v in self[name]))
+                self.need(length > 0, name,
+                          f"obstacle.{name} must have a non-zero length, got {self[name]!r}")
+        if self["radius"] is not None:
+            self.need(finite(self["radius"]) and self["radius"] > 0, "radius",
+                      f"obstacle.radius must be a finite number > 0, got {self['radius']!r}")
+        if self["distance"] is not None:
+            self.need(isinstance(self["distance"], str), "distance",
+                      f"obstacle.distance must be an expression in x (a signed distance), got "
+                      f"{self['distance']!r}")
+            self.expression("distance", self["distance"], d)
+            self.need(not _uses_time(self["distance"]), "distance",
+                      "obstacle.distance is the obstacle's shape in x; move it with "
+                      "obstacle.displacement (expressions in t)")
+        motion = self["displacement"]
+        if motion is not None:
+            self.need(isinstance(motion, list) and len(motion) == d, "displacement",
+                      f"obstacle.displacement must be a list of {d} components (expressions "
+                      f"in t), got {motion!r}")
+            for j, value in enumerate(motion):
+                where = f"obstacle.displacement[{j}]"
+                self.expression("displacement", value, d, where)
+                self.need(not isinstance(value, str) or not _uses_position(value),
+                          "displacement", f"{where} = {value!r}: a rigid translation depends "
+                                          "on t only, not on x")
+
+
+def _names(text: str) -> set:
+    return {node.id for node in ast.walk(ast.parse(text, mode="eval"))
+            if isinstance(node, ast.Name)}
+
+
+def _uses_time(text: str) -> bool:
+    return "t" in _names(text)
+
+
+def _uses_position(text: str) -> bool:
+    return "x" in _names(text)
+
+
 class Time(Table):
     KEYS = {
         "T": Key(1.0, lambda x: finite(x) and x > 0, "> 0"),
@@ -535,7 +632,7 @@ class Units(Table):
 TABLES = {
     "material": Material, "geometry": Geometry, "discretization": Discretization,
     "body_force": BodyForce, "memory": Memory, "time": Time, "contact": Contact,
-    "solver": Solver, "output": Output, "units": Units,
+    "obstacle": Obstacle, "solver": Solver, "output": Output, "units": Units,
 }
 
 #: Lists of tables ([[dirichlet]], [[traction]]) and the class of their items.
@@ -569,7 +666,7 @@ class Scene(Table):
         out["body_force"] = BodyForce.defaults()
         out["traction"] = []
         out["contact"] = None
-        for name in ("time", "discretization", "solver", "output", "units"):
+        for name in ("obstacle", "time", "discretization", "solver", "output", "units"):
             out[name] = TABLES[name].defaults()
         return out
 
