@@ -191,8 +191,11 @@ def build(scene: dict, Q, W, nodes, t) -> ObstaclePart:
     phi = signed_distance(scene["obstacle"], y, t, d)
     gradient = ufl.grad(phi)
     size = ufl.sqrt(ufl.dot(gradient, gradient) + _TINY)
-    nu = -gradient / size
-    h = phi / size - ufl.dot(nu, reference)
+    # A zero Constant times x keeps the mesh in expressions that end up constant in space (a
+    # plane's normal): fem.Expression needs one.
+    zero = fem.Constant(mesh, PETSc.ScalarType(0.0))
+    nu = -gradient / size + zero * x
+    h = phi / size - ufl.dot(nu, reference) + zero * x[0]
     part = ObstaclePart(
         scene=scene, normal=fem.Function(W, name="obstacle_normal"),
         gap=fem.Function(Q, name="gap"), D=fem.Function(W, name="obstacle_displacement"),
