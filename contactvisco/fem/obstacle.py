@@ -124,6 +124,8 @@ class ObstaclePart:
     t: fem.Constant
     _normal_expression: fem.Expression
     _gap_expression: fem.Expression
+    committed: np.ndarray | None = None    # d at the last committed state
+    force_forms: dict | None = None        # force_forms() (force control only)
 
     @property
     def dim(self) -> int:
@@ -153,14 +155,38 @@ class ObstaclePart:
         if nodes.tangents is not None:
             nodes.tangents[:] = np.column_stack([-nodes.normals[:, 1], nodes.normals[:, 0]])
 
+    @property
+    def controlled(self) -> list[int]:
+        """The force-controlled components of d (unknowns), in the order of obstacle.force."""
+        return list(self.scene["obstacle"]["force_components"])
+
     def move_to(self):
-        """The prescribed position at the time t of the expressions."""
-        self.place(displacement_at(self.scene["obstacle"], float(self.t.value), self.dim))
+        """The prescribed position at the time t of the expressions; a force-controlled
+        component keeps the last equilibrium's value (Newton's first guess),
+        except at the first state, where it starts from obstacle.displacement at t."""
+        d = displacement_at(self.scene["obstacle"], float(self.t.value), self.dim)
+        if self.committed is not None:
+            for j in self.controlled:
+                d[j] = self.committed[j]
+        self.place(d)
+
+    def force_at(self, t: float) -> np.ndarray:
+        """The prescribed resultant contact force F(t) on the force-controlled components
+        (the force of the obstacle on the body), shape (len(controlled),)."""
+        values = self.scene["obstacle"]["force"]
+        return np.array([float(expressions.evaluate(v, f"obstacle.force[{j}]", None,
+                                                    float(t), self.dim))
+                         if isinstance(v, str) else float(v) for j, v in enumerate(values)])
 
     def prepare(self, t_committed: float):
         """The origin of the step's slip: d at the committed time."""
-        d = displacement_at(self.scene["obstacle"], t_committed, self.dim)
+        d = (self.committed if self.committed is not None
+             else displacement_at(self.scene["obstacle"], t_committed, self.dim))
         self.D_previous.x.array.reshape(-1, self.dim)[:] = d
+
+    def commit(self):
+        """Keep the converged d (the slip's origin of the next step)."""
+        self.committed = self.displacement()
 
 
 def build(scene: dict, Q, W, nodes, t) -> ObstaclePart:
@@ -204,3 +230,49 @@ def build(scene: dict, Q, W, nodes, t) -> ObstaclePart:
         _gap_expression=fem.Expression(h, compat.interpolation_points(Q)))
     part.move_to()
     return part
+
+
+def force_forms(part: ObstaclePart, contact_terms, v, unknowns: list, residuals: list) -> dict:
+    """The UFL forms of force control: for each force-controlled component j, with e_j the
+    uniform unit vector field, the contact part of F_u tested with e_j,
+
+        g_j = int_C (p_nu + R_nu) e_j . nu - sigma_tau . (e_j)_tau = -(force on the body)_j,
+
+    so that G_j = g_j + F_j(t) = 0 prescribes the force; and the derivatives of the bordered
+    Newton system: ``B[j][i]`` = dF_i/dd_j (the residual blocks F_i of the unknowns, through
+    u - d), ``C[j][i]`` = dg_j/dw_i (w_i the unknowns), ``E[j][k]`` = dg_j/dd_k.
+
+    Parameters
+    ----------
+    part : ObstaclePart
+        The obstacle (its field D is d).
+    contact_terms : UFL form
+        The contact terms of F_u (linear in the test function v).
+    v : ufl.Argument
+        F_u's test function.
+    unknowns : list of fem.Function
+        u and the multipliers.
+    residuals : list of UFL forms
+        Their residual blocks F_i (F_u first).
+
+    Returns
+    -------
+    dict
+        ``g``, ``B``, ``C``, ``E`` (UFL forms, lists indexed by the controlled components).
+    """
+    V, W = v.ufl_function_space(), part.D.function_space
+    d = part.dim
+    e_u, e_w = [], []
+    for j in part.controlled:
+        unit_u, unit_w = fem.Function(V), fem.Function(W)
+        unit_u.x.array.reshape(-1, d)[:, j] = 1.0
+        unit_w.x.array.reshape(-1, d)[:, j] = 1.0
+        e_u.append(unit_u)
+        e_w.append(unit_w)
+    g = [ufl.replace(contact_terms, {v: unit}) for unit in e_u]
+    derivative = ufl.algorithms.expand_derivatives
+    B = [[derivative(ufl.derivative(F, part.D, unit)) for F in residuals] for unit in e_w]
+    C = [[derivative(ufl.derivative(g_j, w, ufl.TestFunction(w.function_space)))
+          for w in unknowns] for g_j in g]
+    E = [[derivative(ufl.derivative(g_j, part.D, unit)) for unit in e_w] for g_j in g]
+    return {"g": g, "B": B, "C": C, "E": E, "units": e_u + e_w}

@@ -131,6 +131,8 @@ class TimeState:
         """Take the converged state at the staged time into the history."""
         self.record(None if self.committed is None else self.staged - self.committed)
         self.committed = self.staged
+        if self.obstacle is not None:
+            self.obstacle.commit()
 
     def move_to(self, t: float):
         """Move time-dependent data (loads, Dirichlet values, gap) to time t."""
@@ -148,8 +150,8 @@ class TimeState:
         step's output still sees it."""
         if self.u_previous is not None:
             self.u_previous.x.array[:] = self.u.x.array
-            if self.obstacle is not None:
-                self.obstacle.prepare(self.committed)
+        if self.obstacle is not None:
+            self.obstacle.prepare(self.committed)
         memory = self.memory
         if memory is None:
             return
@@ -420,6 +422,9 @@ def _contact(scene, geometry, u, v, ds, context, updates):
         F_u = tangential if F_u is None else F_u + tangential
         pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
                                                       ufl.TestFunction(W)) * dsc))
+    if obstacle is not None and obstacle.controlled:
+        obstacle.force_forms = obstacle_module.force_forms(
+            obstacle, F_u, v, [u] + [f for f, _ in pairs], [F_u] + [r for _, r in pairs])
     corners = mesh.comm.allreduce(nodes.corners.size, MPI.SUM) > 0
     part = ContactPart(nodes=nodes, lambda_nu=lambda_nu, lambda_tau=lambda_tau,
                        gap=gap_function, u_previous=u_previous,

@@ -440,6 +440,8 @@ class Obstacle(Table):
         "axis": Key(None),
         "distance": Key(None),
         "displacement": Key(None),
+        "force_components": Key([], lambda x: isinstance(x, list), "a list of components"),
+        "force": Key([], lambda x: isinstance(x, list), "a list of expressions in t"),
     }
 
     #: The keys each shape needs (axis: a cylinder in 3D).
@@ -449,7 +451,7 @@ class Obstacle(Table):
     def rules(self, scene):
         shape, d = self["shape"], scene.dimension
         if shape == "none":
-            given = [k for k in self.KEYS if k != "shape" and self[k] is not None]
+            given = [k for k in self.KEYS if k != "shape" and self[k] not in (None, [])]
             self.need(not given, given[0] if given else "shape",
                       f"obstacle.{given[0] if given else ''} is given but obstacle.shape is "
                       f"'none'; set obstacle.shape to {choices(*OBSTACLE_SHAPES[1:])}")
@@ -500,6 +502,30 @@ class Obstacle(Table):
                 self.need(not isinstance(value, str) or not _uses_position(value),
                           "displacement", f"{where} = {value!r}: a rigid translation depends "
                                           "on t only, not on x")
+        self._force(scene, d)
+
+    def _force(self, scene, d: int) -> None:
+        """force_components: the components of d that are unknowns, their resultant contact
+        force prescribed by force (one expression in t each)."""
+        components, force = self["force_components"], self["force"]
+        self.need(all(integer(c) and 0 <= c < d for c in components)
+                  and len(set(components)) == len(components), "force_components",
+                  f"obstacle.force_components must list distinct components 0..{d - 1}, got "
+                  f"{components!r}")
+        self.need(len(force) == len(components), "force",
+                  f"obstacle.force needs one value per force-controlled component "
+                  f"(obstacle.force_components = {components!r}), got {force!r}")
+        for j, value in enumerate(force):
+            where = f"obstacle.force[{j}]"
+            self.expression("force", value, d, where)
+            self.need(not isinstance(value, str) or not _uses_position(value), "force",
+                      f"{where} = {value!r}: a resultant force depends on t only, not on x")
+        if components:
+            self.need(scene["discretization"]["contact_quadrature"] == "nodal"
+                      and scene["solver"]["linear_system"] != "coupled", "force_components",
+                      "obstacle.force_components: force control is solved with the condensed "
+                      "Newton system (discretization.contact_quadrature = 'nodal', "
+                      "solver.linear_system = 'auto' or 'condensed')")
 
 
 def _names(text: str) -> set:

@@ -14,6 +14,7 @@ import pathlib
 import time as clock
 from dataclasses import dataclass, field
 
+import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
@@ -26,6 +27,7 @@ from contactvisco.io.lock import FolderLock
 from contactvisco.solver import diagnosis, report
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure
+from contactvisco.errors import SceneError
 
 
 @dataclass
@@ -138,6 +140,12 @@ class Run:
         self.say = report.printer(comm, progress)
         points = scene["output"]["probes"]
         self.probes = Probes(problem.geometry.mesh, points) if points else None
+        obstacle = problem.contact and problem.contact.obstacle
+        if restart and obstacle is not None and obstacle.controlled:
+            raise SceneError("obstacle.force_components: a run under force control does not "
+                             "restart from a checkpoint (the checkpoint holds no position of "
+                             "the obstacle); run it from t = 0",
+                             key="obstacle.force_components")
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
         opts = scene["output"]
         self.writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
@@ -191,7 +199,8 @@ class Run:
                 "residual_history": snes.residuals, "wall_s": state.wall_s, "cuts": state.cuts,
                 "krylov_iterations": snes.krylov_iterations,
                 "status_counts": contact_state.status_counts(table),
-                "probes": probes.values(self.problem.u, self.comm) if probes else []}
+                "probes": probes.values(self.problem.u, self.comm) if probes else [],
+                **obstacle_record(self.problem, table)}
 
     def _file_observers(self, k) -> list:
         """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""
@@ -231,6 +240,21 @@ class Run:
             writer.finish(final)
         self.say(report.closing_line(final, t_end))
         return final
+
+
+def obstacle_record(problem, table) -> dict:
+    """The obstacle's entry of a step record ({} without an obstacle): its displacement d and
+    the resultant contact force it exerts on the body, sum_i w_i (-(reaction_nu) nu +
+    sigma_tau) over the contact nodes (the force obstacle.force prescribes under force
+    control)."""
+    obstacle = problem.contact and problem.contact.obstacle
+    if obstacle is None or table is None:
+        return {}
+    weight = table["weight"][:, None]
+    force = np.sum(weight * (table["sigma_tau_vector"]
+                             - table["reaction_nu"][:, None] * table["normal"]), axis=0)
+    return {"obstacle": {"displacement": obstacle.displacement().tolist(),
+                         "force": force.tolist()}}
 
 
 def recorder(result: Result, keep_tables):

@@ -208,3 +208,84 @@ def test_surface_obstacle_is_the_cylinder_it_describes():
     assert np.allclose(a["reaction_nu"], b["reaction_nu"], rtol=1e-9,
                        atol=1e-12 * np.max(a["reaction_nu"]))
     assert np.allclose(a["normal"], b["normal"], atol=1e-12)
+
+
+def _force_of(run) -> float:
+    return run.steps[-1]["obstacle"]["force"][1]
+
+
+@pytest.mark.parametrize("solver", ["direct", "iterative"])
+def test_force_control_gives_the_displacement_controlled_state(solver):
+    """The force a displacement-controlled run (a plane moved by 0.0035) produced, prescribed
+    to the same obstacle under force control (its d_y an unknown of the Newton step), gives
+    back d_y = 0.0035 and the same contact state to 1e-9; the records hold d and the force.
+    Both linear solvers, on 1 and 2 ranks."""
+    sets = [f"solver.linear_solver='{solver}'"]
+    a, run_a = final_table(disk_on_plane(0.01), sets)
+    F = _force_of(run_a)
+    assert F > 0.1
+    controlled = {"shape": "plane", "point": [0.0, 0.0], "normal": [0.0, 1.0],
+                  "force_components": [1], "force": [f"{F!r} * t"]}
+    b, run_b = final_table(disk_on_plane(0.01, obstacle=controlled), sets)
+    record = run_b.steps[-1]["obstacle"]
+    assert abs(record["displacement"][1] - 0.0035) < 1e-9 * 0.0035, record
+    assert abs(record["force"][1] - F) < 1e-9 * F, record
+    assert np.array_equal(a["status"], b["status"])
+    scale = np.max(a["reaction_nu"])
+    assert np.max(np.abs(a["reaction_nu"] - b["reaction_nu"])) < 1e-9 * scale
+    assert np.max(np.abs(a["u_nu"] - b["u_nu"])) < 1e-9 * np.max(np.abs(a["u_nu"]))
+
+
+def test_force_controlled_cylinder_settles_its_closest_points():
+    """A cylinder indenting a layer under force control: its closest points and normals are
+    evaluated again at the converged position, so the state is the displacement-controlled
+    one to 1e-9 (measured 1e-13), not the one linearized about the last position (2.6e-5)."""
+    moving = {"shape": "cylinder", "centre": [1.0, -R], "radius": R,
+              "displacement": [0.0, "0.0035 * t"]}
+    a, run_a = final_table(layer_under_cylinder(0.02, moving))
+    F = _force_of(run_a)
+    controlled = {"shape": "cylinder", "centre": [1.0, -R], "radius": R,
+                  "force_components": [1], "force": [f"{F!r} * t"]}
+    b, run_b = final_table(layer_under_cylinder(0.02, controlled))
+    assert abs(run_b.steps[-1]["obstacle"]["displacement"][1] - 0.0035) < 1e-9 * 0.0035
+    assert np.array_equal(a["status"], b["status"])
+    assert np.max(np.abs(a["reaction_nu"] - b["reaction_nu"])) < 1e-9 * np.max(a["reaction_nu"])
+
+
+def test_force_control_records_follow_the_prescribed_force():
+    """Over four steps of F(t) = 0.2 t the recorded force is F(t) at every step and the
+    indenter sinks further at each (Hertz in 2D: d grows faster than linearly in F)."""
+    controlled = {"shape": "cylinder", "centre": [1.0, -R], "radius": R,
+                  "force_components": [1], "force": ["0.2 * t"]}
+    _, run = final_table(layer_under_cylinder(0.05, controlled, steps=4))
+    for step in run.steps:
+        assert abs(step["obstacle"]["force"][1] - 0.2 * step["t"]) < 1e-9, step["obstacle"]
+    depths = [step["obstacle"]["displacement"][1] for step in run.steps]
+    assert all(b > a for a, b in zip(depths, depths[1:])), depths
+
+
+def test_force_on_an_obstacle_out_of_contact_stops_with_a_named_error():
+    """A force-controlled cylinder 0.01 below the layer: no contact node can carry its force,
+    the run stops naming obstacle.force instead of drifting."""
+    controlled = {"shape": "cylinder", "centre": [1.0, -R - 0.01], "radius": R,
+                  "force_components": [1], "force": ["0.1 * t"]}
+    with pytest.raises(SceneError, match="no equilibrium of the force-controlled") as err:
+        final_table(layer_under_cylinder(0.05, controlled))
+    assert err.value.key == "obstacle.force"
+
+
+@pytest.mark.parametrize("sets, key, words", [
+    (["obstacle.force_components=[1]"], "obstacle.force", "one value per"),
+    (["obstacle.force_components=[2]", "obstacle.force=[1.0]"], "obstacle.force_components",
+     "distinct components 0..1"),
+    (["obstacle.force_components=[1]", "obstacle.force=['x[0]']"], "obstacle.force",
+     "t only"),
+    (["obstacle.force_components=[1]", "obstacle.force=[1.0]",
+      "solver.linear_system='coupled'"], "obstacle.force_components", "condensed"),
+])
+def test_bad_force_control_is_refused_naming_the_key(sets, key, words):
+    plane = ["contact.gap=0", "obstacle.shape='plane'", "obstacle.point=[0.0, 0.0]",
+             "obstacle.normal=[0.0, 1.0]"]
+    with pytest.raises(SceneError, match=words) as err:
+        scene_module.load("hertz", plane + sets)
+    assert err.value.key == key, err.value.key
