@@ -289,3 +289,39 @@ def test_bad_force_control_is_refused_naming_the_key(sets, key, words):
     with pytest.raises(SceneError, match=words) as err:
         scene_module.load("hertz", plane + sets)
     assert err.value.key == key, err.value.key
+
+
+def test_cattaneo_mindlin_through_a_force_controlled_plane():
+    """The half cylinder (nu = 0.49, top clamped) loaded through a plane obstacle under force
+    control in both components: P, then Q ~ 0.44 mu P with P held (Coulomb friction, slip per
+    step). The stick zone's half-width is Cattaneo-Mindlin's c = a sqrt(1 - Q / (mu P)) within
+    8 % of a (measured 6.9 % at a/h = 11, as the same load through the clamped top), the
+    recorded forces are the prescribed ones, and the same obstacle moved by the displacements
+    force control found gives the same contact and stick/slip states, the pressures within
+    1e-6 after the normal step (measured 1.3e-8) and the tractions within 1e-3 of the peak
+    pressure after the pull (measured 1.4e-4). Both states solve the discrete equations to
+    1e-13; with friction they are not the same solution to round-off, as they are without
+    (test_force_control_gives_the_displacement_controlled_state)."""
+    from contactvisco.studies.coulomb import cattaneo_mindlin, cattaneo_obstacle_scene
+    P, Q = 0.632, 0.0839
+    raw = cattaneo_obstacle_scene(0.005, P, Q)
+    result = cattaneo_mindlin(0.005, raw=raw)
+    assert 0.4 < result["load_ratio"] < 0.5 and abs(result["P"] - P) < 1e-9 * P, result
+    assert result["c_error"] < 0.08, result["c_error"]
+    assert result["F_error"] < 0.15, result["F_error"]
+    forced = simulate(scene_module.resolve(raw), comm=COMM, progress=False, keep_tables=True)
+    half, end = (forced.steps[i]["obstacle"] for i in (1, 2))
+    for record, t in ((half, 0.5), (end, 1.0)):
+        assert np.allclose(record["force"], [Q * max(2 * t - 1, 0), P], rtol=0, atol=1e-9 * P)
+    moves = [f"conditional(t <= 0.5, {a!r} * 2 * t, {a!r} + ({b!r} - {a!r}) * (2 * t - 1))"
+             for a, b in zip(half["displacement"], end["displacement"])]
+    moved = dict(raw, obstacle={"shape": "plane", "point": [0.0, 0.0], "normal": [0.0, 1.0],
+                                "displacement": moves})
+    driven = simulate(scene_module.resolve(moved), comm=COMM, progress=False, keep_tables=True)
+    for a, b, tolerance in zip(forced.tables[1:], driven.tables[1:], (1e-6, 1e-3)):
+        assert np.array_equal(a["status"], b["status"])
+        assert np.array_equal(a["friction"], b["friction"])
+        scale = np.max(np.abs(a["reaction_nu"]))
+        for key in ("reaction_nu", "reaction_tau"):
+            assert np.max(np.abs(a[key] - b[key])) < tolerance * scale, key
+    assert np.allclose(driven.steps[-1]["obstacle"]["force"], [Q, P], rtol=0, atol=1e-4 * P)
