@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from dolfinx import fem
 
 from contactvisco.fem import problem as problem_module
 from contactvisco.model import contact_law as law
@@ -39,7 +40,8 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     # The rigid part's reaction is the one the multiplier carries, R_nu = -lambda_nu (the
     # law's R_nu(lambda_nu, u_nu) at the converged state).
     lam_nu, p_nu = fields["lambda_nu"], law_values["p_nu"]
-    radius = law.friction_radius(contact["mu"], p_nu, -lam_nu, contact["friction_law"])
+    radius = law.friction_radius(friction_coefficient(problem, own), p_nu, -lam_nu,
+                                 contact["friction_law"])
     local = dict(x=problem.contact.Q_coordinates[own][:, :d], normal=normals,
                  u_nu=law_values["u_nu"], gap=fields["gap"],
                  penetration=law_values["penetration"], u_tau=u_tau, lambda_nu=lam_nu,
@@ -53,6 +55,31 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     table["status_name"] = state_names(table["status"], STATUSES)
     table["friction_name"] = state_names(table["friction"], STICK_SLIP_STATES)
     return table
+
+
+def friction_coefficient(problem, own: np.ndarray):
+    """The friction coefficient at the owned contact nodes `own`: the number contact.mu, or
+    the values of its P1 field when it is an expression in x and t (0 without friction).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem.
+    own : numpy.ndarray
+        Local P1 node indices.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        mu, or mu at each node of `own`.
+    """
+    mu = problem.constants.get("mu")
+    if mu is None:
+        value = problem.scene["contact"]["mu"]
+        return 0.0 if isinstance(value, str) else value
+    if isinstance(mu, fem.Function):
+        return mu.x.array[own]
+    return float(mu.value)
 
 
 def state_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
@@ -92,7 +119,9 @@ def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -
     contact = problem.scene["contact"]
     u = fields["u"]
     constants = {key: float(c.value) for key, c in problem.constants.items()
-                 if key in ("r", "g", "stiffness", "mu") and c is not None}
+                 if key in ("r", "g", "stiffness") and c is not None}
+    if "mu" in problem.constants:
+        constants["mu"] = friction_coefficient(problem, own)
     terms = law.law_terms(law.NUMPY, u, normals, fields["gap"], None, None,
                           fields["u_previous"], constants, contact["friction_law"])
     u_nu = law.normal_part(u, normals, law.NUMPY)

@@ -404,7 +404,8 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     else:
         normal, gap_value, gap_function = obstacle.normal, obstacle.gap, obstacle.gap
 
-    constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
+    constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W,
+                                                                      context, updates)
     relative, previous = _relative_motion(u, u_previous, obstacle)
     terms = law.law_terms(law.UFL, relative, normal, gap_value, lambda_nu, lambda_tau,
                           previous, constants, contact["friction_law"])
@@ -458,7 +459,39 @@ def _relative_motion(u, u_previous, obstacle):
     return u - obstacle.D, previous
 
 
-def _contact_unknowns(contact: dict, u, Q, W):
+def has_friction(mu) -> bool:
+    """Whether contact.mu asks for friction: a number > 0, or an expression (in x and t).
+
+    Parameters
+    ----------
+    mu : float or str
+        The scene's contact.mu.
+
+    Returns
+    -------
+    bool
+        True for mu > 0 or an expression.
+    """
+    return isinstance(mu, str) or mu > 0
+
+
+def _friction_coefficient(mu, Q, context, updates):
+    """contact.mu for the forms: a Constant, or for an expression in x and t its P1
+    interpolant max(mu(x, t), 0), kept up to date in time (a node's friction coefficient is
+    its value at the node, as the nodal contact quadrature sees it)."""
+    if not isinstance(mu, str):
+        return _scalar(Q.mesh, mu)
+    value = context.scalar(mu, "contact.mu")
+    function = fem.Function(Q, name="mu")
+    update = _interpolator(function, ufl.max_value(value, 0.0)
+                           if not isinstance(value, fem.Constant) else value, Q)
+    update()
+    if context.depends_on_time(mu):
+        updates.append(update)
+    return function
+
+
+def _contact_unknowns(contact: dict, u, Q, W, context=None, updates=None):
     """What the law of the [contact] table needs: its Constants by name (r, g when finite,
     stiffness when the compliance term acts, mu when friction acts), the
     multiplier lambda_nu in Q (a finite bound g only), lambda_tau in W (mu > 0 and a pressure
@@ -474,8 +507,8 @@ def _contact_unknowns(contact: dict, u, Q, W):
     has_pressure = ("stiffness" in constants
                     or (contact["friction_law"] == "coulomb" and lambda_nu is not None))
     lambda_tau = u_previous = None
-    if contact["mu"] > 0 and has_pressure:
-        constants["mu"] = _scalar(mesh, contact["mu"])
+    if has_friction(contact["mu"]) and has_pressure:
+        constants["mu"] = _friction_coefficient(contact["mu"], Q, context, updates)
         lambda_tau = fem.Function(W, name="lambda_tau")
         if contact["slip"] == "increment":
             # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).

@@ -357,7 +357,8 @@ class Contact(Table):
         "gap": Key(0.0),
         "stiffness": Key(0.0, nonnegative, "a finite number >= 0"),
         "g": Key(math.inf),
-        "mu": Key(0.0, nonnegative, "a finite number >= 0"),
+        "mu": Key(0.0, lambda x: nonnegative(x) or isinstance(x, str),
+                  "a finite number >= 0 or an expression in x and t"),
         # None: DEFAULT_FRICTION_LAW, filled in by normalize() (after the former name).
         "friction_law": Key(None, one_of(*FRICTION_LAWS), choices(*FRICTION_LAWS)),
         "friction": Key(None),              # the former name of friction_law, read as it
@@ -410,6 +411,8 @@ class Contact(Table):
         self.need(self["stiffness"] > 0 or math.isfinite(g), "stiffness",
                   "contact.stiffness: a contact boundary needs a compliance stiffness > 0 or a "
                   "finite bound g")
+        if isinstance(self["mu"], str):
+            self.expression("mu", self["mu"], scene.dimension)
         self.need(self["mu"] == 0 or self["friction_law"] == "coulomb"
                   or (self["stiffness"] > 0 and g > 0), "mu",
                   f"contact.mu = {self['mu']} has no effect: the friction bound mu p_nu(u_nu) "

@@ -244,6 +244,9 @@ def cattaneo_mindlin(h_contact: float, comm=MPI.COMM_WORLD, raw: dict | None = N
     result = simulate(scene, comm=comm, progress=False, keep_tables=True)
     table = result.tables[-1]
     mat, mu = scene["material"], scene["contact"]["mu"]
+    if isinstance(mu, str):             # mu(x, t): its value at the end, read off the bound
+        pressed = table["reaction_nu"] > 0
+        mu = float(np.max(table["radius"][pressed] / table["reaction_nu"][pressed]))
     x = table["x"][:, 0]
     order = np.argsort(x)
     x = x[order]
