@@ -364,3 +364,47 @@ def test_friction_coefficient_expression_is_checked_as_data():
         scene_module.load("hertz", ["contact.friction_law='coulomb'",
                                     "contact.mu='__import__(1)'"])
     assert err.value.key == "contact.mu"
+
+
+def block_on_indenter(obstacle: dict, cells=(8, 8, 4)) -> dict:
+    """A 3D block [0, 1]^2 x [0, 0.5] (its top held) indented from below."""
+    return {"name": "block_on_indenter",
+            "geometry": {"type": "box", "lower": [0.0, 0.0, 0.0], "upper": [1.0, 1.0, 0.5],
+                         "cells": list(cells)},
+            "material": {"model": "3d", "E": E, "nu": NU},
+            "dirichlet": [{"boundary": "top", "components": "all"}],
+            "contact": {"boundary": "bottom", "g": 0.0, "mu": 0.0, "augmentation": E},
+            "obstacle": obstacle, "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
+
+
+@pytest.mark.parametrize("shape", ["sphere", "cylinder"])
+def test_3d_indenters_under_displacement_and_force_control(shape):
+    """A sphere, and a cylinder along y (obstacle.axis), pressed 0.01 into a 3D block: the
+    contact direction at every node is the indenter's closest-point normal; the force it
+    produced, prescribed under force control, gives back the displacement to 1e-9."""
+    indenter = {"shape": shape, "centre": [0.5, 0.5, -R], "radius": R}
+    if shape == "cylinder":
+        indenter["axis"] = [0.0, 1.0, 0.0]
+    a, run_a = final_table(block_on_indenter(dict(indenter, displacement=[0.0, 0.0,
+                                                                          "0.01 * t"])))
+    touching = a["status"] == 2
+    assert touching.sum() >= (1 if shape == "sphere" else 3)
+    offset = a["x"] - np.array([0.5, 0.5, -R + 0.01])
+    if shape == "cylinder":
+        offset[:, 1] = 0.0
+    expected = -offset / np.linalg.norm(offset, axis=1)[:, None]
+    assert np.allclose(a["normal"], expected, atol=1e-12)
+    F = run_a.steps[-1]["obstacle"]["force"][2]
+    assert F > 0
+    b, run_b = final_table(block_on_indenter(dict(indenter, force_components=[2],
+                                                  force=[f"{F!r} * t"])))
+    assert abs(run_b.steps[-1]["obstacle"]["displacement"][2] - 0.01) < 1e-9 * 0.01
+    assert np.array_equal(a["status"], b["status"])
+    assert np.max(np.abs(a["reaction_nu"] - b["reaction_nu"])) < 1e-9 * np.max(a["reaction_nu"])
+
+
+def test_3d_cylinder_needs_its_axis():
+    raw = block_on_indenter({"shape": "cylinder", "centre": [0.5, 0.5, -R], "radius": R})
+    with pytest.raises(SceneError, match="needs obstacle.axis") as err:
+        scene_module.resolve(raw)
+    assert err.value.key == "obstacle.axis"
