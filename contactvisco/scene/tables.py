@@ -357,8 +357,8 @@ class Contact(Table):
         "gap": Key(0.0),
         "stiffness": Key(0.0, nonnegative, "a finite number >= 0"),
         "g": Key(math.inf),
-        "mu": Key(0.0, lambda x: nonnegative(x) or isinstance(x, str),
-                  "a finite number >= 0 or an expression in x and t"),
+        # A number, or an expression in x and t (checked in rules()).
+        "mu": Key(0.0, lambda x: nonnegative(x) or isinstance(x, str), "a finite number >= 0"),
         # None: DEFAULT_FRICTION_LAW, filled in by normalize() (after the former name).
         "friction_law": Key(None, one_of(*FRICTION_LAWS), choices(*FRICTION_LAWS)),
         "friction": Key(None),              # the former name of friction_law, read as it
