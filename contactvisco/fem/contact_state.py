@@ -24,7 +24,9 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     reaction_tau (sigma_tau, same convention as u_tau), radius (the friction bound: mu p_nu,
     or mu (p_nu + R_nu) with contact.friction_law = "coulomb"), slip_vector (u_tau, or the
     step's u_tau - u_tau(t_{n-1}) with contact.slip = "increment"), status (0, 1, 2 as in
-    STATUSES), friction (the stick/slip state: 0, 1, 2 as in STICK_SLIP_STATES).
+    STATUSES), friction (the stick/slip state: 0, 1, 2 as in STICK_SLIP_STATES). With an
+    obstacle, normal and gap are the obstacle's and u_nu, u_tau, slip_vector are those of
+    u - d, the displacement relative to the obstacle.
     """
     if problem.contact is None:
         return None

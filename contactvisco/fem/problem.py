@@ -15,7 +15,9 @@ the slip of the step, u_tau - u_tau(t_{n-1}):
     F_tau = -1/r int_C (lambda_tau - sigma_tau) . gamma_tau
 
 Here u_nu = u . nu - h, the penetration past the initial gap h, and nu is the averaged nodal normal
-(a P1 field). lambda_nu and lambda_tau are P1 fields whose dofs off Gamma_C are fixed to zero,
+(a P1 field); with an [obstacle] (contactvisco.fem.obstacle) nu and h are the obstacle's normal
+and distance at the nodes (P1 fields) and u is replaced by u - d, d the obstacle's
+displacement. lambda_nu and lambda_tau are P1 fields whose dofs off Gamma_C are fixed to zero,
 because DOLFINx 0.5 has no boundary-only spaces. With the vertex quadrature on Gamma_C the
 conditions hold node by node, on curved boundaries too. F_tau uses the full vector gamma_tau,
 which also forces lambda_tau . nu = 0.
