@@ -39,6 +39,9 @@ from contactvisco.model.material import lame_constants
 from contactvisco.scene import loader as scene_module
 from contactvisco.solver.time_loop import simulate
 
+#: The trapezoid rule on samples (numpy.trapezoid from NumPy 2, numpy.trapz before).
+trapezoid = getattr(np, "trapezoid", None) or np.trapz
+
 
 class LeeRadok:
     """The closed forms of the module description for one layer and load.
@@ -133,7 +136,7 @@ class LeeRadok:
         s = np.linspace(0.0, t, points)
         C = self.compliance(s)
         rate = 2 * self.K**2 * C * (-self.beta * self.A1 * np.exp(-self.beta * s))
-        integral = float(np.trapz(self.relaxation(t - s) * rate, s)) if t > 0 else 0.0
+        integral = float(trapezoid(self.relaxation(t - s) * rate, s)) if t > 0 else 0.0
         start = float(self.relaxation(t)) * (self.K * float(C[0])) ** 2
         return math.sqrt(math.pi / (4 * self.R * self.P) * (start + integral))
 
