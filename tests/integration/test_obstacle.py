@@ -451,3 +451,24 @@ def test_lee_radok_closed_forms_are_consistent():
                                        + trapezoid(exact.relaxation(t - s) * rate, s))
         assert abs(carried - 0.3) < 1e-8
         assert exact.moment_width(t) > exact.width(t)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="each rank has its own tmp_path")
+def test_obstacle_figure_draws_the_records(tmp_path):
+    """A run with an obstacle writes steps.jsonl records with its displacement and force,
+    and its figures include their histories, drawn from those records."""
+    import json
+    from contactvisco.post import figures
+    controlled = {"shape": "cylinder", "centre": [1.0, -R], "radius": R,
+                  "force_components": [1], "force": ["0.2 * t"]}
+    scene = scene_module.resolve(layer_under_cylinder(0.05, controlled, steps=2))
+    simulate(scene, out=tmp_path, comm=COMM, progress=False)
+    records = [json.loads(line) for line in (tmp_path / "steps.jsonl").read_text().splitlines()]
+    assert [r["obstacle"]["force"][1] for r in records] == pytest.approx([0.0, 0.1, 0.2],
+                                                                          abs=1e-9)
+    drawn = dict(figures.build_all(tmp_path))
+    assert "obstacle" in drawn
+    d_axis, f_axis = drawn["obstacle"].axes[:2]
+    assert np.allclose(d_axis.lines[1].get_ydata(),
+                       [r["obstacle"]["displacement"][1] for r in records])
+    assert np.allclose(f_axis.lines[1].get_ydata(), [0.0, 0.1, 0.2], atol=1e-9)
