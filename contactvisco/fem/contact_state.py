@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from dolfinx import fem
 
 from contactvisco.fem import problem as problem_module
 from contactvisco.model import contact_law as law
@@ -23,7 +24,9 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     reaction_tau (sigma_tau, same convention as u_tau), radius (the friction bound: mu p_nu,
     or mu (p_nu + R_nu) with contact.friction_law = "coulomb"), slip_vector (u_tau, or the
     step's u_tau - u_tau(t_{n-1}) with contact.slip = "increment"), status (0, 1, 2 as in
-    STATUSES), friction (the stick/slip state: 0, 1, 2 as in STICK_SLIP_STATES).
+    STATUSES), friction (the stick/slip state: 0, 1, 2 as in STICK_SLIP_STATES). With an
+    obstacle, normal and gap are the obstacle's and u_nu, u_tau, slip_vector are those of
+    u - d, the displacement relative to the obstacle.
     """
     if problem.contact is None:
         return None
@@ -40,7 +43,8 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     # law's R_nu(lambda_nu, u_nu) at the converged state).
     lam_nu, p_nu = fields["lambda_nu"], law_values["p_nu"]
     radius = (law_values["radius"] if "radius" in law_values else
-              law.friction_radius(contact["mu"], p_nu, -lam_nu, contact["friction_law"]))
+              law.friction_radius(friction_coefficient(problem, own), p_nu, -lam_nu,
+                                  contact["friction_law"]))
     local = dict(x=problem.contact.Q_coordinates[own][:, :d], normal=normals,
                  u_nu=law_values["u_nu"], gap=fields["gap"],
                  penetration=law_values["penetration"], u_tau=u_tau, lambda_nu=lam_nu,
@@ -56,6 +60,31 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     return table
 
 
+def friction_coefficient(problem, own: np.ndarray):
+    """The friction coefficient at the owned contact nodes `own`: the number contact.mu, or
+    the values of its P1 field when it is an expression in x and t (0 without friction).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem.
+    own : numpy.ndarray
+        Local P1 node indices.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        mu, or mu at each node of `own`.
+    """
+    mu = problem.constants.get("mu")
+    if mu is None:
+        value = problem.scene["contact"]["mu"]
+        return 0.0 if isinstance(value, str) else value
+    if isinstance(mu, fem.Function):
+        return mu.x.array[own]
+    return float(mu.value)
+
+
 def state_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
     """The names of integer state codes (names[code]) as a numpy string array."""
     return np.asarray(names)[np.asarray(codes, dtype=int)]
@@ -64,19 +93,25 @@ def state_names(codes: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
 def _node_fields(problem, own: np.ndarray) -> dict[str, np.ndarray | None]:
     """The fields at the owned contact nodes `own`: u (n, d), gap h, lambda_nu (zero without
     a bound), sigma_tau_vector = lambda_tau (zero without friction) and u_previous (None
-    unless the slip is an increment). P1: node i of the multiplier spaces is dof block i of
+    unless the slip is an increment); with an obstacle, u and u_previous relative to it
+    (u - d, u_previous - d(t_{n-1})). P1: node i of the multiplier spaces is dof block i of
     V."""
     d = problem.geometry.mesh.geometry.dim
     part = problem.contact
     u = _nodal_displacement(problem)[own]
+    u_previous = (part.u_previous.x.array.reshape(-1, d)[own]
+                  if part.u_previous is not None else None)
+    if part.obstacle is not None:           # the law acts on u relative to the obstacle
+        u = u - part.obstacle.D.x.array.reshape(-1, d)[own]
+        if u_previous is not None:
+            u_previous = u_previous - part.obstacle.D_previous.x.array.reshape(-1, d)[own]
     return dict(
         u=u, gap=part.gap.x.array[own],
         lambda_nu=(part.lambda_nu.x.array[own] if part.lambda_nu is not None
                    else np.zeros(len(own))),
         sigma_tau_vector=(part.lambda_tau.x.array.reshape(-1, d)[own]
                           if part.lambda_tau is not None else np.zeros_like(u)),
-        u_previous=(part.u_previous.x.array.reshape(-1, d)[own]
-                    if part.u_previous is not None else None))
+        u_previous=u_previous)
 
 
 def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -> dict:
@@ -89,7 +124,9 @@ def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -
     contact = problem.scene["contact"]
     u = fields["u"]
     constants = {key: float(c.value) for key, c in problem.constants.items()
-                 if key in ("r", "g", "stiffness", "mu") and c is not None}
+                 if key in ("r", "g", "stiffness") and c is not None}
+    if "mu" in problem.constants:
+        constants["mu"] = friction_coefficient(problem, own)
     terms = law.law_terms(law.NUMPY, u, normals, fields["gap"], None, None,
                           fields["u_previous"], constants, contact["friction_law"])
     u_nu = law.normal_part(u, normals, law.NUMPY)

@@ -15,7 +15,9 @@ the slip of the step, u_tau - u_tau(t_{n-1}):
     F_tau = -1/r int_C (lambda_tau - sigma_tau) . gamma_tau
 
 Here u_nu = u . nu - h, the penetration past the initial gap h, and nu is the averaged nodal normal
-(a P1 field). lambda_nu and lambda_tau are P1 fields whose dofs off Gamma_C are fixed to zero,
+(a P1 field); with an [obstacle] (contactvisco.fem.obstacle) nu and h are the obstacle's normal
+and distance at the nodes (P1 fields) and u is replaced by u - d, d the obstacle's
+displacement. lambda_nu and lambda_tau are P1 fields whose dofs off Gamma_C are fixed to zero,
 because DOLFINx 0.5 has no boundary-only spaces. With the vertex quadrature on Gamma_C the
 conditions hold node by node, on curved boundaries too. F_tau uses the full vector gamma_tau,
 which also forces lambda_tau . nu = 0.
@@ -34,6 +36,7 @@ from petsc4py import PETSc
 
 from contactvisco.fem import compat
 from contactvisco.model import contact_law as law
+from contactvisco.fem import obstacle as obstacle_module
 from contactvisco.fem import rigid
 from contactvisco.fem.geometry import Geometry
 from contactvisco.model.material import (elasticity, energy_stress, hencky_energy,
@@ -97,6 +100,7 @@ class ContactPart:
     u_p1: fem.Function | None
     constants: dict                            # r, g, stiffness, mu (those the law needs)
     corner_forms: dict | None = None           # corner_forms() (None without corners)
+    obstacle: object | None = None             # fem.obstacle.ObstaclePart (None: none)
 
 
 @dataclass
@@ -118,6 +122,7 @@ class TimeState:
     u_previous: fem.Function | None            # the slip's origin (slip = "increment")
     committed: float | None = None             # the last committed time (None: none yet)
     staged: float | None = None
+    obstacle: object | None = None             # fem.obstacle.ObstaclePart (None: none)
 
     def stage(self, t: float):
         """Move to time t and prepare the step from the committed state."""
@@ -130,6 +135,8 @@ class TimeState:
         """Take the converged state at the staged time into the history."""
         self.record(None if self.committed is None else self.staged - self.committed)
         self.committed = self.staged
+        if self.obstacle is not None:
+            self.obstacle.commit()
 
     def move_to(self, t: float):
         """Move time-dependent data (loads, Dirichlet values, gap) to time t."""
@@ -147,6 +154,8 @@ class TimeState:
         step's output still sees it."""
         if self.u_previous is not None:
             self.u_previous.x.array[:] = self.u.x.array
+        if self.obstacle is not None:
+            self.obstacle.prepare(self.committed)
         memory = self.memory
         if memory is None:
             return
@@ -300,7 +309,8 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         scene=scene, geometry=geometry, V=V, u=u, F=F, J=_block_jacobian(F, unknowns, spaces),
         bcs=bcs + multiplier_bcs, bcs_u=list(bcs), u_fixed=fixed_components,
         multiplier_free=multiplier_free, constants=constants, context=context,
-        time=TimeState(context.t, updates, u, memory, contact and contact.u_previous),
+        time=TimeState(context.t, updates, u, memory, contact and contact.u_previous,
+                       obstacle=contact and contact.obstacle),
         loads=loads, tensor_space=tensor_space,
         sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
         length_scale=_length_scale(mesh), memory=memory, contact=contact,
@@ -429,13 +439,19 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     if degree == 1 and not np.allclose(u.function_space.tabulate_dof_coordinates(),
                                        W.tabulate_dof_coordinates()):
         raise RuntimeError("displacement and multiplier node numberings differ")
-    normal = _contact_normal(mesh, Q, W, dsc, nodes)
-    gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
+    obstacle = _obstacle(scene, Q, W, nodes, context, updates)
+    if obstacle is None:
+        normal = _contact_normal(mesh, Q, W, dsc, nodes)
+        gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
+    else:
+        normal, gap_value, gap_function = obstacle.normal, obstacle.gap, obstacle.gap
 
-    constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W)
+    constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W,
+                                                                      context, updates)
     laws = contact_laws(contact, context)
-    terms = law.law_terms(law.UFL, u, normal, gap_value, lambda_nu, lambda_tau, u_previous,
-                          constants, contact["friction_law"], laws=laws)
+    relative, previous = _relative_motion(u, u_previous, obstacle)
+    terms = law.law_terms(law.UFL, relative, normal, gap_value, lambda_nu, lambda_tau,
+                          previous, constants, contact["friction_law"], laws=laws)
     F_u = None
     pairs = []
     if terms["normal_force"] is not None:
@@ -450,6 +466,9 @@ def _contact(scene, geometry, u, v, ds, context, updates):
         F_u = tangential if F_u is None else F_u + tangential
         pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
                                                       ufl.TestFunction(W)) * dsc))
+    if obstacle is not None and obstacle.controlled:
+        obstacle.force_forms = obstacle_module.force_forms(
+            obstacle, F_u, v, [u] + [f for f, _ in pairs], [F_u] + [r for _, r in pairs])
     corners = mesh.comm.allreduce(nodes.corners.size, MPI.SUM) > 0
     part = ContactPart(nodes=nodes, lambda_nu=lambda_nu, lambda_tau=lambda_tau,
                        gap=gap_function, u_previous=u_previous,
@@ -457,11 +476,66 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                        u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
                        corner_forms=_corner_forms(terms, u, normal, Q, W, dsc,
                                                   with_radius="p_tau" in laws)
-                       if corners or laws else None)
+                       if corners or laws else None, obstacle=obstacle)
     return part, F_u, pairs
 
 
-def _contact_unknowns(contact: dict, u, Q, W):
+def _obstacle(scene, Q, W, nodes, context, updates):
+    """The scene's rigid obstacle (contactvisco.fem.obstacle; None without one): its normal nu
+    and gap h at the contact nodes, re-evaluated at each time when it moves. The contact
+    nodes' normals become the obstacle's; no node is a corner (one normal per node)."""
+    table = scene.get("obstacle")
+    if table is None or table["shape"] == "none":
+        return None
+    part = obstacle_module.build(scene, Q, W, nodes, context.t)
+    nodes.corners = np.zeros(0, dtype=nodes.nodes.dtype)
+    if table["displacement"] is not None and context.depends_on_time(table["displacement"]):
+        updates.append(part.move_to)
+    return part
+
+
+def _relative_motion(u, u_previous, obstacle):
+    """What the law acts on: u and u(t_{n-1}) relative to the obstacle, u - d and
+    u(t_{n-1}) - d(t_{n-1}) (u and u_previous themselves without an obstacle)."""
+    if obstacle is None:
+        return u, u_previous
+    previous = None if u_previous is None else u_previous - obstacle.D_previous
+    return u - obstacle.D, previous
+
+
+def has_friction(mu) -> bool:
+    """Whether contact.mu asks for friction: a number > 0, or an expression (in x and t).
+
+    Parameters
+    ----------
+    mu : float or str
+        The scene's contact.mu.
+
+    Returns
+    -------
+    bool
+        True for mu > 0 or an expression.
+    """
+    return isinstance(mu, str) or mu > 0
+
+
+def _friction_coefficient(mu, Q, context, updates):
+    """contact.mu for the forms: a Constant, or for an expression in x and t its P1
+    interpolant max(mu(x, t), 0), kept up to date in time (a node's friction coefficient is
+    its value at the node, as the nodal contact quadrature sees it)."""
+    if not isinstance(mu, str):
+        return _scalar(Q.mesh, mu)
+    value = context.scalar(mu, "contact.mu")
+    function = fem.Function(Q, name="mu")
+    update = _interpolator(function, ufl.max_value(value, 0.0)
+                           if not isinstance(value, fem.Constant) else value, Q)
+    update()
+    if context.depends_on_time(mu):
+        updates.append(update)
+    return function
+
+
+def _contact_unknowns(contact: dict, u, Q, W, context=None, updates=None):
     """What the law of the [contact] table needs: its Constants by name (r, g when finite,
     stiffness when the compliance term acts, mu when friction acts), the
     multiplier lambda_nu in Q (a finite bound g only), lambda_tau in W (mu > 0 and a pressure
@@ -478,10 +552,11 @@ def _contact_unknowns(contact: dict, u, Q, W):
     has_pressure = (compliance
                     or (contact["friction_law"] == "coulomb" and lambda_nu is not None))
     lambda_tau = u_previous = None
-    friction = contact["mu"] > 0 or (contact.get("p_tau") is not None and compliance)
+    friction = has_friction(contact["mu"]) or (contact.get("p_tau") is not None
+                                               and compliance)
     if friction and has_pressure:
-        if contact["mu"] > 0:
-            constants["mu"] = _scalar(mesh, contact["mu"])
+        if has_friction(contact["mu"]):
+            constants["mu"] = _friction_coefficient(contact["mu"], Q, context, updates)
         lambda_tau = fem.Function(W, name="lambda_tau")
         if contact["slip"] == "increment":
             # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).

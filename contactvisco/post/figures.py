@@ -190,6 +190,9 @@ def build_all(folder, times=None, edges: bool = False,
         if requested is None and any(step.get("probes") for step in steps):
             with _reading(folder / "steps.jsonl"):
                 out.append(("probes", probe_histories(steps, units)))
+        if requested is None and steps and "obstacle" in steps[0]:
+            with _reading(folder / "steps.jsonl"):
+                out.append(("obstacle", obstacle_history(steps, units)))
     return out
 
 
@@ -238,6 +241,42 @@ def _contact_figures(tables, requested, g, units, notes) -> list:
                 out.append(("contact_status" + suffix,
                             contact_map(tables[t], t, units, picks[k])))
     return out
+
+
+def obstacle_history(steps: list, units: dict) -> Figure:
+    """The obstacle's displacement d and the contact force it exerts on the body against
+    time, one line per component (the step records' ``obstacle`` entries).
+
+    Parameters
+    ----------
+    steps : list of dict
+        The step records of steps.jsonl, each with ``obstacle`` = {``displacement``,
+        ``force``}.
+    units : dict
+        The scene's [units] labels.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels: d_j(t) and F_j(t).
+    """
+    times = [record["t"] for record in steps]
+    d = np.array([record["obstacle"]["displacement"] for record in steps], dtype=float)
+    force = np.array([record["obstacle"]["force"] for record in steps], dtype=float)
+    fig = Figure(figsize=(PAGE * 0.75, 2.4), layout="constrained")
+    axes = fig.subplots(1, 2)
+    for j in range(d.shape[1]):
+        style = dict(marker="os^"[j], ls=("-", "--", ":")[j], ms=2.5, lw=0.9, color=f"C{j}",
+                     label=f"${'xyz'[j]}$")
+        axes[0].plot(times, d[:, j], **style)
+        axes[1].plot(times, force[:, j], **style)
+    axes[0].set_ylabel(label("obstacle displacement $d$", "length", units))
+    axes[1].set_ylabel(label("contact force on the body", "force", units))
+    for ax in axes:
+        ax.set_xlabel(label("t", "time", units))
+        ax.axhline(0.0, color="k", lw=0.5)
+    axes[1].legend(frameon=False)
+    return fig
 
 
 def _matches(available, requested, what: str, drawn: str, notes: list) -> dict:

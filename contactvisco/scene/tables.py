@@ -460,7 +460,8 @@ class Contact(Table):
         "gap": Key(0.0),
         "stiffness": Key(0.0, nonnegative, "a finite number >= 0"),
         "g": Key(math.inf),
-        "mu": Key(0.0, nonnegative, "a finite number >= 0"),
+        # A number, or an expression in x and t (checked in rules()).
+        "mu": Key(0.0, lambda x: nonnegative(x) or isinstance(x, str), "a finite number >= 0"),
         # None: DEFAULT_FRICTION_LAW, filled in by normalize() (after the former name).
         "friction_law": Key(None, one_of(*FRICTION_LAWS), choices(*FRICTION_LAWS)),
         "friction": Key(None),              # the former name of friction_law, read as it
@@ -521,6 +522,8 @@ class Contact(Table):
         self.need(compliance or math.isfinite(g), "stiffness",
                   "contact.stiffness: a contact boundary needs a compliance stiffness > 0 or a "
                   "finite bound g")
+        if isinstance(self["mu"], str):
+            self.expression("mu", self["mu"], scene.dimension)
         self.need(self["mu"] == 0 or self["friction_law"] == "coulomb"
                   or (compliance and g > 0), "mu",
                   f"contact.mu = {self['mu']} has no effect: the friction bound mu p_nu(u_nu) "
@@ -646,6 +649,127 @@ def _check_samples(table, name, values, upper, t) -> None:
                f"{q1:.3g} at h = {h1:.3g}, {at}): Newton's derivative at s = 0 would be "
                f"infinite; use powers s**m with m >= 1 (e.g. 'c * s**1.5'), or regularize "
                f"near 0 (e.g. 'c * s / sqrt(s + delta)' for c * s**0.5)")
+#: obstacle.shape: the rigid obstacle's geometry ("none": the body's own normal and contact.gap).
+OBSTACLE_SHAPES = ("none", "plane", "cylinder", "sphere", "surface")
+
+
+def _vector(x, d) -> bool:
+    return number_list(x) and len(x) == d
+
+
+class Obstacle(Table):
+    """The rigid obstacle the contact boundary meets: its shape (a signed distance phi, > 0 on
+    the body's side) and its prescribed rigid translation d(t). At a contact node x the gap is
+    phi(x - d) and the contact direction nu = -grad phi (fem.obstacle)."""
+
+    KEYS = {
+        "shape": choice("none", *OBSTACLE_SHAPES),
+        "point": Key(None),
+        "normal": Key(None),
+        "centre": Key(None),
+        "radius": Key(None),
+        "axis": Key(None),
+        "distance": Key(None),
+        "displacement": Key(None),
+        "force_components": Key([], lambda x: isinstance(x, list), "a list of components"),
+        "force": Key([], lambda x: isinstance(x, list), "a list of expressions in t"),
+    }
+
+    #: The keys each shape needs (axis: a cylinder in 3D).
+    NEEDS = {"none": (), "plane": ("point", "normal"), "cylinder": ("centre", "radius"),
+             "sphere": ("centre", "radius"), "surface": ("distance",)}
+
+    def rules(self, scene):
+        shape, d = self["shape"], scene.dimension
+        if shape == "none":
+            given = [k for k in self.KEYS if k != "shape" and self[k] not in (None, [])]
+            self.need(not given, given[0] if given else "shape",
+                      f"obstacle.{given[0] if given else ''} is given but obstacle.shape is "
+                      f"'none'; set obstacle.shape to {choices(*OBSTACLE_SHAPES[1:])}")
+            return
+        self.need(scene["contact"] is not None, "shape",
+                  "an [obstacle] needs a [contact] table: the contact boundary it meets")
+        self.need(scene["contact"]["gap"] == 0, "shape",
+                  "an [obstacle] gives the gap itself (its distance to the contact nodes); "
+                  "leave contact.gap at 0")
+        needs = self.NEEDS[shape] + (("axis",) if shape == "cylinder" and d == 3 else ())
+        for name in needs:
+            self.need(self[name] is not None, name,
+                      f"obstacle.shape = '{shape}' needs obstacle.{name}")
+        extra = [k for k in ("point", "normal", "centre", "radius", "axis", "distance")
+                 if self[k] is not None and k not in needs]
+        self.need(not extra, extra[0] if extra else "shape",
+                  f"obstacle.{extra[0] if extra else ''} has no meaning for obstacle.shape = "
+                  f"'{shape}' (it takes {', '.join(needs)})")
+        for name in ("point", "normal", "centre", "axis"):
+            if self[name] is not None:
+                self.need(_vector(self[name], d), name,
+                          f"obstacle.{name} must be a list of {d} finite numbers, got "
+                          f"{self[name]!r}")
+        for name in ("normal", "axis"):
+            if self[name] is not None:
+                length = math.sqrt(sum(v * v for v in self[name]))
+                self.need(length > 0, name,
+                          f"obstacle.{name} must have a non-zero length, got {self[name]!r}")
+        if self["radius"] is not None:
+            self.need(finite(self["radius"]) and self["radius"] > 0, "radius",
+                      f"obstacle.radius must be a finite number > 0, got {self['radius']!r}")
+        if self["distance"] is not None:
+            self.need(isinstance(self["distance"], str), "distance",
+                      f"obstacle.distance must be an expression in x (a signed distance), got "
+                      f"{self['distance']!r}")
+            self.expression("distance", self["distance"], d)
+            self.need(not _uses_time(self["distance"]), "distance",
+                      "obstacle.distance is the obstacle's shape in x; move it with "
+                      "obstacle.displacement (expressions in t)")
+        motion = self["displacement"]
+        if motion is not None:
+            self.need(isinstance(motion, list) and len(motion) == d, "displacement",
+                      f"obstacle.displacement must be a list of {d} components (expressions "
+                      f"in t), got {motion!r}")
+            for j, value in enumerate(motion):
+                where = f"obstacle.displacement[{j}]"
+                self.expression("displacement", value, d, where)
+                self.need(not isinstance(value, str) or not _uses_position(value),
+                          "displacement", f"{where} = {value!r}: a rigid translation depends "
+                                          "on t only, not on x")
+        self._force(scene, d)
+
+    def _force(self, scene, d: int) -> None:
+        """force_components: the components of d that are unknowns, their resultant contact
+        force prescribed by force (one expression in t each)."""
+        components, force = self["force_components"], self["force"]
+        self.need(all(integer(c) and 0 <= c < d for c in components)
+                  and len(set(components)) == len(components), "force_components",
+                  f"obstacle.force_components must list distinct components 0..{d - 1}, got "
+                  f"{components!r}")
+        self.need(len(force) == len(components), "force",
+                  f"obstacle.force needs one value per force-controlled component "
+                  f"(obstacle.force_components = {components!r}), got {force!r}")
+        for j, value in enumerate(force):
+            where = f"obstacle.force[{j}]"
+            self.expression("force", value, d, where)
+            self.need(not isinstance(value, str) or not _uses_position(value), "force",
+                      f"{where} = {value!r}: a resultant force depends on t only, not on x")
+        if components:
+            self.need(scene["discretization"]["contact_quadrature"] == "nodal"
+                      and scene["solver"]["linear_system"] != "coupled", "force_components",
+                      "obstacle.force_components: force control is solved with the condensed "
+                      "Newton system (discretization.contact_quadrature = 'nodal', "
+                      "solver.linear_system = 'auto' or 'condensed')")
+
+
+def _names(text: str) -> set:
+    return {node.id for node in ast.walk(ast.parse(text, mode="eval"))
+            if isinstance(node, ast.Name)}
+
+
+def _uses_time(text: str) -> bool:
+    return "t" in _names(text)
+
+
+def _uses_position(text: str) -> bool:
+    return "x" in _names(text)
 
 
 class Time(Table):
@@ -781,7 +905,7 @@ TABLES = {
     "material": Material, "viscoelastic": Viscoelastic, "geometry": Geometry,
     "discretization": Discretization,
     "body_force": BodyForce, "memory": Memory, "time": Time, "contact": Contact,
-    "solver": Solver, "output": Output, "units": Units,
+    "obstacle": Obstacle, "solver": Solver, "output": Output, "units": Units,
 }
 
 #: Lists of tables ([[dirichlet]], [[traction]]) and the class of their items.
@@ -816,7 +940,7 @@ class Scene(Table):
         out["traction"] = []
         out["contact"] = None
         out["viscoelastic"] = None          # absent: the material in the paper's form
-        for name in ("time", "discretization", "solver", "output", "units"):
+        for name in ("obstacle", "time", "discretization", "solver", "output", "units"):
             out[name] = TABLES[name].defaults()
         return out
 

@@ -99,7 +99,18 @@ def eliminate(B, C, D, F, G, scale, d_scale):
     L = -P @ E @ C + s * (K @ C)
     F_red = np.einsum("nij,nj->ni", P, F - np.einsum("nij,nj->ni", E, G)) \
         + scale[:, None] * np.einsum("nij,nj->ni", K, G)
-    return {"F_red": F_red, "L": L, "P": P, "Dp": Dp, "W": W, "nullity": m - rank}
+    return {"F_red": F_red, "L": L, "P": P, "Dp": Dp, "W": W, "nullity": m - rank,
+            "E": E, "K": K, "scale": scale}
+
+
+def condense_rhs(parts, F, G):
+    """The condensed right-hand side of node rows F (n, d) and multiplier rows G (n, m), with
+    the node blocks of `parts` (eliminate): P_i (F_i - E_i G_i) + s_i Q_i U_0^T G_i, the rows
+    that eliminate gives F_red for the residual (F, G). J_red y = (this, elsewhere the u rows)
+    solves the coupled system J y + B l = F, C y + D l = G for y."""
+    P, E, K, scale = parts["P"], parts["E"], parts["K"], parts["scale"]
+    return np.einsum("nij,nj->ni", P, F - np.einsum("nij,nj->ni", E, G)) \
+        + scale[:, None] * np.einsum("nij,nj->ni", K, G)
 
 
 def recover(parts, B, C, F, G, du, Jdu):
@@ -348,13 +359,20 @@ class NodalCondensation:
         replace_rows(self.A, self.rows, self.parts["P"], self.parts["L"])
 
     def update_multipliers(self, du):
-        """Add the node-wise dl for the displacement step du (a PETSc vector)."""
+        """Add the node-wise dl for the displacement step du (a PETSc vector); returns dl
+        (n, m) at the owned contact nodes."""
         Jdu = self._Jdu
         self.J_contact.mult(du, Jdu)
         p = self.parts
         dl = recover(p, p["B"], p["C"], p["F"], p["G"],
                      du.array.reshape(-1, self.d)[self.own],
                      Jdu.array.reshape(-1, self.d))
+        self.add_to_multipliers(dl)
+        return dl
+
+    def add_to_multipliers(self, dl):
+        """Add dl (n, m) at the owned contact nodes to the multiplier fields (ghosts
+        updated)."""
         for a, f in enumerate(self.fields):
             f.x.array.reshape(-1, self.bs[a])[self.own] += dl[:, self.offsets[a]:self.offsets[a + 1]]
             compat.petsc_vector(f).ghostUpdate(addv=_INSERT, mode=_FORWARD)

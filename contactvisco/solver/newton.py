@@ -42,6 +42,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contactvisco.fem import compat
+from contactvisco.solver.bordered import ObstacleForce
 from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.errors import SceneError
 
@@ -467,6 +468,10 @@ class BlockSNES(NewtonSolver):
         self._to_operator(self.A)
 
 
+#: Most evaluations of a force-controlled curved obstacle's closest points within one step.
+MAX_PLACEMENTS = 10
+
+
 class CondensedSNES(NewtonSolver):
     """SNES over u alone, the nodal multipliers eliminated node by node in every Newton step
     (contactvisco.solver.condensed); they are updated from each displacement step, as the coupled
@@ -494,6 +499,12 @@ class CondensedSNES(NewtonSolver):
         # as with BlockSNES; the condensed residual alone leaves out the multiplier rows.
         self.snes.setConvergenceTest(_weak(self._converged))
         self.operator.setNearNullSpace(rigid_body_modes(problem.V))
+        obstacle = problem.contact.obstacle
+        self.force = (ObstacleForce(problem, self.system)
+                      if obstacle is not None and obstacle.controlled else None)
+        self._error = None               # an error raised inside a SNES callback
+        if self.force is not None:
+            self._shift, self._u_now = u_vector.copy(), u_vector.copy()
         self._finish_setup()
 
     def _check_options(self):
@@ -522,26 +533,74 @@ class CondensedSNES(NewtonSolver):
                 + ". Use solver.linear_system = 'coupled' for such options")
 
     def solve(self) -> int:
+        """Newton from the current Functions (NewtonSolver.solve). With a force-controlled
+        curved obstacle, the closest points and normals are evaluated again at the converged
+        position d and Newton continues from there, until d moves less than 1e-12 of the
+        body's size within a solve (ObstacleForce.replace); the iterations of every solve
+        are counted."""
+        iterations = self._solve_once()
+        for _ in range(MAX_PLACEMENTS):
+            if self.force is None or not self.force.replace():
+                return iterations
+            iterations += self._solve_once()
+        raise NewtonFailure(f"the force-controlled obstacle's position did not settle after "
+                            f"{MAX_PLACEMENTS} evaluations of its closest points",
+                            -5, list(self.residuals))
+
+    def _solve_once(self) -> int:
+        if self.force is not None:
+            self._shift.set(0.0)
         self._pending = False
         self._broken = None
+        self._error = None
         self._residuals_since_jacobian = 0
         try:
             return super().solve()
         except (NewtonFailure, SceneError, PETSc.Error):
+            if self._error is not None:
+                raise self._error from None
             if self._broken:
                 raise SceneError(self._broken) from None
             raise
 
+    def destroy(self):
+        if self.__dict__.get("force") is not None:
+            self.force.destroy()
+            self._shift.destroy()
+            self._u_now.destroy()
+            self.force = None
+        super().destroy()
+
     def _monitor(self, snes, it, norm):
         super()._monitor(snes, it, self.system.full_norm)
 
+    def _shifted(self, x):
+        """u = x + shift: SNES's iterate x with the obstacle's share of the bordered steps
+        (force control; SNES's own vector is read-only in its callbacks)."""
+        x.copy(self._u_now)
+        self._u_now.axpy(1.0, self._shift)
+        self._u_now.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+        return self._u_now
+
+    def _to_functions(self, x):
+        super()._to_functions(self._shifted(x) if self.force is not None and x is self.x
+                              else x)
+
     def _residual(self, snes, x, b):
         x.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+        if self.force is not None:
+            x = self._shifted(x)
+        if self._error is not None:          # solve() raises it when SNES stops
+            b.set(np.nan)
+            self.system.full_norm = float("nan")
+            return
         if self._pending:
             # x = x_J - y, the step from the last Jacobian's iterate: update the multipliers.
             x.copy(self._du)
             self._du.axpy(-1.0, self._x_jacobian)
-            self.system.update_multipliers(self._du)
+            dl = self.system.update_multipliers(self._du)
+            if self.force is not None:         # the bordered step: d and its share of x
+                self.force.correct([x, self._shift], self._du, dl)
             self._pending = False
         elif self._residuals_since_jacobian > 0:
             # A second residual since the last Jacobian (a lagged Jacobian, a line search
@@ -557,13 +616,22 @@ class CondensedSNES(NewtonSolver):
         self._residuals_since_jacobian += 1
         self._to_functions(x)
         self.system.residual(x, b)
+        if self.force is not None:             # the obstacle's force rows join the norm
+            G = self.force.residual()
+            self.system.full_norm = float(np.hypot(self.system.full_norm,
+                                                   np.linalg.norm(G)))
 
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
         self._to_operator(self.system.J_red)
-        x.copy(self._x_jacobian)
+        (self._shifted(x) if self.force is not None else x).copy(self._x_jacobian)
         self._pending = True
         self._residuals_since_jacobian = 0
+        if self.force is not None:
+            try:
+                self.force.linearize(snes.getKSP())
+            except SceneError as err:        # raised by solve() after SNES stops
+                self._error = err
 
     def _converged(self, snes, it, norms):
         norm = self.system.full_norm
@@ -661,6 +729,12 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
                          "system: solver.linear_system = 'condensed' (nodal contact "
                          "quadrature)", key="solver.linear_solver")
     defaults = iterative_options() if kind == "iterative" else {}
+    obstacle = problem.contact and problem.contact.obstacle
+    if obstacle is not None and obstacle.controlled and system != "condensed":
+        raise SceneError("obstacle.force_components: force control is solved with the "
+                         f"condensed Newton system, not the {system} one (it needs nodal "
+                         "contact multipliers: a finite contact.g or friction)",
+                         key="obstacle.force_components")
     if system == "condensed":
         newton = CondensedSNES(problem, comm, options, defaults, reuse=kind == "direct")
     else:

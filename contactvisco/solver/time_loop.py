@@ -15,6 +15,7 @@ import pathlib
 import time as clock
 from dataclasses import dataclass, field
 
+import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
@@ -27,6 +28,7 @@ from contactvisco.io.lock import FolderLock
 from contactvisco.solver import diagnosis, predictor, report
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure
+from contactvisco.errors import SceneError
 
 
 @dataclass
@@ -147,6 +149,12 @@ class Run:
         self.say = report.printer(comm, progress)
         points = scene["output"]["probes"]
         self.probes = Probes(problem.geometry.mesh, points) if points else None
+        obstacle = problem.contact and problem.contact.obstacle
+        if restart and obstacle is not None and obstacle.controlled:
+            raise SceneError("obstacle.force_components: a run under force control does not "
+                             "restart from a checkpoint (the checkpoint holds no position of "
+                             "the obstacle); run it from t = 0",
+                             key="obstacle.force_components")
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
         self.predictor = predictor.create(scene, problem.unknowns)
         opts = scene["output"]
@@ -208,7 +216,8 @@ class Run:
                 "preconditioner_setups": snes.setups,
                 "status_counts": contact_state.status_counts(table),
                 "probes": probes.values(self.problem.u, self.comm) if probes else [],
-                **thermal_record(self.problem, self.comm)}
+                **thermal_record(self.problem, self.comm),
+                **obstacle_record(self.problem, table)}
 
     def _file_observers(self, k) -> list:
         """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""
@@ -266,6 +275,21 @@ def thermal_record(problem, comm) -> dict:
         hi = comm.allreduce(float(mine.max()) if mine.size else -math.inf, op=MPI.MAX)
         out[name] = [lo, hi]
     return out
+
+
+def obstacle_record(problem, table) -> dict:
+    """The obstacle's entry of a step record ({} without an obstacle): its displacement d and
+    the resultant contact force it exerts on the body, sum_i w_i (-(reaction_nu) nu +
+    sigma_tau) over the contact nodes (the force obstacle.force prescribes under force
+    control)."""
+    obstacle = problem.contact and problem.contact.obstacle
+    if obstacle is None or table is None:
+        return {}
+    weight = table["weight"][:, None]
+    force = np.sum(weight * (table["sigma_tau_vector"]
+                             - table["reaction_nu"][:, None] * table["normal"]), axis=0)
+    return {"obstacle": {"displacement": obstacle.displacement().tolist(),
+                         "force": force.tolist()}}
 
 
 def recorder(result: Result, keep_tables):

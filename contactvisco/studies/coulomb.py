@@ -141,6 +141,39 @@ def cattaneo_scene(h_contact: float, nu: float = 0.49, mu: float = 0.3, w: float
             "output": {"probes": []}}
 
 
+def cattaneo_obstacle_scene(h_contact: float, P: float, Q: float, nu: float = 0.49,
+                            mu: float = 0.3) -> dict:
+    """The half cylinder of cattaneo_scene with its top clamped, loaded through a rigid plane
+    obstacle under force control ([obstacle] force_components = [0, 1]): the normal force P
+    (step 1, t = 1/2), then the tangential force Q with P held (step 2, t = 1), Cattaneo's and
+    Mindlin's loading path with the normal and the friction plane of the plane itself.
+
+    Parameters
+    ----------
+    h_contact : float
+        The mesh size at the contact.
+    P, Q : float
+        The normal and tangential forces the plane exerts on the cylinder (Q along +x).
+    nu : float, optional
+        Poisson's ratio (Cattaneo-Mindlin needs it near 1/2).
+    mu : float, optional
+        The friction coefficient.
+
+    Returns
+    -------
+    dict
+        The scene, unresolved.
+    """
+    raw = cattaneo_scene(h_contact, nu=nu, mu=mu)
+    raw["dirichlet"] = [{"boundary": "top", "components": "all"}]
+    del raw["contact"]["gap"]
+    raw["obstacle"] = {"shape": "plane", "point": [0.0, 0.0], "normal": [0.0, 1.0],
+                       "force_components": [0, 1],
+                       "force": [f"{Q!r} * max(2 * t - 1, 0)", f"{P!r} * min(2 * t, 1)"]}
+    raw["time"] = {"T": 1.0, "steps": 2}
+    return raw
+
+
 def cattaneo_traction(x, a, c, p0, mu):
     """Cattaneo-Mindlin's tangential traction
     ``q(x) = mu p0 sqrt(1 - x^2/a^2) - [|x| < c] mu p0 (c/a) sqrt(1 - x^2/c^2)``.
@@ -180,7 +213,8 @@ def _zone_half_width(x, inside):
     return 0.5 * (right - left), 0.5 * (right + left)
 
 
-def cattaneo_mindlin(h_contact: float, comm=MPI.COMM_WORLD, **kwargs) -> dict:
+def cattaneo_mindlin(h_contact: float, comm=MPI.COMM_WORLD, raw: dict | None = None,
+                     **kwargs) -> dict:
     """Run the pressed and pulled cylinder and compare it with Cattaneo-Mindlin's partial
     slip and with Hertz's pressure.
 
@@ -190,6 +224,9 @@ def cattaneo_mindlin(h_contact: float, comm=MPI.COMM_WORLD, **kwargs) -> dict:
         The mesh size at the contact.
     comm : mpi4py.MPI.Comm, optional
         The communicator of the run (collective).
+    raw : dict, optional
+        A scene to run instead (e.g. ``cattaneo_obstacle_scene``); the pull's direction is
+        then the sign of the friction force's resultant.
     **kwargs
         Passed to ``cattaneo_scene``: ``nu``, ``mu``, ``w``, ``delta``, ``slip``.
 
@@ -203,16 +240,21 @@ def cattaneo_mindlin(h_contact: float, comm=MPI.COMM_WORLD, **kwargs) -> dict:
         ``p_error`` (relative to p0); ``newton``, ``unknowns``; and the node values ``x``,
         ``q``, ``p``, ``stick`` near the contact for plots.
     """
-    scene = scene_module.resolve(cattaneo_scene(h_contact, **kwargs))
+    scene = scene_module.resolve(raw if raw is not None else cattaneo_scene(h_contact, **kwargs))
     result = simulate(scene, comm=comm, progress=False, keep_tables=True)
     table = result.tables[-1]
     mat, mu = scene["material"], scene["contact"]["mu"]
+    if isinstance(mu, str):             # mu(x, t): its value at the end, read off the bound
+        pressed = table["reaction_nu"] > 0
+        mu = float(np.max(table["radius"][pressed] / table["reaction_nu"][pressed]))
     x = table["x"][:, 0]
     order = np.argsort(x)
     x = x[order]
     w = table["weight"][order]
     p = table["reaction_nu"][order]
     direction = math.copysign(1.0, kwargs.get("delta", 1.0))   # the pull's sign (default > 0)
+    if raw is not None:                 # the friction force on the cylinder is along the pull
+        direction = -math.copysign(1.0, float(np.sum(table["weight"] * table["reaction_tau"])))
     q = -direction * table["reaction_tau"][order]      # the friction force along the pull
     P, Q = float(np.sum(w * p)), float(np.sum(w * q))
     E_star = mat["E"] / (1 - mat["nu"] ** 2)

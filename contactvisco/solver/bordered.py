@@ -1,0 +1,183 @@
+"""Force control of the obstacle: its displacement d (the force-controlled components, k <= 3
+of them) is an unknown of the same Newton step as u and the multipliers, with the resultant
+contact force prescribed, G(w, d) = g(w, d) + F(t) = 0 (fem.obstacle.force_forms).
+
+The Newton system of the coupled unknowns w = (u, lambda) is bordered by k columns and rows,
+
+    [ K    B ] [dw]     [F]
+    [ c^T  E ] [dd] = - [G],      B = dF/dd, c = dg/dw, E = dg/dd,
+
+and solved by the Schur complement with the linear solver of K itself: X = K^-1 B (k extra
+solves with the operator the Newton step factorizes or preconditions anyway), then for the
+Newton step dw_0 = -K^-1 F,
+
+    S = E - c^T X,    dd = S^-1 (-G - c^T dw_0),    dw = dw_0 - X dd.
+
+K is the condensed system of contactvisco.solver.condensed (u's size): a column (b_u, b_lambda)
+of the coupled system is condensed node by node like a residual (condense_rhs), and the
+multiplier part of X is recovered like a multiplier step (recover). S is k x k; it is singular
+when no contact node can carry a change of the obstacle's force (nothing in contact): the solve
+then stops with a named error rather than drifting.
+"""
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+from dolfinx.fem.petsc import assemble_vector
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from contactvisco.errors import SceneError
+from contactvisco.solver.condensed import condense_rhs, recover
+
+_ADD, _REVERSE = PETSc.InsertMode.ADD, PETSc.ScatterMode.REVERSE
+
+#: S is singular below this fraction of its natural size r * (the contact boundary's measure).
+SINGULAR = 1e-12
+
+
+def _form(a):
+    return None if a is None or a.empty() else fem.form(a)
+
+
+class ObstacleForce:
+    """The bordering of the condensed Newton system (module description) for a problem whose
+    obstacle has force-controlled components.
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem; ``problem.contact.obstacle.force_forms`` holds the forms.
+    system : contactvisco.solver.condensed.NodalCondensation
+        The condensed system of the problem.
+    """
+
+    def __init__(self, problem, system):
+        self.problem, self.system = problem, system
+        self.obstacle = problem.contact.obstacle
+        forms = self.obstacle.force_forms
+        self.k = len(self.obstacle.controlled)
+        self.g = [fem.form(f) for f in forms["g"]]
+        self.B = [[_form(f) for f in row] for row in forms["B"]]
+        self.C = [[_form(f) for f in row] for row in forms["C"]]
+        self.E = [[_form(f) for f in row] for row in forms["E"]]
+        self.comm = problem.V.mesh.comm
+        nodes = problem.contact.nodes
+        measure = self.comm.allreduce(float(nodes.weights[nodes.owned].sum()), MPI.SUM)
+        self.natural = float(problem.constants["r"].value) * max(measure, 1e-300)
+        self.X_u = [system.J_red.createVecRight() for _ in range(self.k)]
+        self.c_u = [system.J_red.createVecRight() for _ in range(self.k)]
+        self.rhs = system.J_red.createVecLeft()
+        self.X_l = self.c_l = self.S = self.G_J = None
+
+    def destroy(self):
+        for vec in self.X_u + self.c_u + [self.rhs]:
+            vec.destroy()
+
+    def _vector(self, form, bs):
+        """An assembled vector's values at the owned contact nodes, (n, bs)."""
+        vec = assemble_vector(form)
+        vec.ghostUpdate(addv=_ADD, mode=_REVERSE)
+        values = vec.array.reshape(-1, bs)[self.system.own].copy()
+        vec.destroy()
+        return values
+
+    def _scalar(self, form) -> float:
+        return 0.0 if form is None else self.comm.allreduce(fem.assemble_scalar(form), MPI.SUM)
+
+    def residual(self) -> np.ndarray:
+        """G = g + F(t) at the current fields, shape (k,) (every rank)."""
+        F = self.obstacle.force_at(float(self.obstacle.t.value))
+        return np.array([self._scalar(g) for g in self.g]) + F
+
+    def _multiplier_rows(self, forms) -> np.ndarray:
+        """(n, m): the multiplier components' rows of the given per-multiplier forms at the
+        owned contact nodes, zero where a multiplier is fixed."""
+        s = self.system
+        out = np.zeros((len(s.own), s.m))
+        for a, form in enumerate(forms):
+            if form is not None:
+                out[:, s.offsets[a]:s.offsets[a + 1]] = self._vector(form, s.bs[a])
+        return out * s.free
+
+    def linearize(self, ksp):
+        """At the iterate of the last Jacobian (the fields hold it, the condensed matrix and
+        node blocks are built): X = K^-1 B, c, E, S and G. Raises SceneError if S is
+        singular (no equilibrium of the obstacle can be found from here)."""
+        s, parts = self.system, self.system.parts
+        d = s.d
+        self.G_J = self.residual()
+        ksp.setOperators(s.J_red, s.J_red)
+        self.X_l = []
+        for j in range(self.k):
+            b_u = (self._vector(self.B[j][0], d) if self.B[j][0] is not None
+                   else np.zeros((len(s.own), d)))
+            b_u[s.fixed_u] = 0.0
+            b_l = self._multiplier_rows(self.B[j][1:])
+            self.rhs.set(0.0)
+            self.rhs.array.reshape(-1, d)[s.own] = condense_rhs(parts, b_u, b_l)
+            ksp.solve(self.rhs, self.X_u[j])
+            X_nodes = self.X_u[j].array.reshape(-1, d)[s.own]
+            self.X_u[j].scale(-1.0)
+            s.J_contact.mult(self.X_u[j], s._Jdu)        # J (-X_u) at the contact rows
+            self.X_u[j].scale(-1.0)
+            step = recover(parts, parts["B"], parts["C"], b_u, b_l, -X_nodes,
+                           s._Jdu.array.reshape(-1, d))
+            self.X_l.append(-step)
+        self.c_l = []
+        for j in range(self.k):
+            vec = assemble_vector(self.C[j][0])
+            vec.ghostUpdate(addv=_ADD, mode=_REVERSE)
+            self.c_u[j].array[:] = vec.array
+            vec.destroy()
+            self.c_l.append(self._multiplier_rows(self.C[j][1:]))
+        E = np.array([[self._scalar(e) for e in row] for row in self.E])
+        cX = np.array([[self.c_u[j].dot(self.X_u[i])
+                        + self.comm.allreduce(float(np.sum(self.c_l[j] * self.X_l[i])),
+                                              MPI.SUM)
+                        for i in range(self.k)] for j in range(self.k)])
+        self.S = E - cX
+        smallest = np.linalg.svd(self.S, compute_uv=False).min()
+        if not smallest > SINGULAR * self.natural:
+            names = ", ".join(str(j) for j in self.obstacle.controlled)
+            raise SceneError(
+                f"obstacle.force: no equilibrium of the force-controlled obstacle "
+                f"(components {names}) at t = {float(self.obstacle.t.value):g}: no contact "
+                f"node can carry its force (the obstacle is out of contact, d = "
+                f"{np.round(self.obstacle.displacement(), 12).tolist()}); start it in "
+                "contact (a gap of 0 at its first point), or bring it into contact under "
+                "displacement control first", key="obstacle.force")
+
+    def correct(self, vectors, du, dl) -> np.ndarray:
+        """The bordered step from the condensed one (du, dl): dd = S^-1 (-G - c^T (du, dl)),
+        then v -= X_u dd for each PETSc vector v of `vectors` (the iterate), the multipliers
+        -= X_lambda dd and d += dd. Returns dd."""
+        s = self.system
+        cw = np.array([self.c_u[j].dot(du)
+                       + self.comm.allreduce(float(np.sum(self.c_l[j] * dl)), MPI.SUM)
+                       for j in range(self.k)])
+        dd = np.linalg.solve(self.S, -self.G_J - cw)
+        for x in vectors:
+            for j in range(self.k):
+                x.axpy(-dd[j], self.X_u[j])
+            x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        s.add_to_multipliers(-sum(X * dd[j] for j, X in enumerate(self.X_l)))
+        d = self.obstacle.displacement()
+        d[self.obstacle.controlled] += dd
+        self.obstacle.set_displacement(d)
+        return dd
+
+    def replace(self) -> bool:
+        """After a converged solve: place a curved obstacle at its converged position (its
+        normals and gaps evaluated there, as displacement control evaluates them at d(t))
+        when it moved more than 1e-12 of the body's size from where they were evaluated.
+        Returns whether it was placed again (the solve must then continue)."""
+        obstacle = self.obstacle
+        if obstacle.scene["obstacle"]["shape"] == "plane":
+            return False                 # the plane's gap and normal do not depend on d
+        d = obstacle.displacement()
+        moved = np.max(np.abs(d - np.asarray(obstacle.reference.value)))
+        if not moved > 1e-12 * self.problem.length_scale:
+            return False
+        obstacle.place(d)
+        return True
