@@ -312,8 +312,8 @@ def test_restart_continues_the_slip_per_step(tmp_path_factory, monkeypatch):
     whole = simulate(scene, out=folders[0], comm=comm, progress=False, keep_tables=True)
     save = checkpoint.save
 
-    def stop_after_step_2(folder, problem, comm, t, count, step):
-        save(folder, problem, comm, t, count, step)
+    def stop_after_step_2(folder, problem, comm, t, count, step, **records):
+        save(folder, problem, comm, t, count, step, **records)
         if count == 3:
             raise _Stop
 
