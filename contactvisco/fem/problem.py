@@ -693,6 +693,8 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
         follow()
         owned = reduced.owned                   # ghosts: taken along, never an error
         inverse, error = inverse_shift(visco, theta.x.array[:owned])
+        if error:
+            error = _at_point(error, visco, theta.x.array[:owned], scalars)
         inverse = np.concatenate([inverse, inverse_shift(visco, theta.x.array[owned:])[0]])
         error = next((e for e in mesh.comm.allgather(error) if e), None)   # every rank stops
         if error:
@@ -709,6 +711,18 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
         eps_expression=fem.Expression(strain(u), compat.interpolation_points(tensor_space)),
         tensor_space=tensor_space, constants=constants,
         implicit_terms=[(c, name[len("memory_implicit_"):]) for name, c in constants.items()])
+
+
+def _at_point(error: str, visco, values, space) -> str:
+    """The shift error with the point where it arises (its coordinates)."""
+    from contactvisco.model.viscoelastic import first_error_point, shift_error
+    i = first_error_point(visco, values)
+    if i is None:
+        return error
+    error = shift_error(visco, values[i])
+    x = space.tabulate_dof_coordinates()[i]
+    where = ", ".join(f"{c:.6g}" for c in x[:space.mesh.geometry.dim])
+    return f"{error} at the point x = ({where})"
 
 
 def _interpolator(function, value, space):

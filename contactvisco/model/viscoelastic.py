@@ -289,7 +289,10 @@ def log10_shift(shift: dict, theta):
         ``{"shift": "wlf", "T_ref", "C1", "C2"}``: log10 a_T = -C1 (T - T_ref) /
         (C2 + T - T_ref) (Williams, Landel and Ferry 1955); ``{"shift": "arrhenius", "T_ref",
         "activation_energy"}`` (J/mol, temperatures in kelvin): log10 a_T =
-        Ea / (R ln 10) (1/T - 1/T_ref); ``{"shift": "none"}``: 0 (a [viscoelastic] table).
+        Ea / (R ln 10) (1/T - 1/T_ref); ``{"shift": "table", "shift_temperatures",
+        "shift_log10_aT"}``: log10 a_T interpolated piecewise linearly in T between the
+        points of the table (:func:`shift_points`), monotone between two points and exact at
+        them; ``{"shift": "none"}``: 0 (a [viscoelastic] table).
     theta : float or array
         Temperatures.
 
@@ -302,6 +305,9 @@ def log10_shift(shift: dict, theta):
     kind = shift.get("shift", "none")
     if kind == "none":
         return 0.0 * theta
+    if kind == "table":
+        temps, logs = shift_points(shift)
+        return np.interp(theta, temps, logs)
     d = theta - float(shift["T_ref"])
     if kind == "wlf":
         return -float(shift["C1"]) * d / (float(shift["C2"]) + d)
@@ -309,6 +315,28 @@ def log10_shift(shift: dict, theta):
         return (float(shift["activation_energy"]) / (GAS_CONSTANT * math.log(10.0))
                 * (1.0 / theta - 1.0 / float(shift["T_ref"])))
     raise ValueError(f"unknown shift type {kind!r}")
+
+
+def shift_points(shift) -> tuple[np.ndarray, np.ndarray]:
+    """The points (theta_j, log10 a_T(theta_j)) of a tabulated shift function.
+
+    Parameters
+    ----------
+    shift : dict
+        ``{"shift": "table", ...}``: the points of a file read by the scene (the attribute
+        ``shift_points`` of a [viscoelastic] table), else the keys ``shift_temperatures`` and
+        ``shift_log10_aT``.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        (theta_j increasing, log10 a_T(theta_j)); between two points
+        log10 a_T = ((theta_{j+1} - T) L_j + (T - theta_j) L_{j+1}) / (theta_{j+1} - theta_j).
+    """
+    points = getattr(shift, "shift_points", None)
+    if points is None:
+        points = (shift["shift_temperatures"], shift["shift_log10_aT"])
+    return np.asarray(points[0], float), np.asarray(points[1], float)
 
 
 #: Largest |log10 a_T| taken: beyond, 1/a_T is 0 or overflows in double precision.
@@ -328,7 +356,8 @@ def shift_error(shift: dict, theta) -> str | None:
     Returns
     -------
     str or None
-        WLF with C2 + T - T_ref <= 0 (outside its range), Arrhenius with T <= 0 (kelvin), or
+        WLF with C2 + T - T_ref <= 0 (outside its range), Arrhenius with T <= 0 (kelvin), a
+        table's temperature outside [theta_0, theta_last] (not extrapolated), or
         |log10 a_T| > MAX_LOG10_SHIFT; None when every temperature is fine.
     """
     theta = np.atleast_1d(np.asarray(theta, float))
@@ -344,6 +373,14 @@ def shift_error(shift: dict, theta) -> str | None:
             return (f"viscoelastic.temperature = {theta[i]:.6g}: C2 + T - T_ref = {den[i]:.6g} "
                     f"<= 0, outside the range of the WLF shift (T must exceed T_ref - C2 = "
                     f"{float(shift['T_ref']) - float(shift['C2']):.6g})")
+    if kind == "table":
+        temps, _ = shift_points(shift)
+        outside = (theta < temps[0]) | (theta > temps[-1])
+        if np.any(outside):
+            i = int(np.flatnonzero(outside)[0])
+            return (f"viscoelastic.temperature = {theta[i]:.6g} is outside the shift table "
+                    f"[{temps[0]:.6g}, {temps[-1]:.6g}] (viscoelastic.shift = 'table' is not "
+                    "extrapolated: extend the table)")
     if kind == "arrhenius" and np.any(theta <= 0):
         return (f"viscoelastic.temperature = {theta.min():.6g}: the Arrhenius shift takes "
                 "absolute temperatures (kelvin), > 0")
@@ -352,6 +389,28 @@ def shift_error(shift: dict, theta) -> str | None:
         i = int(np.argmax(np.abs(log10_aT)))
         return (f"viscoelastic.temperature = {theta[i]:.6g}: log10 a_T = {log10_aT[i]:.6g} is "
                 f"beyond +-{MAX_LOG10_SHIFT:g} (the relaxation times would be 0 or infinite)")
+    return None
+
+
+def first_error_point(shift: dict, theta) -> int | None:
+    """The index of the first temperature at which the shift function cannot be taken.
+
+    Parameters
+    ----------
+    shift : dict
+        As for :func:`log10_shift`.
+    theta : array
+        Temperatures.
+
+    Returns
+    -------
+    int or None
+        The smallest i with :func:`shift_error` (shift, theta[i]) not None; None if none.
+    """
+    theta = np.atleast_1d(np.asarray(theta, float))
+    for i, value in enumerate(theta):
+        if shift_error(shift, value) is not None:
+            return i
     return None
 
 

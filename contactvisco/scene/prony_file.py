@@ -1,5 +1,6 @@
 """A Prony table read from a CSV file, as fitting tools export it: a header row, then one row
-per term, the relaxation time first and its modulus (or normalized fraction) second.
+per term, the relaxation time first and its modulus (or normalized fraction) second; and a
+shift table (:func:`read_shift`): a header row, then temperature and log10 a_T per row.
 
 Only data is read: the file the scene names (relative to the scene file's folder, or to the
 working directory for a scene given as values), at most :data:`MAX_BYTES`, through the csv
@@ -22,6 +23,9 @@ MAX_BYTES = 1_000_000
 
 #: Most terms of a Prony series: each keeps a history field of the size of the strain.
 MAX_TERMS = 100
+
+#: Most points of a shift table (log10 a_T against temperature).
+MAX_SHIFT_ROWS = 1000
 
 
 def resolve_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
@@ -73,19 +77,7 @@ def read(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
         where = f"{path}, row {line}" if line is not None else f"{path}"
         raise SceneError(f"{key}: Prony file {where}: {message}", key=key)
 
-    try:
-        with open(path, "rb") as f:
-            data = f.read(MAX_BYTES + 1)
-    except OSError as err:
-        fail(f"cannot be read ({err.strerror})")
-    if len(data) > MAX_BYTES:
-        fail(f"larger than {MAX_BYTES} bytes: not a Prony table")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        fail("not a UTF-8 text file")
-    rows = [(number, row) for number, row in enumerate(csv.reader(io.StringIO(text)), start=1)
-            if any(cell.strip() for cell in row)]
+    rows = _rows(path, fail, "a Prony table")
     if not rows:
         fail("empty (a header row, then one row of tau, modulus per term)")
     number, header = rows[0]
@@ -115,6 +107,76 @@ def read(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
         taus.append(tau)
         values.append(value)
     return taus, values
+
+
+def read_shift(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
+    """The points of a shift table: a CSV file of a header row, then one row per temperature,
+    the temperature first and log10 a_T second (read as data only, like a Prony file).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file (see :func:`resolve_path`).
+    key : str
+        The dotted key that names it, for errors.
+
+    Returns
+    -------
+    tuple of list of float
+        (theta_j, log10 a_T(theta_j)), theta_j strictly increasing, at most
+        :data:`MAX_SHIFT_ROWS` rows, |log10 a_T| <= 300 (a_T positive and finite).
+    """
+    def fail(message, line=None):
+        where = f"{path}, row {line}" if line is not None else f"{path}"
+        raise SceneError(f"{key}: shift file {where}: {message}", key=key)
+
+    rows = _rows(path, fail, "a shift table")
+    if not rows:
+        fail("empty (a header row, then one row of temperature, log10 a_T per point)")
+    number, header = rows[0]
+    if len(header) != 2 or any(_number(cell) is not None for cell in header):
+        fail(f"the first row must be a header of two column names (the temperature, then "
+             f"log10 a_T), got {header!r}", number)
+    rows = rows[1:]
+    if len(rows) < 2:
+        fail(f"needs at least two points after the header, got {len(rows)}")
+    if len(rows) > MAX_SHIFT_ROWS:
+        fail(f"more than {MAX_SHIFT_ROWS} points", rows[MAX_SHIFT_ROWS][0])
+    temps, logs = [], []
+    for number, row in rows:
+        if len(row) != 2:
+            fail(f"needs 2 values (temperature, log10 a_T), got {len(row)}: {row!r}", number)
+        theta, value = (_number(cell) for cell in row)
+        if theta is None or value is None:
+            fail(f"values must be finite numbers, got {row!r}", number)
+        if abs(value) > 300.0:
+            fail(f"|log10 a_T| = {abs(value)!r} is above 300 (a_T would be 0 or infinite)",
+                 number)
+        if temps and theta <= temps[-1]:
+            what = "duplicates" if theta == temps[-1] else "is below"
+            fail(f"temperature {theta!r} {what} the previous row's {temps[-1]!r}: the rows "
+                 "must be sorted by increasing temperature, each temperature once", number)
+        temps.append(theta)
+        logs.append(value)
+    return temps, logs
+
+
+def _rows(path: pathlib.Path, fail, what: str) -> list:
+    """The non-blank rows of a CSV file, (line number, cells), read as data (at most
+    MAX_BYTES, UTF-8); `fail` raises the error naming the file."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_BYTES + 1)
+    except OSError as err:
+        fail(f"cannot be read ({err.strerror})")
+    if len(data) > MAX_BYTES:
+        fail(f"larger than {MAX_BYTES} bytes: not {what}")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        fail("not a UTF-8 text file")
+    return [(number, row) for number, row in enumerate(csv.reader(io.StringIO(text)), start=1)
+            if any(cell.strip() for cell in row)]
 
 
 def _number(cell: str) -> float | None:

@@ -15,14 +15,18 @@ import pathlib
 from contactvisco.errors import SceneError
 from contactvisco.model import viscoelastic as ve
 from contactvisco.scene import prony_file
-from contactvisco.scene.table import MODULUS_RANGE, Key, Table, finite, modulus, one_of
+from contactvisco.scene.table import (MODULUS_RANGE, Key, Table, finite, modulus, number_list,
+                                      one_of)
 
 #: The keys of one relaxation function (viscoelastic.shear, bulk, young).
 SERIES_KEYS = ("instantaneous", "long_term", "tau", "moduli", "fractions", "file", "values",
                "scale", "time_scale")
 
 #: viscoelastic.shift: the shift functions a_T of time-temperature superposition.
-SHIFTS = ("none", "wlf", "arrhenius")
+SHIFTS = ("none", "wlf", "arrhenius", "table")
+
+#: |log10 a_T(T_ref)| of a shift table above which it is refused (a_T(T_ref) = 1 by definition).
+SHIFT_TABLE_ZERO = 1e-12
 
 #: Material keys that [viscoelastic] derives.
 DERIVED_MATERIAL = ("E", "nu", "lambda", "mu")
@@ -44,11 +48,17 @@ class Viscoelastic(Table):
         "T_ref": Key(None, lambda x: x is None or finite(x),
                      "a finite number (the temperature of the Prony terms)"),
         "temperature": Key(None),
-        "shift": Key("none", one_of(*SHIFTS), "none, wlf or arrhenius"),
+        "shift": Key("none", one_of(*SHIFTS), "none, wlf, arrhenius or table"),
         "C1": Key(None, lambda x: x is None or finite(x), "a finite number"),
         "C2": Key(None, lambda x: x is None or (finite(x) and x > 0), "a number > 0"),
         "activation_energy": Key(None, lambda x: x is None or (finite(x) and x > 0),
                                  "a number > 0 (J/mol)"),
+        "shift_temperatures": Key(None, lambda x: x is None or number_list(x),
+                                  "a list of finite numbers (increasing temperatures)"),
+        "shift_log10_aT": Key(None, lambda x: x is None or number_list(x),
+                              "a list of finite numbers (log10 a_T at shift_temperatures)"),
+        "shift_file": Key(None, lambda x: x is None or (isinstance(x, str) and x != ""),
+                          "the name of a CSV file (temperature, log10 a_T)"),
     }
 
     def rules(self, scene):
@@ -94,7 +104,8 @@ class Viscoelastic(Table):
     def _shift_rules(self, scene) -> None:
         shift = self["shift"]
         needed = {"none": (), "wlf": ("T_ref", "C1", "C2"),
-                  "arrhenius": ("T_ref", "activation_energy")}[shift]
+                  "arrhenius": ("T_ref", "activation_energy"),
+                  "table": ("T_ref",)}[shift]
         for name in needed:
             self.need(self[name] is not None, name,
                       f"viscoelastic.shift = '{shift}' needs viscoelastic.{name}")
@@ -102,6 +113,8 @@ class Viscoelastic(Table):
             self.need(self[name] is None or name in needed, name,
                       f"viscoelastic.{name} belongs to another shift function than "
                       f"viscoelastic.shift = '{shift}'")
+        if shift == "table":
+            self._shift_table_rules()
         if shift == "arrhenius":
             self.need(self["T_ref"] > 0, "T_ref", "viscoelastic.T_ref must be > 0 (kelvin) "
                                                   "for the Arrhenius shift")
@@ -110,13 +123,78 @@ class Viscoelastic(Table):
             return
         self.need(shift != "none", "temperature",
                   "viscoelastic.temperature needs a shift function (viscoelastic.shift = "
-                  "'wlf' or 'arrhenius') to act on the relaxation times")
+                  "'wlf', 'arrhenius' or 'table') to act on the relaxation times")
         self.expression("temperature", theta, scene.dimension)
         if finite(theta):
             error = ve.shift_error(self, theta)
             self.need(error is None, "temperature", str(error))
         self.need(scene["memory"]["kernel"] in ("prony", "none"), "temperature",
                   "viscoelastic.temperature: reduced time runs the Prony recursion")
+
+    def read_shift_table(self, base: pathlib.Path | None) -> None:
+        """The points of viscoelastic.shift = 'table' (inline, or read from shift_file relative
+        to `base`) as the attribute shift_points = (temperatures, log10 a_T); None for the
+        other shift functions or when the table is not given (the rules then say so)."""
+        self.shift_points = None
+        inline = [k for k in ("shift_temperatures", "shift_log10_aT") if self[k] is not None]
+        if self["shift"] != "table":
+            given = inline + (["shift_file"] if self["shift_file"] is not None else [])
+            self.need(not given, given[0] if given else "shift",
+                      f"viscoelastic.{given[0] if given else ''} is the table of viscoelastic."
+                      f"shift = 'table', not of viscoelastic.shift = '{self['shift']}'")
+            return
+        if self["shift_file"] is not None:
+            self.need(not inline, inline[0] if inline else "shift_file",
+                      "viscoelastic.shift_file gives the shift table: leave out viscoelastic."
+                      "shift_temperatures and shift_log10_aT")
+            key = self.key("shift_file")
+            try:
+                path = prony_file.resolve_path(self["shift_file"], base, key)
+                self.shift_points = prony_file.read_shift(path, key)
+            except SceneError as err:
+                self.fail("shift_file", str(err))
+            return
+        self.need(len(inline) == 2, "shift_temperatures",
+                  "viscoelastic.shift = 'table' needs viscoelastic.shift_temperatures and "
+                  "shift_log10_aT (two lists of numbers), or viscoelastic.shift_file")
+        temps, logs = self["shift_temperatures"], self["shift_log10_aT"]
+        for name, items in (("shift_temperatures", temps), ("shift_log10_aT", logs)):
+            self.need(number_list(items), name, f"viscoelastic.{name} must be a list of "
+                                                f"finite numbers, got {items!r}")
+        self.need(len(temps) == len(logs), "shift_log10_aT",
+                  f"viscoelastic.shift_temperatures and shift_log10_aT must have the same "
+                  f"length, got {len(temps)} and {len(logs)}")
+        self.shift_points = ([float(x) for x in temps], [float(x) for x in logs])
+
+    def _shift_table_rules(self) -> None:
+        """At least two points, temperatures increasing, |log10 a_T| within MAX_LOG10_SHIFT
+        (a_T positive and finite), T_ref inside the table with log10 a_T(T_ref) = 0."""
+        temps, logs = getattr(self, "shift_points", None) or ([], [])
+        name = "shift_file" if self["shift_file"] is not None else "shift_temperatures"
+        self.need(len(temps) >= 2, name, "viscoelastic.shift = 'table' needs at least two "
+                                         f"points (temperature, log10 a_T), got {len(temps)}")
+        self.need(len(temps) <= prony_file.MAX_SHIFT_ROWS, name,
+                  f"viscoelastic: at most {prony_file.MAX_SHIFT_ROWS} points in the shift "
+                  f"table, got {len(temps)}")
+        for i in range(1, len(temps)):
+            self.need(temps[i] > temps[i - 1], name,
+                      f"viscoelastic.shift_temperatures[{i}] = {temps[i]!r} does not exceed "
+                      f"the previous {temps[i - 1]!r}: the temperatures must increase, each "
+                      "once")
+        for i, v in enumerate(logs):
+            self.need(abs(v) <= ve.MAX_LOG10_SHIFT, "shift_log10_aT" if name !=
+                      "shift_file" else name,
+                      f"viscoelastic.shift_log10_aT[{i}] = {v!r}: |log10 a_T| must be at most "
+                      f"{ve.MAX_LOG10_SHIFT:g} (a_T positive and finite)")
+        T_ref = float(self["T_ref"])
+        self.need(temps[0] <= T_ref <= temps[-1], "T_ref",
+                  f"viscoelastic.T_ref = {T_ref:g} must lie in the shift table's range "
+                  f"[{temps[0]:g}, {temps[-1]:g}] (a_T(T_ref) = 1 defines the table)")
+        at_ref = float(ve.log10_shift(self, T_ref))
+        self.need(abs(at_ref) <= SHIFT_TABLE_ZERO, "T_ref",
+                  f"the shift table gives log10 a_T(T_ref = {T_ref:g}) = {at_ref:.6g}; it must "
+                  f"be 0 (within {SHIFT_TABLE_ZERO:g}: a_T(T_ref) = 1 by definition). Subtract "
+                  f"{at_ref:.6g} from every log10 a_T, or give the T_ref of the table")
 
     def series(self, name: str, base: pathlib.Path | None) -> ve.PronySeries:
         """The checked Prony series of viscoelastic.<name> (a file read from `base`)."""
@@ -250,6 +328,7 @@ class Viscoelastic(Table):
         """Set material.E, material.nu and the [memory] table of `scene` from the relaxation
         functions: A = the instantaneous moduli, R = their derivative (paper_form)."""
         model = scene["material"]["model"]
+        self.read_shift_table(base)
         shear, bulk = self.shear_bulk(model, base)
         if model == "plane_stress" and not ve.proportional(shear, bulk):
             self.fail("bulk" if self["young"] is None else "young",

@@ -350,6 +350,139 @@ def test_wlf_range_at_run_time():
     assert err.value.key == "viscoelastic.temperature"
 
 
+# --- The shift table (log10 a_T against temperature) -------------------------------------
+
+def wlf_table(h, lo=48.0, hi=56.0, T_ref=50.0):
+    """The WLF curve sampled every h on [lo, hi], as a [viscoelastic] shift table."""
+    T = lo + h * np.arange(int(round((hi - lo) / h)) + 1)
+    return {"shift": "table", "T_ref": T_ref, "shift_temperatures": T.tolist(),
+            "shift_log10_aT": ve.log10_shift(WLF, T).tolist()}
+
+
+ONE_TERM = {"shear": {"instantaneous": 10.0, "tau": [0.5], "fractions": [0.4]},
+            "bulk": {"instantaneous": 25.0}}
+
+
+def test_shift_table_is_piecewise_linear():
+    """Between two points the table is the chord of log10 a_T, exact at the points; its
+    error against the sampled WLF curve falls as h^2 (the second derivative of the curve)."""
+    errors = []
+    fine = np.linspace(48.0, 56.0, 2001)
+    for h in (1.0, 0.5, 0.25):
+        table = wlf_table(h)
+        T = np.array(table["shift_temperatures"])
+        assert np.abs(ve.log10_shift(table, T) - ve.log10_shift(WLF, T)).max() == 0.0
+        errors.append(np.abs(ve.log10_shift(table, fine) - ve.log10_shift(WLF, fine)).max())
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert all(abs(p - 2.0) < 0.05 for p in orders), (errors, orders)
+
+
+def test_shift_table_reproduces_the_wlf_run():
+    """A shear step under theta = 50 + 4 t + 1.5 x[0] with the WLF curve tabulated every h
+    equals the WLF run (same 20 steps) to the interpolation error, which falls as h^2."""
+    strain = [[0.0, 0.01], [0.01, 0.0]]
+    temperature = "50.0 + 4.0 * t + 1.5 * x[0]"
+
+    def run(shift):
+        return rl.block_stress(rl.block_scene(dict(ONE_TERM, **shift, temperature=temperature),
+                                              "plane_strain", strain, "step", 1.0, 20),
+                               MPI.COMM_SELF)[1]
+    ref = run(WLF)
+    errors = [np.abs(run(wlf_table(h)) - ref).max() / np.abs(ref).max()
+              for h in (0.5, 0.25, 0.125)]
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert errors[-1] < 2e-5 and all(abs(p - 2.0) < 0.1 for p in orders), (errors, orders)
+
+
+@pytest.mark.parametrize("theta", [52.7, 46.5])
+def test_constant_temperature_table_is_scaled_time(theta):
+    """The scaled-time identity holds for the table too: at a constant theta between two
+    points the run equals the T_ref run with time scaled by the interpolated a_T, to
+    round-off."""
+    visco = dict(MATERIALS["both"][0], **wlf_table(1.0, lo=46.0))
+    a = 10 ** float(ve.log10_shift(visco, theta))
+    assert abs(math.log10(a)) > 0.5
+    _, hot = rl.block_stress(rl.block_scene(dict(visco, temperature=theta), "plane_strain",
+                                            STRAIN_2D, "ramp", 2.0, 12))
+    _, ref = rl.block_stress(rl.block_scene(visco, "plane_strain", STRAIN_2D, "ramp", 2.0 / a,
+                                            12, rate=a))
+    assert np.abs(hot - ref).max() <= 1e-13 * np.abs(ref).max()
+
+
+def test_shift_file_equals_inline(tmp_path):
+    """A CSV of (temperature, log10 a_T) rows gives the inline table."""
+    table = wlf_table(0.5)
+    rows = "".join(f"{T!r},{L!r}\n" for T, L in zip(table["shift_temperatures"],
+                                                      table["shift_log10_aT"]))
+    (tmp_path / "shift.csv").write_text("T (C),log10 aT\n" + rows)
+    raw = scene_with(**MATERIALS["both"][0], shift="table", T_ref=50.0,
+                     shift_file="shift.csv", temperature=48.5)
+    path = tmp_path / "scene.toml"
+    from contactvisco.scene.toml_text import document_text
+    path.write_text(document_text(raw))
+    from_file = loader.load(str(path))["viscoelastic"]
+    inline = loader.resolve(scene_with(**MATERIALS["both"][0], **table, temperature=48.5))
+    theta = np.linspace(48.0, 56.0, 17)
+    assert np.array_equal(ve.log10_shift(from_file, theta),
+                          ve.log10_shift(inline["viscoelastic"], theta))
+
+
+@pytest.mark.parametrize("extra, key, words", [
+    (dict(wlf_table(1.0), temperature=57.0), "viscoelastic.temperature", "outside the shift "
+                                                                         "table [48, 56]"),
+    (dict(wlf_table(1.0), T_ref=60.0), "viscoelastic.T_ref", "shift table's range"),
+    (dict(wlf_table(1.0), T_ref=50.5), "viscoelastic.T_ref", "must be 0"),
+    ({"shift": "table", "T_ref": 50.0, "shift_temperatures": [49.0, 51.0, 50.5],
+      "shift_log10_aT": [0.5, -0.5, -0.2]}, "viscoelastic.shift_temperatures", "must increase"),
+    ({"shift": "table", "T_ref": 50.0, "shift_temperatures": [50.0],
+      "shift_log10_aT": [0.0]}, "viscoelastic.shift_temperatures", "at least two"),
+    ({"shift": "table", "T_ref": 50.0, "shift_temperatures": [49.0, 51.0],
+      "shift_log10_aT": [0.5]}, "viscoelastic.shift_log10_aT", "same length"),
+    ({"shift": "table", "T_ref": 50.0, "shift_temperatures": [0.0, 100.0],
+      "shift_log10_aT": [400.0, -400.0]}, "viscoelastic.shift_log10_aT", "at most 300"),
+    ({"shift": "table", "T_ref": 50.0}, "viscoelastic.shift_temperatures", "needs"),
+    (dict(WLF, shift_temperatures=[1.0, 2.0]), "viscoelastic.shift_temperatures", "not of"),
+])
+def test_shift_table_refused(extra, key, words):
+    with pytest.raises(SceneError) as err:
+        loader.resolve(scene_with(**MATERIALS["both"][0], **extra))
+    assert err.value.key == key and words in str(err.value), str(err.value)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("", "empty"),
+    ("T,log10aT\n", "at least two points"),
+    ("40,1\n50,0\n", "header"),
+    ("T,log10aT\n40,nan\n50,0\n", "row 2: values must be finite"),
+    ("T,log10aT\n40,1\n50\n", "row 3: needs 2 values"),
+    ("T,log10aT\n50,0\n40,1\n", "row 3: temperature 40.0 is below"),
+    ("T,log10aT\n40,1\n40,0\n", "row 3: temperature 40.0 duplicates"),
+    ("T,log10aT\n40,1\n50,0\n60,-301\n", "row 4: |log10 a_T|"),
+    ("T,log10aT\n" + "".join(f"{i},0\n" for i in range(1001)), "more than 1000 points"),
+])
+def test_shift_file_refused(tmp_path, text, words):
+    (tmp_path / "shift.csv").write_text(text)
+    raw = scene_with(**MATERIALS["both"][0], shift="table", T_ref=50.0, shift_file="shift.csv")
+    path = tmp_path / "scene.toml"
+    from contactvisco.scene.toml_text import document_text
+    path.write_text(document_text(raw))
+    with pytest.raises(SceneError) as err:
+        loader.load(str(path))
+    assert err.value.key == "viscoelastic.shift_file", str(err.value)
+    assert "shift.csv" in str(err.value) and words in str(err.value), str(err.value)
+
+
+def test_shift_table_range_at_run_time():
+    """A temperature expression that leaves the table during the run stops it, naming the
+    key, the temperature, the point and the time."""
+    visco = dict(ONE_TERM, **wlf_table(0.5), temperature="50.0 + 10.0 * t + 1.5 * x[0]")
+    raw = rl.block_scene(visco, "plane_strain", [[0.0, 0.01], [0.01, 0.0]], "step", 1.0, 4)
+    with pytest.raises(SceneError, match=r"= 58.5 is outside the shift table \[48, 56\].*"
+                                         r"at the point x = \(.*\) \(at t = 0.75\)") as err:
+        rl.block_stress(raw, MPI.COMM_SELF)
+    assert err.value.key == "viscoelastic.temperature"
+
+
 # --- Outputs -------------------------------------------------------------------------------
 
 def test_relaxation_figure_closed_forms():
