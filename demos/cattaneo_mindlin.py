@@ -31,8 +31,8 @@
 # ```
 #
 # Step 1 ($t = 1/2$) presses, step 2 ($t = 1$) pulls. While there is no friction, nothing
-# resists a tangential move of the plane and its force there is zero: its tangential position
-# is held. The contact normal and the friction plane are the plane's own, not the cylinder's.
+# resists a tangential move of the plane, and the force asked there is zero: the plane's
+# tangential position, which changes nothing, is held where Newton's first iterate leaves it. The contact normal and the friction plane are the plane's own, not the cylinder's.
 #
 # With Hertz's half-width $a = \sqrt{4PR/(\pi E^*)}$ and $p_0 = 2P/(\pi a)$, the contact
 # sticks on a central zone of half-width
