@@ -183,7 +183,7 @@ def creep_indentation(h: float, steps: int, T: float = 3.0, E: float = 200.0,
     dict
         ``t``, ``a_m`` (measured: 2 sqrt(sum w p x^2 / sum w p)), ``a_m_exact``, ``a_exact``
         (sqrt(4 P R C / pi)), ``depth`` (the cylinder's displacement), ``force`` (recorded),
-        ``error`` (max |a_m - a_m_exact| / a_m_exact over the steps), ``newton``.
+        ``error`` (the largest relative error of a_m over the steps), ``newton``.
     """
     raw = _layer_scene(h, E, nu, P, R)
     raw["memory"] = {"kernel": "prony",
