@@ -49,7 +49,7 @@ import numpy as np
 from contactvisco import LeeRadok, creep_indentation, elastic_indentation, quick
 
 E, nu, alpha, tau, P, R = 200.0, 0.3, -60.0, 1.0, 0.3, 1.0
-h, steps, T = (0.01, 12, 6.0) if quick() else (0.005, 48, 6.0)
+h, steps, T = (0.01, 12, 6.0) if quick() else (0.005, 24, 6.0)
 run = creep_indentation(h, steps, T=T, E=E, nu=nu, alpha=alpha, tau=tau, P=P, R=R)
 exact = LeeRadok(E, nu, alpha, tau, P, R)
 E_long, nu_long = exact.long_time()
