@@ -1,10 +1,13 @@
 """A box [0, lx] x [0, ly] x [0, lz] of tetrahedra (3D).
 
-Boundaries: "left"/"right" (x), "front"/"back" (y), "bottom"/"top" (z).
+Boundaries: "left"/"right" (x), "front"/"back" (y), "bottom"/"top" (z). With h_corner the
+mesh is refined to h_corner within `refine` of the corner (0, 0, 0), growing to h (an
+indenter at the corner of a quarter model).
 """
+from refinement import refine_near
 
 
-def build(gmsh, lx=1.0, ly=1.0, lz=0.5, h=0.125):
+def build(gmsh, lx=1.0, ly=1.0, lz=0.5, h=0.125, h_corner=None, refine=0.25):
     occ = gmsh.model.occ
     volume = occ.addBox(0, 0, 0, lx, ly, lz)
     occ.synchronize()
@@ -22,4 +25,9 @@ def build(gmsh, lx=1.0, ly=1.0, lz=0.5, h=0.125):
     gmsh.model.setPhysicalName(3, gmsh.model.addPhysicalGroup(3, [volume]), "body")
     gmsh.option.setNumber("Mesh.MeshSizeMax", h)
     gmsh.option.setNumber("Mesh.MeshSizeMin", h)
+    if h_corner is not None:
+        gmsh.option.setNumber("Mesh.MeshSizeMin", h_corner)
+        corner = gmsh.model.getEntitiesInBoundingBox(-eps, -eps, -eps, eps, eps, eps, dim=0)
+        refine_near(gmsh, h_corner, h, refine, 2 * refine + 4 * h,
+                    points=[tag for _, tag in corner])
     gmsh.model.mesh.generate(3)

@@ -137,7 +137,9 @@ class ObstacleForce:
                                               MPI.SUM)
                         for i in range(self.k)] for j in range(self.k)])
         self.S = E - cX
-        smallest = np.linalg.svd(self.S, compute_uv=False).min()
+        self.active = self._active_components()
+        S = self.S[np.ix_(self.active, self.active)]
+        smallest = np.linalg.svd(S, compute_uv=False).min() if len(self.active) else 0.0
         if not smallest > SINGULAR * self.natural:
             names = ", ".join(str(j) for j in self.obstacle.controlled)
             raise SceneError(
@@ -148,6 +150,22 @@ class ObstacleForce:
                 "contact (a gap of 0 at its first point), or bring it into contact under "
                 "displacement control first", key="obstacle.force")
 
+    def _active_components(self) -> np.ndarray:
+        """The controlled components the step solves for. A component whose row and column of
+        S vanish (no contact node can carry a force along it: a frictionless plane pushed
+        along its tangent) and whose prescribed force is balanced (G_j = 0) leaves the state
+        unchanged whatever d_j: it is held where it is (dd_j = 0), so a frictionless pressing
+        can precede a tangential force. Any other vanishing component stays in S, which is
+        then singular (no equilibrium)."""
+        small = SINGULAR * self.natural
+        balanced = SINGULAR * self.natural * self.problem.length_scale
+        held = [j for j in range(self.k)
+                if np.max(np.abs(self.S[j, :])) <= small and np.max(np.abs(self.S[:, j])) <= small
+                and abs(self.G_J[j]) <= balanced]
+        if len(held) == self.k:
+            held = []                    # nothing in contact at all: no equilibrium
+        return np.array([j for j in range(self.k) if j not in held], dtype=int)
+
     def correct(self, vectors, du, dl) -> np.ndarray:
         """The bordered step from the condensed one (du, dl): dd = S^-1 (-G - c^T (du, dl)),
         then v -= X_u dd for each PETSc vector v of `vectors` (the iterate), the multipliers
@@ -156,7 +174,9 @@ class ObstacleForce:
         cw = np.array([self.c_u[j].dot(du)
                        + self.comm.allreduce(float(np.sum(self.c_l[j] * dl)), MPI.SUM)
                        for j in range(self.k)])
-        dd = np.linalg.solve(self.S, -self.G_J - cw)
+        dd = np.zeros(self.k)
+        active = self.active
+        dd[active] = np.linalg.solve(self.S[np.ix_(active, active)], (-self.G_J - cw)[active])
         for x in vectors:
             for j in range(self.k):
                 x.axpy(-dd[j], self.X_u[j])

@@ -142,7 +142,7 @@ def cattaneo_scene(h_contact: float, nu: float = 0.49, mu: float = 0.3, w: float
 
 
 def cattaneo_obstacle_scene(h_contact: float, P: float, Q: float, nu: float = 0.49,
-                            mu: float = 0.3) -> dict:
+                            mu: float = 0.3, frictionless_pressing: bool = False) -> dict:
     """The half cylinder of cattaneo_scene with its top clamped, loaded through a rigid plane
     obstacle under force control ([obstacle] force_components = [0, 1]): the normal force P
     (step 1, t = 1/2), then the tangential force Q with P held (step 2, t = 1), Cattaneo's and
@@ -158,6 +158,10 @@ def cattaneo_obstacle_scene(h_contact: float, P: float, Q: float, nu: float = 0.
         Poisson's ratio (Cattaneo-Mindlin needs it near 1/2).
     mu : float, optional
         The friction coefficient.
+    frictionless_pressing : bool, optional
+        Cattaneo's and Mindlin's protocol as written: ``contact.mu = "conditional(t <= 0.5,
+        0.0, mu)"``, no friction while P is applied (the plane's tangential position, which
+        then carries no force, is held), friction mu under Q.
 
     Returns
     -------
@@ -165,6 +169,8 @@ def cattaneo_obstacle_scene(h_contact: float, P: float, Q: float, nu: float = 0.
         The scene, unresolved.
     """
     raw = cattaneo_scene(h_contact, nu=nu, mu=mu)
+    if frictionless_pressing:
+        raw["contact"]["mu"] = f"conditional(t <= 0.5, 0.0, {mu!r})"
     raw["dirichlet"] = [{"boundary": "top", "components": "all"}]
     del raw["contact"]["gap"]
     raw["obstacle"] = {"shape": "plane", "point": [0.0, 0.0], "normal": [0.0, 1.0],

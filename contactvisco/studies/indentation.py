@@ -71,6 +71,23 @@ class LeeRadok:
         self.B1 = -4 * (lam + mu) * (mu * (b - self.gamma) + alpha / 2) / (
             (lam + 2 * mu) * self.gamma)
         self.P, self.R, self.K = P, R, 4 * P * R / math.pi
+        # the long-time moduli: r(0) = alpha tau in mu~ = mu + r/2, lambda~ = lambda - r/2
+        lam_long, mu_long = lam - alpha * tau / 2, mu + alpha * tau / 2
+        self.nu_long = lam_long / (2 * (lam_long + mu_long))
+        self.E_long = 2 * mu_long * (1 + self.nu_long)
+
+    def long_time(self) -> tuple[float, float]:
+        """The elastic constants the layer tends to under a constant strain, from the
+        long-time Lame constants lambda - alpha tau / 2 and mu + alpha tau / 2.
+
+        Returns
+        -------
+        tuple of float
+            (E_inf, nu_inf) with nu = lambda / (2 (lambda + mu)), E = 2 mu (1 + nu); an
+            elastic layer of these constants has the creep compliance's limit,
+            4 mu (lambda + mu) / (lambda + 2 mu) = 1 / A_0.
+        """
+        return self.E_long, self.nu_long
 
     def compliance(self, t):
         """C(t) = A_0 + A_1 exp(-beta t), the creep compliance of E*.
@@ -166,28 +183,18 @@ def creep_indentation(h: float, steps: int, T: float = 3.0, E: float = 200.0,
     dict
         ``t``, ``a_m`` (measured: 2 sqrt(sum w p x^2 / sum w p)), ``a_m_exact``, ``a_exact``
         (sqrt(4 P R C / pi)), ``depth`` (the cylinder's displacement), ``force`` (recorded),
-        ``error`` (max |a_m - a_m_exact| / a_m_exact over the steps), ``newton``.
+        ``error`` (the largest relative error of a_m over the steps), ``newton``.
     """
-    raw = {"name": "creep_indentation",
-           "geometry": {"type": "gmsh", "script": "rectangle",
-                        "parameters": {"length": 2.0, "height": 1.0, "h": 0.1,
-                                       "h_bottom": h}},
-           "material": {"model": "plane_strain", "E": E, "nu": nu},
-           "memory": {"kernel": "prony",
-                      "terms": [{"alpha": alpha, "tau": tau, "part": "deviatoric"}]},
-           "dirichlet": [{"boundary": "top", "components": "all"}],
-           "contact": {"boundary": "bottom", "g": 0.0, "mu": 0.0, "augmentation": E},
-           "obstacle": {"shape": "cylinder", "centre": [1.0, -R], "radius": R,
-                        "force_components": [1], "force": [P]},
-           "time": {"T": T, "steps": steps, "rule": "trapezoid"}, "output": {"probes": []}}
+    raw = _layer_scene(h, E, nu, P, R)
+    raw["memory"] = {"kernel": "prony",
+                     "terms": [{"alpha": alpha, "tau": tau, "part": "deviatoric"}]}
+    raw["time"] = {"T": T, "steps": steps, "rule": "trapezoid"}
     result = simulate(scene_module.resolve(raw), comm=comm, progress=False, keep_tables=True)
     exact = LeeRadok(E, nu, alpha, tau, P, R)
     out = {key: [] for key in ("t", "a_m", "a_m_exact", "a_exact", "depth", "force")}
     for step, table in zip(result.steps, result.tables):
-        x = np.abs(table["x"][:, 0] - 1.0)
-        force = table["reaction_nu"] * table["weight"]
         out["t"].append(step["t"])
-        out["a_m"].append(2 * math.sqrt(float(np.sum(force * x**2) / np.sum(force))))
+        out["a_m"].append(_moment_width(table))
         out["a_m_exact"].append(exact.moment_width(step["t"]))
         out["a_exact"].append(exact.width(step["t"]))
         out["depth"].append(step["obstacle"]["displacement"][1])
@@ -196,3 +203,52 @@ def creep_indentation(h: float, steps: int, T: float = 3.0, E: float = 200.0,
     out["error"] = float(np.max(np.abs(out["a_m"] - out["a_m_exact"]) / out["a_m_exact"]))
     out["newton"] = [s["newton_iterations"] for s in result.steps]
     return out
+
+
+def elastic_indentation(h: float, E: float = 200.0, nu: float = 0.3, P: float = 0.3,
+                        R: float = 1.0, comm=MPI.COMM_WORLD) -> dict:
+    """The layer and cylinder of creep_indentation without memory: one force-controlled step
+    to the force P, on the same mesh. With the instantaneous constants (E, nu) it is the
+    creeping layer at t = 0; with ``LeeRadok.long_time()`` the state it tends to.
+
+    Parameters
+    ----------
+    h : float
+        The mesh size along the contact boundary.
+    E, nu, P, R : float, optional
+        Young's modulus, Poisson's ratio (plane strain), the force and the radius.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator (collective).
+
+    Returns
+    -------
+    dict
+        ``depth`` (the cylinder's displacement d_y), ``a_m`` (2 sqrt(sum w p x^2 / sum w p))
+        and ``a_exact``, Hertz's sqrt(4 P R / (pi E*)), E* = E / (1 - nu^2).
+    """
+    raw = _layer_scene(h, E, nu, P, R)
+    result = simulate(scene_module.resolve(raw), comm=comm, progress=False, keep_tables=True)
+    return {"depth": result.steps[-1]["obstacle"]["displacement"][1],
+            "a_m": _moment_width(result.tables[-1]),
+            "a_exact": math.sqrt(4 * P * R * (1 - nu**2) / (math.pi * E))}
+
+
+def _moment_width(table) -> float:
+    """2 sqrt(sum w p x^2 / sum w p) about the cylinder's axis x = 1."""
+    x = np.abs(table["x"][:, 0] - 1.0)
+    force = table["reaction_nu"] * table["weight"]
+    return 2 * math.sqrt(float(np.sum(force * x**2) / np.sum(force)))
+
+
+def _layer_scene(h: float, E: float, nu: float, P: float, R: float) -> dict:
+    """The layer [0, 2] x [0, 1] (top held) and the cylinder under the force P, elastic."""
+    return {"name": "creep_indentation",
+            "geometry": {"type": "gmsh", "script": "rectangle",
+                         "parameters": {"length": 2.0, "height": 1.0, "h": 0.1,
+                                        "h_bottom": h}},
+            "material": {"model": "plane_strain", "E": E, "nu": nu},
+            "dirichlet": [{"boundary": "top", "components": "all"}],
+            "contact": {"boundary": "bottom", "g": 0.0, "mu": 0.0, "augmentation": E},
+            "obstacle": {"shape": "cylinder", "centre": [1.0, -R], "radius": R,
+                         "force_components": [1], "force": [P]},
+            "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}

@@ -472,3 +472,90 @@ def test_obstacle_figure_draws_the_records(tmp_path):
     assert np.allclose(d_axis.lines[1].get_ydata(),
                        [r["obstacle"]["displacement"][1] for r in records])
     assert np.allclose(f_axis.lines[1].get_ydata(), [0.0, 0.1, 0.2], atol=1e-9)
+
+
+def sphere_on_quarter_block(h_corner: float, a: float = 0.1) -> tuple[dict, float]:
+    """A quarter of the block [0, 1]^3 (its top held, symmetry on x = 0 and y = 0) pressed
+    from below by a sphere of radius 1 centred under the corner (0, 0) under force control,
+    the force chosen for Hertz's contact radius a; the mesh refined to h_corner within 0.12 of
+    the corner (meshes/box3d.py). Returns the scene and the whole force P (four quarters)."""
+    P = 4 * E_STAR * a**3 / (3 * R)
+    raw = {"name": "sphere_on_block",
+           "geometry": {"type": "gmsh", "script": "box3d",
+                        "parameters": {"lx": 1.0, "ly": 1.0, "lz": 1.0, "h": 0.15,
+                                       "h_corner": h_corner, "refine": 0.12}},
+           "material": {"model": "3d", "E": E, "nu": NU},
+           "dirichlet": [{"boundary": "top", "components": "all"},
+                         {"boundary": "left", "components": [0]},
+                         {"boundary": "front", "components": [1]}],
+           "contact": {"boundary": "bottom", "g": 0.0, "mu": 0.0, "augmentation": E},
+           "obstacle": {"shape": "sphere", "centre": [0.0, 0.0, -R], "radius": R,
+                        "force_components": [2], "force": [f"{P / 4!r} * t"]},
+           "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
+    return raw, P
+
+
+def sphere_hertz(h_corner: float) -> dict:
+    """The sphere on the quarter block against Hertz: a = (3 P R / (4 E*))^(1/3),
+    p0 = 3 P / (2 pi a^2), P the recorded resultant (times four). The radius is read from the
+    pressure's second moment, a^2 = (5/2) int p r^2 / int p (for p0 sqrt(1 - r^2/a^2)), the
+    peak pressure at the corner node. Relative errors."""
+    raw, P = sphere_on_quarter_block(h_corner)
+    table, run = final_table(raw)
+    record = run.steps[-1]["obstacle"]
+    assert abs(4 * record["force"][2] - P) < 1e-9 * P, record
+    P = 4 * record["force"][2]
+    a_exact = (3 * P * R / (4 * E_STAR)) ** (1 / 3)
+    p0_exact = 3 * P / (2 * math.pi * a_exact**2)
+    r = np.linalg.norm(table["x"][:, :2], axis=1)
+    force = table["reaction_nu"] * table["weight"]
+    a = math.sqrt(2.5 * np.sum(force * r**2) / np.sum(force))
+    p0 = table["reaction_nu"][np.argmin(r)]
+    return {"a_error": abs(a - a_exact) / a_exact, "p0_error": abs(p0 - p0_exact) / p0_exact,
+            "depth": record["displacement"][2], "touching": int((table["status"] == 2).sum())}
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="a 3D mesh refined at a corner; one rank")
+def test_sphere_on_block_is_hertz():
+    """3D Hertz: a sphere (R = 1) pressed under force control on a quarter block, a/R = 0.1,
+    contact mesh a/4: contact radius within 3.5 % (measured 2.4 %) and peak pressure within
+    10 % (measured 7.7 %) of Hertz's, the prescribed force carried to 1e-9."""
+    result = sphere_hertz(0.025)
+    assert result["touching"] >= 10, result
+    assert result["a_error"] < 0.035 and result["p0_error"] < 0.10, result
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(COMM.size > 1, reason="two 3D meshes; one rank")
+def test_sphere_on_block_converges_to_hertz():
+    """Contact mesh a/4 and a/8: the errors of the contact radius (measured 2.4 % -> 1.1 %)
+    and of the peak pressure (measured 7.7 % -> 2.7 %) fall by more than 1.5 and 2, to below
+    1.8 % and 4 %."""
+    coarse, fine = (sphere_hertz(h) for h in (0.025, 0.0125))
+    assert fine["a_error"] < 0.018 and fine["a_error"] < coarse["a_error"] / 1.5, (coarse, fine)
+    assert fine["p0_error"] < 0.04 and fine["p0_error"] < coarse["p0_error"] / 2, (coarse, fine)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="the same solve as the 1-rank force-control tests")
+def test_frictionless_pressing_under_force_control_holds_the_tangential_position():
+    """The plane under force control in both components with contact.mu = 0 while it presses
+    (t <= 1/2): nothing carries a tangential force, so the tangential position is held
+    instead of the solve stopping for want of an equilibrium (d_x moves only in the first
+    Newton iterate, whose Jacobian at the untouched nodes is the stick branch of a zero
+    ball: measured 2.4e-7 against d_y = 6.4e-3, a move that changes nothing); the pressing leaves
+    no tangential traction, and the pull with mu = 0.3 gives the stick zone within 2 % of a
+    (measured 0.3 % at nu = 0.3, a/h = 12), the recorded forces being [0, P] and [Q, P]."""
+    from contactvisco.studies.coulomb import cattaneo_mindlin, cattaneo_obstacle_scene
+    P, Q = 0.632, 0.0839
+    raw = cattaneo_obstacle_scene(0.005, P, Q, nu=0.3, frictionless_pressing=True)
+    run = simulate(scene_module.resolve(raw), comm=COMM, progress=False, keep_tables=True)
+    pressed, pulled = run.steps[1]["obstacle"], run.steps[2]["obstacle"]
+    assert pressed["displacement"][1] > 0, pressed
+    assert abs(pressed["displacement"][0]) < 1e-3 * pressed["displacement"][1], pressed
+    assert np.allclose(pressed["force"], [0.0, P], rtol=0, atol=1e-9 * P), pressed
+    assert np.allclose(pulled["force"], [Q, P], rtol=0, atol=1e-9 * P), pulled
+    assert pulled["displacement"][0] != 0.0, pulled
+    table = run.tables[1]
+    assert np.max(np.abs(table["reaction_tau"])) < 1e-12 * np.max(table["reaction_nu"])
+    result = cattaneo_mindlin(0.005, raw=raw)
+    assert result["c_error"] < 0.02, result["c_error"]
