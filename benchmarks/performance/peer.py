@@ -92,10 +92,14 @@ class GetfemPeer:
         (n, 2) vertex coordinates.
     cells : numpy.ndarray
         (m, 3) vertex indices of the triangles.
+    linear : str, optional
+        The linear solver of each Newton step: "mumps" (GetFEM's) or "superlu" (SciPy's).
     """
 
-    def __init__(self, scene, points, cells):
+    def __init__(self, scene, points, cells, linear="mumps"):
         self._check(scene)
+        self.linear = linear
+        self.clock = {"assembly": 0.0, "linear": 0.0}
         mat, contact, time_table = scene["material"], scene["contact"], scene["time"]
         E, nu = mat["E"], mat["nu"]
         self.alpha = scene["memory"]["alpha"]
@@ -188,12 +192,27 @@ class GetfemPeer:
                 raise SystemExit(f"peer.py: {key} = {value!r}; the GetFEM peer writes only "
                                  f"{wanted!r}")
 
+    def solve_linear(self, rhs):
+        """The Newton step: the tangent matrix's system solved by MUMPS through GetFEM
+        (linear = "mumps"), or by SciPy's SuperLU with the minimum-degree ordering of
+        A^T + A (linear = "superlu"), on the matrix GetFEM assembled."""
+        K = self.md.tangent_matrix()
+        if self.linear == "mumps":
+            return np.asarray(gf.linsolve_mumps(K, rhs)).ravel()
+        from scipy.sparse import csc_matrix
+        from scipy.sparse.linalg import spsolve
+        pointers, rows = K.csc_ind()
+        A = csc_matrix((K.csc_val(), rows, pointers), shape=K.size())
+        return spsolve(A, rhs, permc_spec="MMD_AT_PLUS_A")
+
     def newton(self):
         """Newton's method from the current variables; returns the iteration count."""
         md = self.md
         for it in range(MAX_IT + 1):
+            tick = time.perf_counter()
             md.assembly("build_all")
             rhs = md.rhs()
+            self.clock["assembly"] += time.perf_counter() - tick
             norm = np.linalg.norm(rhs)
             if it == 0:
                 norm0 = norm
@@ -202,7 +221,9 @@ class GetfemPeer:
             if it == MAX_IT:
                 raise RuntimeError(f"GetFEM peer: no convergence in {MAX_IT} iterations "
                                    f"(residual {norm:.3e}, first {norm0:.3e})")
-            du = np.asarray(gf.linsolve_mumps(md.tangent_matrix(), rhs)).ravel()
+            tick = time.perf_counter()
+            du = self.solve_linear(rhs)
+            self.clock["linear"] += time.perf_counter() - tick
             md.to_variables(md.from_variables() + du)
 
     def contact_values(self):
@@ -225,13 +246,15 @@ class GetfemPeer:
         return {"u_nu": un, "reaction_nu": p + R, "sigma_tau": st}
 
     def run(self):
-        """t_0 and the scene's steps from u = 0: per state (iterations, seconds, contact
-        values)."""
+        """t_0 and the scene's steps from u = 0: per state a dict of its Newton iterations,
+        wall seconds (history update and Newton loop), the seconds of assembly and of linear
+        solves within them, and the contact values."""
         md = self.md
         md.to_variables(np.zeros(self.unknowns))
         md.set_variable("Uh", np.zeros(self.mfu.nbdof()))
         states, P, last = [], None, None
         for n in range(self.steps + 1):
+            self.clock = {"assembly": 0.0, "linear": 0.0}
             tick = time.perf_counter()
             if n > 0:                                  # the history of eq (19), paper rule
                 md.set_variable("Uh", P + self.k * last)
@@ -240,7 +263,8 @@ class GetfemPeer:
             P = np.zeros_like(u) if P is None else P + 0.5 * self.k * (last + u)
             last = u
             seconds = time.perf_counter() - tick
-            states.append((iterations, seconds, self.contact_values()))
+            states.append(dict(iterations=iterations, wall_s=seconds, **self.clock,
+                               values=self.contact_values()))
         return states
 
 
@@ -253,19 +277,20 @@ def contactvisco_values(table):
 
 
 def agreement(cv_result, peer_states, peer_x):
-    """max over steps and nodes of |difference| / max |contactvisco value|, per quantity."""
+    """max over states and nodes of |difference| / max |contactvisco value|, per quantity."""
     worst = {}
-    for table, (_, _, values) in zip(cv_result.contact, peer_states):
+    for table, state in zip(cv_result.contact, peer_states):
         x, reference = contactvisco_values(table)
         assert np.allclose(x, peer_x, atol=1e-12), "contact nodes differ"
         for key, ref in reference.items():
             scale = max(np.abs(ref).max(), 1e-300)
-            worst[key] = max(worst.get(key, 0.0), np.abs(values[key] - ref).max() / scale)
+            worst[key] = max(worst.get(key, 0.0),
+                             float(np.abs(state["values"][key] - ref).max() / scale))
     return worst
 
 
 def best_contactvisco(scene, repeat=2):
-    """Best of `repeat` runs by the Newton time of the steps after t_0."""
+    """Best of `repeat` runs by the Newton time of the steps after t_0: (seconds, result)."""
     best = None
     for _ in range(repeat):
         result = cv.solve(scene)
@@ -275,65 +300,95 @@ def best_contactvisco(scene, repeat=2):
     return best
 
 
+def best_peer(peer, repeat=2):
+    """Best of `repeat` runs of the peer by the same measure: (seconds, states)."""
+    best = None
+    for _ in range(repeat):
+        states = peer.run()
+        seconds = sum(s["wall_s"] for s in states[1:])
+        if best is None or seconds < best[0]:
+            best = (seconds, states)
+    return best
+
+
+#: The solvers compared: contactvisco with each predictor, the peer with each linear solver.
+CONTACTVISCO = ("extrapolate", "none")
+PEERS = ("mumps", "superlu")
+
+
+def measure(n):
+    """Both solvers on the paper scene at n x n cells: a row of the table."""
+    load = os.getloadavg()
+    row = {"cells": n, "load_before": load}
+    results = {}
+    for predictor in CONTACTVISCO:
+        scene = cv.load_scene("paper", geometry={"cells": [n, n]},
+                              solver={"predictor": predictor})
+        seconds, result = best_contactvisco(scene)
+        results[predictor] = result
+        row[predictor] = dict(
+            iterations=[s["newton_iterations"] for s in result.steps],
+            setups=[s.get("preconditioner_setups") for s in result.steps],
+            newton_s=seconds, t0_s=result.steps[0]["wall_s"],
+            linear_solver=result.linear_solver, linear_system=result.linear_system)
+    row["unknowns_contactvisco"] = sum(results["extrapolate"].problem.count_unknowns().values())
+    points, cells = dolfinx_triangles(results["extrapolate"])
+    worst_all = 0.0
+    for linear in PEERS:
+        peer = GetfemPeer(scene, points, cells, linear)
+        seconds, states = best_peer(peer)
+        worst = {p: agreement(r, states, peer.x) for p, r in results.items()}
+        difference = max(max(w.values()) for w in worst.values())
+        worst_all = max(worst_all, difference)
+        print(f"{n}^2, GetFEM with {linear}: largest relative contact difference "
+              f"{difference:.2e} " + str({p: {k: f"{v:.1e}" for k, v in w.items()}
+                                           for p, w in worst.items()}), flush=True)
+        if difference > AGREEMENT:
+            raise SystemExit(f"the two solvers disagree at {n}^2 cells ({difference:.2e} > "
+                             f"{AGREEMENT:g}): the timing would compare different problems")
+        row["unknowns_peer"] = peer.unknowns
+        row[linear] = dict(iterations=[s["iterations"] for s in states], newton_s=seconds,
+                           t0_s=states[0]["wall_s"], agreement=worst,
+                           assembly_s=sum(s["assembly"] for s in states[1:]),
+                           linear_s=sum(s["linear"] for s in states[1:]))
+    row["difference"] = worst_all
+    for predictor in CONTACTVISCO:
+        for linear in PEERS:
+            row[predictor][f"ratio_{linear}"] = row[predictor]["newton_s"] / row[linear]["newton_s"]
+    row["load_after"] = os.getloadavg()
+    print(f"{n}^2: contactvisco {row['extrapolate']['newton_s']:.3f} s (predictor none "
+          f"{row['none']['newton_s']:.3f} s), GetFEM+MUMPS {row['mumps']['newton_s']:.3f} s, "
+          f"GetFEM+SuperLU {row['superlu']['newton_s']:.3f} s", flush=True)
+    return row
+
+
+def line(r):
+    """A table line of a row of measure()."""
+    e, none, mumps, superlu = (r[key] for key in ("extrapolate", "none", "mumps", "superlu"))
+    count = lambda entry: sum(entry["iterations"][1:])   # noqa: E731
+    return (f"| {r['cells']}^2 | {r['unknowns_contactvisco']} / {r['unknowns_peer']} | "
+            f"{count(e)} / {count(none)} / {count(mumps)} | "
+            f"{e['newton_s']:.3f} | {none['newton_s']:.3f} | "
+            f"{mumps['newton_s']:.3f} ({mumps['linear_s']:.3f}) | "
+            f"{superlu['newton_s']:.3f} ({superlu['linear_s']:.3f}) | "
+            f"**{e['ratio_mumps']:.2f}** | {none['ratio_mumps']:.2f} | {e['ratio_superlu']:.2f} | "
+            f"{r['difference']:.1e} | {r['load_before'][0]:.1f}-{r['load_after'][0]:.1f} |")
+
+
+HEADER = ("| cells | unknowns contactvisco / GetFEM | Newton iterations, 10 steps: contactvisco / "
+          "predictor none / GetFEM | contactvisco s | predictor none s | GetFEM+MUMPS s (solves) | "
+          "GetFEM+SuperLU s (solves) | ratio to MUMPS | ratio, none | ratio to SuperLU | "
+          "contact difference | load (1 min) |")
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--sizes", type=int, nargs="+", default=[32, 64, 128])
     args = parser.parse_args()
     if MPI.COMM_WORLD.size != 1:
         sys.exit("peer.py runs on one rank (the peer is serial)")
-    rows = []
-    for n in args.sizes:
-        load = os.getloadavg()
-        runs = {}
-        for predictor in ("extrapolate", "none"):
-            scene = cv.load_scene("paper", geometry={"cells": [n, n]},
-                                  solver={"predictor": predictor})
-            runs[predictor] = best_contactvisco(scene)
-        seconds, result = runs["extrapolate"]
-        peer = GetfemPeer(scene, *dolfinx_triangles(result))
-        peer_best = None
-        for _ in range(2):
-            states = peer.run()
-            peer_seconds = sum(s for _, s, _ in states[1:])
-            if peer_best is None or peer_seconds < peer_best[0]:
-                peer_best = (peer_seconds, states)
-        peer_seconds, states = peer_best
-        worst = {p: agreement(r, states, peer.x) for p, (_, r) in runs.items()}
-        difference = max(max(w.values()) for w in worst.values())
-        print(f"{n}^2: largest relative contact difference {difference:.2e} "
-              + str({p: {k: f"{v:.1e}" for k, v in w.items()} for p, w in worst.items()}),
-              flush=True)
-        if difference > AGREEMENT:
-            raise SystemExit(f"the two solvers disagree at {n}^2 cells ({difference:.2e} > "
-                             f"{AGREEMENT:g}): the timing would compare different problems")
-        row = dict(cells=n, load_before=load, load_after=os.getloadavg(),
-                   unknowns_contactvisco=sum(result.problem.count_unknowns().values()),
-                   unknowns_peer=peer.unknowns, agreement=worst,
-                   peer_iterations=[it for it, _, _ in states],
-                   peer_newton_s=peer_seconds, peer_t0_s=states[0][1])
-        for predictor, (cv_seconds, cv_result) in runs.items():
-            row[predictor] = dict(
-                iterations=[s["newton_iterations"] for s in cv_result.steps],
-                setups=[s.get("preconditioner_setups") for s in cv_result.steps],
-                newton_s=cv_seconds, t0_s=cv_result.steps[0]["wall_s"],
-                ratio=cv_seconds / peer_seconds)
-        rows.append(row)
-        print(f"{n}^2: contactvisco {seconds:.3f} s, none {runs['none'][0]:.3f} s, "
-              f"GetFEM {peer_seconds:.3f} s, ratio {seconds / peer_seconds:.3f}", flush=True)
-
-    def line(r):
-        e, none = r["extrapolate"], r["none"]
-        return (f"| {r['cells']}^2 | {r['unknowns_contactvisco']} / {r['unknowns_peer']} | "
-                f"{sum(e['iterations'][1:])} / {sum(none['iterations'][1:])} / "
-                f"{sum(r['peer_iterations'][1:])} | {e['newton_s']:.3f} | "
-                f"{none['newton_s']:.3f} | {r['peer_newton_s']:.3f} | {e['ratio']:.2f} | "
-                f"{none['ratio']:.2f} | "
-                f"{max(max(w.values()) for w in r['agreement'].values()):.1e} | "
-                f"{r['load_before'][0]:.1f}-{r['load_after'][0]:.1f} |")
-    write("peer", rows,
-          "| cells | unknowns contactvisco / GetFEM | Newton iterations, 10 steps: "
-          "contactvisco / predictor none / GetFEM | contactvisco s | predictor none s | "
-          "GetFEM s | ratio | ratio, none | contact difference | load (1 min) |", line)
+    rows = [measure(n) for n in args.sizes]
+    write("peer", rows, HEADER, line)
 
 
 if __name__ == "__main__":
