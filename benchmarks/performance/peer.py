@@ -311,30 +311,35 @@ def best_peer(peer, repeat=2):
     return best
 
 
-#: The solvers compared: contactvisco with each predictor, the peer with each linear solver.
-CONTACTVISCO = ("extrapolate", "none")
-PEERS = ("mumps", "superlu")
+#: contactvisco's configurations: the default (predicted first iterate) and without the
+#: prediction; "direct" is added where the default's linear solver is not MUMPS (from
+#: AUTO_ITERATIVE unknowns on, linear_solver = "auto" is iterative).
+CONTACTVISCO = {"extrapolate": {"predictor": "extrapolate"}, "none": {"predictor": "none"}}
+DIRECT = {"predictor": "extrapolate", "linear_solver": "direct"}
 
 
-def measure(n):
+def measure(n, peers):
     """Both solvers on the paper scene at n x n cells: a row of the table."""
     load = os.getloadavg()
     row = {"cells": n, "load_before": load}
     results = {}
-    for predictor in CONTACTVISCO:
-        scene = cv.load_scene("paper", geometry={"cells": [n, n]},
-                              solver={"predictor": predictor})
+    configurations = dict(CONTACTVISCO)
+    while configurations:
+        name, solver = configurations.popitem()
+        scene = cv.load_scene("paper", geometry={"cells": [n, n]}, solver=solver)
         seconds, result = best_contactvisco(scene)
-        results[predictor] = result
-        row[predictor] = dict(
+        results[name] = result
+        row[name] = dict(
             iterations=[s["newton_iterations"] for s in result.steps],
             setups=[s.get("preconditioner_setups") for s in result.steps],
             newton_s=seconds, t0_s=result.steps[0]["wall_s"],
             linear_solver=result.linear_solver, linear_system=result.linear_system)
+        if name == "extrapolate" and "lu" not in result.linear_solver:
+            configurations["direct"] = DIRECT
     row["unknowns_contactvisco"] = sum(results["extrapolate"].problem.count_unknowns().values())
     points, cells = dolfinx_triangles(results["extrapolate"])
     worst_all = 0.0
-    for linear in PEERS:
+    for linear in peers:
         peer = GetfemPeer(scene, points, cells, linear)
         seconds, states = best_peer(peer)
         worst = {p: agreement(r, states, peer.x) for p, r in results.items()}
@@ -352,42 +357,51 @@ def measure(n):
                            assembly_s=sum(s["assembly"] for s in states[1:]),
                            linear_s=sum(s["linear"] for s in states[1:]))
     row["difference"] = worst_all
-    for predictor in CONTACTVISCO:
-        for linear in PEERS:
-            row[predictor][f"ratio_{linear}"] = row[predictor]["newton_s"] / row[linear]["newton_s"]
+    for name in results:
+        for linear in peers:
+            row[name][f"ratio_{linear}"] = row[name]["newton_s"] / row[linear]["newton_s"]
     row["load_after"] = os.getloadavg()
-    print(f"{n}^2: contactvisco {row['extrapolate']['newton_s']:.3f} s (predictor none "
-          f"{row['none']['newton_s']:.3f} s), GetFEM+MUMPS {row['mumps']['newton_s']:.3f} s, "
-          f"GetFEM+SuperLU {row['superlu']['newton_s']:.3f} s", flush=True)
+    print(f"{n}^2: " + ", ".join(f"contactvisco {name} {row[name]['newton_s']:.3f} s"
+                                 for name in results)
+          + "".join(f", GetFEM+{linear} {row[linear]['newton_s']:.3f} s" for linear in peers),
+          flush=True)
     return row
 
 
 def line(r):
     """A table line of a row of measure()."""
-    e, none, mumps, superlu = (r[key] for key in ("extrapolate", "none", "mumps", "superlu"))
+    e, none, mumps = r["extrapolate"], r["none"], r["mumps"]
+    direct, superlu = r.get("direct"), r.get("superlu")
     count = lambda entry: sum(entry["iterations"][1:])   # noqa: E731
     return (f"| {r['cells']}^2 | {r['unknowns_contactvisco']} / {r['unknowns_peer']} | "
             f"{count(e)} / {count(none)} / {count(mumps)} | "
-            f"{e['newton_s']:.3f} | {none['newton_s']:.3f} | "
-            f"{mumps['newton_s']:.3f} ({mumps['linear_s']:.3f}) | "
-            f"{superlu['newton_s']:.3f} ({superlu['linear_s']:.3f}) | "
-            f"**{e['ratio_mumps']:.2f}** | {none['ratio_mumps']:.2f} | {e['ratio_superlu']:.2f} | "
-            f"{r['difference']:.1e} | {r['load_before'][0]:.1f}-{r['load_after'][0]:.1f} |")
+            f"{e['newton_s']:.3f} ({e['linear_solver']}) | {none['newton_s']:.3f} | "
+            + (f"{direct['newton_s']:.3f} | " if direct else "(the default) | ")
+            + f"{mumps['newton_s']:.3f} ({mumps['linear_s']:.3f}) | "
+            + (f"{superlu['newton_s']:.3f} ({superlu['linear_s']:.3f}) | " if superlu
+               else "- | ")
+            + f"**{e['ratio_mumps']:.2f}** | {none['ratio_mumps']:.2f} | "
+            + (f"{direct['ratio_mumps']:.2f} | " if direct else "- | ")
+            + f"{r['difference']:.1e} | {r['load_before'][0]:.1f}-{r['load_after'][0]:.1f} |")
 
 
 HEADER = ("| cells | unknowns contactvisco / GetFEM | Newton iterations, 10 steps: contactvisco / "
-          "predictor none / GetFEM | contactvisco s | predictor none s | GetFEM+MUMPS s (solves) | "
-          "GetFEM+SuperLU s (solves) | ratio to MUMPS | ratio, none | ratio to SuperLU | "
-          "contact difference | load (1 min) |")
+          "predictor none / GetFEM | contactvisco s (its linear solver) | predictor none s | "
+          "linear_solver direct s | GetFEM+MUMPS s (its solves) | GetFEM+SciPy SuperLU s "
+          "(its solves) | ratio to GetFEM+MUMPS | ratio, predictor none | ratio, direct | "
+          "largest contact difference | load (1 min, before-after) |")
 
 
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--sizes", type=int, nargs="+", default=[32, 64, 128])
+    parser.add_argument("--superlu", action="store_true",
+                        help="also the peer with SciPy's SuperLU in place of MUMPS (slower)")
     args = parser.parse_args()
     if MPI.COMM_WORLD.size != 1:
         sys.exit("peer.py runs on one rank (the peer is serial)")
-    rows = [measure(n) for n in args.sizes]
+    peers = ("mumps", "superlu") if args.superlu else ("mumps",)
+    rows = [measure(n, peers) for n in args.sizes]
     write("peer", rows, HEADER, line)
 
 
