@@ -41,7 +41,9 @@ Newton time: the sum of the steps' wall_s over the 10 steps after t_0 (contactvi
 records, outputs off) and, for the peer, the wall time of each step's history update and Newton
 loop; best of 2 runs each, in one process. t_0 (the first state, from u = 0) is shown apart.
 
-    python benchmarks/performance/peer.py [--sizes 32 64 128]
+    python benchmarks/performance/peer.py [--sizes 32 64 128] [--superlu]
+
+(about 3 minutes on an idle machine, 6 with --superlu; results/peer.md and docs/scaling.md)
 """
 import argparse
 import os
@@ -186,7 +188,11 @@ class GetfemPeer:
                     "contact.boundary": (contact["boundary"], "bottom"),
                     "discretization.degree": (scene["discretization"]["degree"], 1),
                     "discretization.contact_quadrature":
-                        (scene["discretization"]["contact_quadrature"], "nodal")}
+                        (scene["discretization"]["contact_quadrature"], "nodal"),
+                    "traction": ([t["boundary"] for t in scene["traction"]], ["top"]),
+                    "dirichlet": ([(b["boundary"], b.get("components", "all"))
+                                   for b in scene["dirichlet"]],
+                                  [("left", "all"), ("right", [0])])}
         for key, (value, wanted) in expected.items():
             if value != wanted:
                 raise SystemExit(f"peer.py: {key} = {value!r}; the GetFEM peer writes only "
