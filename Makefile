@@ -27,7 +27,8 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: install demo test test-serial test-parallel test-fast benchmark benchmark-newton benchmark-scaling \
+.PHONY: install demo test test-serial test-parallel test-fast benchmark benchmark-newton benchmark-peer \
+        benchmark-scaling \
         benchmark-reliability clean apt-packages compare-stacks figures notebook docs
 
 install: $(VENV)/.installed
@@ -99,6 +100,13 @@ benchmark: install
 # predicted first iterate (about 2 minutes): docs/scaling.md.
 benchmark-newton: install
 	$(PY) $(BENCH)/performance/newton_work.py
+
+# The paper scene's Newton time against a semismooth Newton solver written in GetFEM on the same
+# discrete problem, contact values compared first (about 3 minutes, 1 rank, Debian route:
+# GetFEM's Python interface is the Debian package python3-getfem): docs/scaling.md.
+benchmark-peer: install
+	@$(PY) -c 'import getfem' 2>/dev/null || { echo "benchmark-peer needs GetFEM's Python interface: apt-get install -y python3-getfem (as root; the Debian route's $(VENV) sees it through its system site packages)" >&2; exit 1; }
+	$(PY) $(BENCH)/performance/peer.py
 
 # Size, solver and rank scaling (about an hour on 2 cores; each configuration its own mpirun).
 benchmark-scaling: install
