@@ -15,7 +15,7 @@ pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
 
 
 #: Over 10 s each (the 3D block; the paper scene at its full size).
-SLOW = ("block3d", "paper")
+SLOW = ("block3d", "paper", "creep_indentation", "cattaneo_mindlin")
 
 
 @pytest.mark.parametrize("demo", [pytest.param(d, marks=pytest.mark.slow) if d.stem in SLOW
