@@ -14,7 +14,7 @@ pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts a Jupyter kernel; run on one rank")
 
 
-#: Over 10 s each (the 3D block; the paper scene at its full size).
+#: Over 10 s each (the 3D block; the paper scene at its full size; the obstacle demos).
 SLOW = ("block3d", "paper", "creep_indentation", "cattaneo_mindlin")
 
 
