@@ -331,3 +331,30 @@ def assert_contact_conditions(table, g, tol=1e-10, prescribed_tangential=None,
     expected = -radius[sliding, None] * direction
     assert np.max(np.abs(sig[sliding] - expected), initial=0.0) < direction_tol
     return int(sliding.sum())
+
+
+# ---- a run stopped after a checkpoint ----
+
+class StoppedAfterCheckpoint(Exception):
+    """Raised by stop_after_checkpoint's wrapper of checkpoint.save."""
+
+
+def run_stopped_after_checkpoint(monkeypatch, count, run):
+    """run() with contactvisco.io.checkpoint.save wrapped so that the run stops (raises)
+    right after the checkpoint of `count` accepted states; the original save is put back."""
+    import pytest
+
+    from contactvisco.io import checkpoint
+    save = checkpoint.save
+
+    def save_then_stop(folder, problem, comm, t, n, step, **records):
+        save(folder, problem, comm, t, n, step, **records)
+        if n == count:
+            raise StoppedAfterCheckpoint
+
+    monkeypatch.setattr(checkpoint, "save", save_then_stop)
+    try:
+        with pytest.raises(StoppedAfterCheckpoint):
+            run()
+    finally:
+        monkeypatch.setattr(checkpoint, "save", save)

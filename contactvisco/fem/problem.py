@@ -664,14 +664,8 @@ def _memory(scene, mesh, u, context=None, updates=None) -> MemoryPart | None:
     visco = scene.get("viscoelastic")
     if visco is not None and visco["temperature"] is not None:
         return _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates)
-    constants = {f"memory_implicit_{part}": _scalar(mesh, 0.0)
-                 for part in history.implicit(dt)}
-    return MemoryPart(
-        history=history, H=fem.Function(tensor_space, name="history_stress"),
-        eps_function=fem.Function(tensor_space),
-        eps_expression=fem.Expression(strain(u), compat.interpolation_points(tensor_space)),
-        tensor_space=tensor_space, constants=constants,
-        implicit_terms=[(c, name[len("memory_implicit_"):]) for name, c in constants.items()])
+    weights = {part: _scalar(mesh, 0.0) for part in history.implicit(dt)}
+    return _memory_part(history, weights, u, tensor_space)
 
 
 def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates):
@@ -703,14 +697,20 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
         reduced.stage(inverse, theta.x.array)
 
     updates.append(stage)
-    constants = {f"memory_implicit_{part}": fem.Function(scalars)
-                 for part in reduced.implicit(0.0)}
+    weights = {part: fem.Function(scalars) for part in reduced.implicit(0.0)}
+    return _memory_part(reduced, weights, u, tensor_space)
+
+
+def _memory_part(history, weights, u, tensor_space) -> MemoryPart:
+    """The MemoryPart of a history whose implicit weights (by part) are the Constants or
+    point fields `weights`."""
     return MemoryPart(
-        history=reduced, H=fem.Function(tensor_space, name="history_stress"),
+        history=history, H=fem.Function(tensor_space, name="history_stress"),
         eps_function=fem.Function(tensor_space),
         eps_expression=fem.Expression(strain(u), compat.interpolation_points(tensor_space)),
-        tensor_space=tensor_space, constants=constants,
-        implicit_terms=[(c, name[len("memory_implicit_"):]) for name, c in constants.items()])
+        tensor_space=tensor_space,
+        constants={f"memory_implicit_{part}": c for part, c in weights.items()},
+        implicit_terms=[(c, part) for part, c in weights.items()])
 
 
 def _at_point(error: str, visco, values, space) -> str:

@@ -77,35 +77,14 @@ def read(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
         where = f"{path}, row {line}" if line is not None else f"{path}"
         raise SceneError(f"{key}: Prony file {where}: {message}", key=key)
 
-    rows = _rows(path, fail, "a Prony table")
-    if not rows:
-        fail("empty (a header row, then one row of tau, modulus per term)")
-    number, header = rows[0]
-    if len(header) != 2 or any(_number(cell) is not None for cell in header):
-        fail(f"the first row must be a header of two column names (the relaxation time, "
-             f"then the modulus), got {header!r}", number)
-    rows = rows[1:]
-    if not rows:
-        fail("has a header but no terms")
-    if len(rows) > MAX_TERMS:
-        fail(f"more than {MAX_TERMS} terms", rows[MAX_TERMS][0])
-    taus, values = [], []
-    for number, row in rows:
-        if len(row) != 2:
-            fail(f"needs 2 values (tau, modulus), got {len(row)}: {row!r}", number)
-        tau, value = (_number(cell) for cell in row)
-        if tau is None or value is None:
-            fail(f"values must be finite numbers, got {row!r}", number)
+    taus, values, lines = _columns(
+        path, fail, "a Prony table", "the relaxation time, then the modulus", "tau, modulus",
+        ("tau = ", "relaxation time", "each time once"), 1, MAX_TERMS, "terms")
+    for tau, value, line in zip(taus, values, lines):
         if tau <= 0:
-            fail(f"the relaxation time must be > 0, got {tau!r}", number)
+            fail(f"the relaxation time must be > 0, got {tau!r}", line)
         if value < 0:
-            fail(f"the modulus must be >= 0, got {value!r}", number)
-        if taus and tau <= taus[-1]:
-            what = "duplicates" if tau == taus[-1] else "is below"
-            fail(f"tau = {tau!r} {what} the previous row's {taus[-1]!r}: the rows must be "
-                 "sorted by increasing relaxation time, each time once", number)
-        taus.append(tau)
-        values.append(value)
+            fail(f"the modulus must be >= 0, got {value!r}", line)
     return taus, values
 
 
@@ -130,35 +109,51 @@ def read_shift(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
         where = f"{path}, row {line}" if line is not None else f"{path}"
         raise SceneError(f"{key}: shift file {where}: {message}", key=key)
 
-    rows = _rows(path, fail, "a shift table")
-    if not rows:
-        fail("empty (a header row, then one row of temperature, log10 a_T per point)")
-    number, header = rows[0]
-    if len(header) != 2 or any(_number(cell) is not None for cell in header):
-        fail(f"the first row must be a header of two column names (the temperature, then "
-             f"log10 a_T), got {header!r}", number)
-    rows = rows[1:]
-    if len(rows) < 2:
-        fail(f"needs at least two points after the header, got {len(rows)}")
-    if len(rows) > MAX_SHIFT_ROWS:
-        fail(f"more than {MAX_SHIFT_ROWS} points", rows[MAX_SHIFT_ROWS][0])
-    temps, logs = [], []
-    for number, row in rows:
-        if len(row) != 2:
-            fail(f"needs 2 values (temperature, log10 a_T), got {len(row)}: {row!r}", number)
-        theta, value = (_number(cell) for cell in row)
-        if theta is None or value is None:
-            fail(f"values must be finite numbers, got {row!r}", number)
+    temps, logs, lines = _columns(
+        path, fail, "a shift table", "the temperature, then log10 a_T", "temperature, log10 a_T",
+        ("temperature ", "temperature", "each temperature once"), 2, MAX_SHIFT_ROWS, "points")
+    for value, line in zip(logs, lines):
         if abs(value) > 300.0:
             fail(f"|log10 a_T| = {abs(value)!r} is above 300 (a_T would be 0 or infinite)",
-                 number)
-        if temps and theta <= temps[-1]:
-            what = "duplicates" if theta == temps[-1] else "is below"
-            fail(f"temperature {theta!r} {what} the previous row's {temps[-1]!r}: the rows "
-                 "must be sorted by increasing temperature, each temperature once", number)
-        temps.append(theta)
-        logs.append(value)
+                 line)
     return temps, logs
+
+
+def _columns(path, fail, what, header_words, row_words, first, at_least, at_most, items):
+    """The two columns of a CSV table of a header row and then one row of two finite numbers
+    per entry, the first column strictly increasing: (first, second, line numbers). `fail`
+    raises the error naming the file; `first` = (the first value's label, its quantity, what
+    a repeat means) words its messages."""
+    label, quantity, once = first
+    rows = _rows(path, fail, what)
+    if not rows:
+        fail(f"empty (a header row, then one row of {row_words} per {items[:-1]})")
+    number, header = rows[0]
+    if len(header) != 2 or any(_number(cell) is not None for cell in header):
+        fail(f"the first row must be a header of two column names ({header_words}), got "
+             f"{header!r}", number)
+    rows = rows[1:]
+    if not rows and at_least == 1:
+        fail(f"has a header but no {items}")
+    if len(rows) < at_least:
+        fail(f"needs at least two {items} after the header, got {len(rows)}")
+    if len(rows) > at_most:
+        fail(f"more than {at_most} {items}", rows[at_most][0])
+    firsts, seconds, lines = [], [], []
+    for number, row in rows:
+        if len(row) != 2:
+            fail(f"needs 2 values ({row_words}), got {len(row)}: {row!r}", number)
+        x, value = (_number(cell) for cell in row)
+        if x is None or value is None:
+            fail(f"values must be finite numbers, got {row!r}", number)
+        if firsts and x <= firsts[-1]:
+            repeat = "duplicates" if x == firsts[-1] else "is below"
+            fail(f"{label}{x!r} {repeat} the previous row's {firsts[-1]!r}: the rows must be "
+                 f"sorted by increasing {quantity}, {once}", number)
+        firsts.append(x)
+        seconds.append(value)
+        lines.append(number)
+    return firsts, seconds, lines
 
 
 def _rows(path: pathlib.Path, fail, what: str) -> list:

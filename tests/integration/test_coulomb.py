@@ -20,7 +20,7 @@ from contactvisco.solver.time_loop import simulate
 from contactvisco.errors import SceneError
 from contactvisco.solver.newton import NewtonFailure
 
-from helpers import assert_contact_conditions
+from helpers import assert_contact_conditions, run_stopped_after_checkpoint
 
 
 def _run(raw_or_scene, comm=MPI.COMM_WORLD):
@@ -296,9 +296,6 @@ def test_cut_step_measures_slip_from_the_last_accepted_state(monkeypatch):
         assert np.max(np.abs(a - b)) <= 1e-9 * max(1.0, np.max(np.abs(a))), key
 
 
-class _Stop(Exception):
-    pass
-
 
 def test_restart_continues_the_slip_per_step(tmp_path_factory, monkeypatch):
     """A run stopped after its checkpoint of step 2 and restarted reaches the uninterrupted
@@ -312,17 +309,8 @@ def test_restart_continues_the_slip_per_step(tmp_path_factory, monkeypatch):
                                           "contact.slip='increment'"])
     scene["output"].update(probes=[], figures=False, xdmf=False)
     whole = simulate(scene, out=folders[0], comm=comm, progress=False, keep_tables=True)
-    save = checkpoint.save
-
-    def stop_after_step_2(folder, problem, comm, t, count, step, **records):
-        save(folder, problem, comm, t, count, step, **records)
-        if count == 3:
-            raise _Stop
-
-    monkeypatch.setattr(checkpoint, "save", stop_after_step_2)
-    with pytest.raises(_Stop):
-        simulate(scene, out=folders[1], comm=comm, progress=False)
-    monkeypatch.setattr(checkpoint, "save", save)
+    run_stopped_after_checkpoint(monkeypatch, 3, lambda: simulate(
+        scene, out=folders[1], comm=comm, progress=False))
     restarted = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True,
                          restart=True)
     assert len(restarted.tables) == 3                    # steps 3, 4, 5

@@ -10,6 +10,7 @@ from contactvisco.model import viscoelastic as ve
 from contactvisco.scene import loader
 from contactvisco.scene.toml_text import document_text
 from contactvisco.solver.time_loop import simulate
+from helpers import run_stopped_after_checkpoint
 
 WLF = {"shift": "wlf", "T_ref": 50.0, "C1": 17.44, "C2": 51.6}
 
@@ -97,15 +98,11 @@ def test_ranks_agree(tmp_path):
     assert np.abs(everywhere[0] - alone[0]).max() <= 1e-10 * np.abs(alone[0]).max()
 
 
-class _Stop(Exception):
-    pass
-
 
 def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch):
     """A run with a temperature field stopped after its checkpoint of step 3 and restarted
     reaches the uninterrupted run's answer and reduced time: the checkpoint holds 1/a_T and xi
     at each point besides the Prony sums."""
-    from contactvisco.io import checkpoint
     comm = MPI.COMM_WORLD
     folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
                for name in ("csv", "whole", "stopped")]
@@ -113,17 +110,8 @@ def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch):
     scene = prony_scene(pathlib.Path(folders[0]), steps=16,
                         temperature="50.0 + 0.5 * t + 0.5 * x[0]")
     whole = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True)
-    save = checkpoint.save
-
-    def stop_after_step_3(folder, problem, comm, t, count, step, **records):
-        save(folder, problem, comm, t, count, step, **records)
-        if count == 4:
-            raise _Stop
-
-    monkeypatch.setattr(checkpoint, "save", stop_after_step_3)
-    with pytest.raises(_Stop):
-        simulate(scene, out=folders[2], comm=comm, progress=False)
-    monkeypatch.setattr(checkpoint, "save", save)
+    run_stopped_after_checkpoint(monkeypatch, 4, lambda: simulate(
+        scene, out=folders[2], comm=comm, progress=False))
     restarted = simulate(scene, out=folders[2], comm=comm, progress=False, keep_tables=True,
                          restart=True)
     assert [s["t"] for s in restarted.steps] == [s["t"] for s in whole.steps][4:], \
