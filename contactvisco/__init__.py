@@ -26,9 +26,16 @@ import importlib.util as _util
 import logging as _logging
 
 # A DOLFINx wheel that bundles its MPI and PETSc (PyPI's dolfinx-solver-*) loads their shared
-# libraries when this module is imported, which must happen before dolfinx or petsc4py.
+# libraries when this module is imported, which must happen before dolfinx or petsc4py. A
+# signal during that native start-up is held back until it is complete (an interrupt in the
+# middle of it can crash the process on its way out).
+# The command line's start-up ends at once on SIGINT/SIGTERM (contactvisco.io.parallel).
+from contactvisco.io import parallel as _parallel
+
+_parallel.command_line_start_up()
 if _util.find_spec("dolfinx_solver") is not None:
-    import dolfinx_solver  # noqa: F401
+    with _parallel.signals_deferred():
+        import dolfinx_solver  # noqa: F401
 
 # VTK's compiled modules (pyvista) open their shared objects with their own symbols first, so
 # that a library loaded before them (Debian's DOLFINx 0.5) cannot abort a rendering

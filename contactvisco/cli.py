@@ -182,9 +182,14 @@ def _main(argv=None):
         _parser().error(f"unrecognized arguments: {' '.join(stray or petsc_args)}")
     if getattr(args, "out", None) == "":
         _parser().error("--out needs a folder name (leave it out for results/<scene name>)")
-    # PETSc reads its command line only if told before anything imports it.
-    import petsc4py
-    petsc4py.init([sys.argv[0]] + petsc_args)
+    # PETSc reads its command line only if told before anything imports it. A signal during
+    # the native start-up of PETSc and DOLFINx is held back until it is complete.
+    from contactvisco.io import parallel
+    with parallel.signals_deferred():
+        import petsc4py
+        petsc4py.init([sys.argv[0]] + petsc_args)
+        if args.command in ("run", "check", "tradeoff"):
+            import dolfinx  # noqa: F401
 
     from contactvisco import api
     from contactvisco.scene import loader as scene_module

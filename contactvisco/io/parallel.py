@@ -17,6 +17,7 @@ Two ways a run stops early, both ending every rank with one message and a non-ze
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
@@ -69,6 +70,48 @@ def stop_at_once() -> dict:
     if threading.current_thread() is not threading.main_thread():
         return {}
     return {s: signal.signal(s, _raise_signalled) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+def exit_at_once(signum, frame):
+    """A handler for the command's first moments, before anything is written: one line
+    (on the first rank) and exit 128 + signum at once, without the clean-up of half-started
+    libraries (MPI, PETSc), which can crash when interrupted."""
+    if first_rank():
+        print(f"contactvisco: stopped by {signal.Signals(signum).name}", file=sys.stderr,
+              flush=True)
+    os._exit(128 + signum)
+
+
+def command_line_start_up():
+    """If this process runs the command line (`contactvisco ...` or `python -m contactvisco`),
+    SIGINT and SIGTERM end it at once (exit_at_once) until `main` takes them over; a
+    library import changes no handler. Main thread only."""
+    import pathlib
+    import threading
+    argv = list(getattr(sys, "orig_argv", []))
+    command = any(a == "-m" and b == "contactvisco" for a, b in zip(argv, argv[1:])) or (
+        bool(sys.argv) and pathlib.Path(sys.argv[0]).name == "contactvisco")
+    if command and threading.current_thread() is threading.main_thread():
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, exit_at_once)
+
+
+@contextlib.contextmanager
+def signals_deferred():
+    """SIGINT and SIGTERM held back (blocked) inside the block and delivered when it ends:
+    for the native start-up of PETSc and DOLFINx (MPI, the extension modules), which an
+    exception raised in the middle of it can leave half made, so that the process crashes on
+    its way out. Main thread only (elsewhere a no-op)."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def interrupted_by(err: BaseException):
