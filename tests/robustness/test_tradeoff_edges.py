@@ -3,6 +3,7 @@ levels): a TradeoffError naming the option before any run, and exit 2 on the com
 import math
 
 import pytest
+from mpi4py import MPI
 
 from contactvisco.studies import tradeoff
 from helpers import run_cli
@@ -49,6 +50,7 @@ def test_the_options_inside_their_edges_pass():
     tradeoff.check_options(0.999, tradeoff.MAX_LEVELS, 4.0, (1, 2), math.inf)
 
 
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="starts its own process; run on one rank")
 @pytest.mark.parametrize("args", [["--target", "0"], ["--target", "0.01", "--levels", "0"],
                                   ["--target", "0.01", "--coarsest", "-1"],
                                   ["--target", "0.01", "--budget", "nan"],
