@@ -761,7 +761,8 @@ def relaxation_figure(scene: dict, temperatures=(), times=None, omegas=None) -> 
         for ax, name in ((axes[1], "$E\'(\\omega)$"), (axes[2], "$E\'\'(\\omega)$")):
             ax.set_xlabel("$\\omega$" + (f" [1/{time_unit}]" if time_unit else ""))
             ax.set_ylabel(name + suffix)
-        axes[0].legend(frameon=False, fontsize="small")
+        # At early times every curve is at phi(0): the lower left corner is free.
+        axes[0].legend(frameon=False, fontsize="small", loc="lower left")
     return fig
 
 
