@@ -655,17 +655,55 @@ def _memory(scene, mesh, u, context=None, updates=None) -> MemoryPart | None:
     dt = time["T"] / time["steps"]
     d = mesh.geometry.dim
     tensor_space = compat.tensor_space(mesh, "DG", scene["discretization"]["degree"] - 1)
+    visco = scene.get("viscoelastic")
+    thermal = visco is not None and visco["temperature"] is not None
     if table is not None:
         history = DirectHistory(table_kernel(*table), dt, time["rule"])
     elif power is not None:
-        history = kernels.history(power, time, scene["solver"]["max_cuts"], d)
+        span = _reduced_span(scene, mesh, context) if thermal else None
+        history = kernels.history(power, time, scene["solver"]["max_cuts"], d, span=span)
     else:
         history = History(terms, dt, time["rule"], d)
-    visco = scene.get("viscoelastic")
-    if visco is not None and visco["temperature"] is not None:
+    if thermal:
         return _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates)
     weights = {part: _scalar(mesh, 0.0) for part in history.implicit(dt)}
     return _memory_part(history, weights, u, tensor_space)
+
+
+def _temperature_field(scene, mesh, context):
+    """The temperature as a DG field at the stress's points: (space, Function, a callable
+    that interpolates viscoelastic.temperature at the context's time)."""
+    scalars = compat.scalar_space(mesh, "DG", scene["discretization"]["degree"] - 1)
+    theta = fem.Function(scalars, name="temperature")
+    follow = _interpolator(theta, context.scalar(scene["viscoelastic"]["temperature"],
+                                                 "viscoelastic.temperature"), scalars)
+    return scalars, theta, follow
+
+
+#: Margin of the reduced-time span of a fitted kernel over its bound from the step times.
+SPAN_MARGIN = 1.1
+
+
+def _reduced_span(scene, mesh, context) -> float:
+    """The reduced end time xi(T) that a kernel fitted as a sum of exponentials must cover:
+    T / a_T for a constant temperature (exactly the T_ref run of T / a_T); for an expression,
+    SPAN_MARGIN T max 1/a_T over the points and the step times t_n = n T / N (xi(T) <= T max
+    1/a_T; the run stops if a step would pass the span)."""
+    from contactvisco.model.viscoelastic import inverse_shift, log10_shift
+    visco, T, N = scene["viscoelastic"], scene["time"]["T"], scene["time"]["steps"]
+    theta = visco["temperature"]
+    if isinstance(theta, (int, float)) and not isinstance(theta, bool):
+        return T * 10.0 ** -float(log10_shift(visco, theta))
+    _, field, follow = _temperature_field(scene, mesh, context)
+    start, largest = float(context.t.value), 1.0
+    for n in range(N + 1):
+        context.t.value = n * T / N
+        follow()
+        inverse, error = inverse_shift(visco, field.x.array)
+        if error is None and inverse.size:     # an error stops the run at its step
+            largest = max(largest, float(inverse.max()))
+    context.t.value = start
+    return SPAN_MARGIN * T * mesh.comm.allreduce(largest, op=MPI.MAX)
 
 
 def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates):
@@ -674,14 +712,11 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
     the implicit weights as fields (one value per point)."""
     from contactvisco.model.viscoelastic import inverse_shift
     d = mesh.geometry.dim
-    degree = scene["discretization"]["degree"] - 1
-    scalars = compat.scalar_space(mesh, "DG", degree)
     reduced = ReducedTimeHistory(history, d * d)
     visco = scene["viscoelastic"]
-    theta = fem.Function(scalars, name="temperature")
-    follow = _interpolator(theta, context.scalar(visco["temperature"],
-                                                 "viscoelastic.temperature"), scalars)
+    scalars, theta, follow = _temperature_field(scene, mesh, context)
     reduced.owned = scalars.dofmap.index_map.size_local    # points of this rank (then ghosts)
+    span, dt = getattr(history, "span", None), scene["time"]["T"] / scene["time"]["steps"]
 
     def stage():
         follow()
@@ -689,6 +724,14 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
         inverse, error = inverse_shift(visco, theta.x.array[:owned])
         if error:
             error = _at_point(error, visco, theta.x.array[:owned], scalars)
+        elif span is not None and reduced.reduced_time is not None and owned:
+            # a step (at most dt) from the committed state: xi_n + dt max 1/a_T bounds xi_n+1
+            reach = float(np.max(reduced.reduced_time[:owned]
+                                 + dt * np.maximum(reduced.committed[:owned], inverse)))
+            if reach > span * (1.0 + 1e-9):
+                error = (f"viscoelastic.temperature: the reduced time would reach {reach:.6g}, "
+                         f"beyond {span:.6g}, the span of the kernel's sum of exponentials "
+                         "(fitted from the temperature at the step times)")
         inverse = np.concatenate([inverse, inverse_shift(visco, theta.x.array[owned:])[0]])
         error = next((e for e in mesh.comm.allgather(error) if e), None)   # every rank stops
         if error:

@@ -190,11 +190,29 @@ def mittag_leffler(gamma: float, x) -> np.ndarray:
     return out
 
 
-def history(mem: dict, time: dict, max_cuts: int, d: int):
+def history(mem: dict, time: dict, max_cuts: int, d: int, span: float | None = None):
     """The history of a power or fractional kernel (the resolved memory and time tables):
     the sum of exponentials over [k / 2^max_cuts, T] (the smallest step a cut may take) run
     by the Prony recursion, or the direct O(n) sum. Its `note` says which, with the number of
-    exponentials and the measured error of the fit."""
+    exponentials and the measured error of the fit.
+
+    Parameters
+    ----------
+    mem, time : dict
+        The [memory] and [time] tables.
+    max_cuts : int
+        The most step cuts (the smallest step k / 2^max_cuts).
+    d : int
+        The dimension of the strain.
+    span : float, optional
+        In reduced time (a temperature), the end xi(T) that the power kernel's fit must cover
+        (T by default): alpha (1 + xi/tau)^-beta on [0, span]; kept as the attribute `span`.
+
+    Returns
+    -------
+    History, FractionalHistory, DirectHistory or DirectFractionalHistory
+        With `note` (and `fit` for a sum of exponentials).
+    """
     from contactvisco.model.memory import (DirectFractionalHistory, DirectHistory,
         FractionalHistory, History)
     alpha, beta, part = float(mem["alpha"]), float(mem["beta"]), mem["part"]
@@ -207,9 +225,11 @@ def history(mem: dict, time: dict, max_cuts: int, d: int):
             out.note = ("memory: power kernel summed directly (exact kernel), O(n) work and "
                         "memory per step")
             return out
-        fit = power_soe(alpha, beta, tau, T, float(mem["tolerance"]))
+        end = T if span is None else float(span)
+        fit = power_soe(alpha, beta, tau, end, float(mem["tolerance"]))
         out = History([(w, 1.0 / s, part) for w, s in zip(fit.weights, fit.rates)], k, rule, d)
-        span = f"[0, {T:g}]"
+        out.span = span
+        span = f"[0, {end:g}]" + ("" if span is None else " in reduced time")
     else:
         if mem["summation"] == "direct":
             out = DirectFractionalHistory(alpha, beta, rule, part, d, k)

@@ -712,9 +712,9 @@ def relaxation_figure(scene: dict, temperatures=(), times=None, omegas=None) -> 
     from contactvisco.errors import SceneError
     from contactvisco.model import viscoelastic as ve
     table = scene.get("viscoelastic")
-    if table is None or not hasattr(table, "functions"):
-        raise SceneError("the relaxation figure needs a scene with [viscoelastic]",
-                         key="viscoelastic")
+    if table is None or not getattr(table, "functions", None):
+        raise SceneError("the relaxation figure needs a scene with [viscoelastic] and its "
+                         "relaxation functions (shear and bulk, or young)", key="viscoelastic")
     temperatures = [float(x) for x in temperatures]
     if temperatures and table["shift"] == "none":
         raise SceneError("temperatures other than T_ref need viscoelastic.shift",

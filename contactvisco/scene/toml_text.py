@@ -112,7 +112,8 @@ def scene_text(scene: Scene, every_value: bool = False) -> str:
             document[name] = [{**defaults, **item} for item in scene[name]]
             continue
         values = dict(scene[name])
-        if scene.get("viscoelastic") is not None and name in _DERIVED:
+        if scene.get("viscoelastic") is not None and name in _DERIVED \
+                and not scene["viscoelastic"].thermal_only():
             # derived from [viscoelastic] when read back: written once, there
             values = {k: v for k, v in values.items() if k not in _DERIVED[name]}
         if name in TABLES and not every_value:

@@ -4,8 +4,11 @@ converted exactly to the material.E, material.nu and memory.terms of eq (7)
 (contactvisco.model.viscoelastic.paper_form) before the scene is checked, so that the run
 uses the memory machinery of the paper's form unchanged.
 
-A scene with [viscoelastic] states its material there only: material.E, nu, lambda, mu and
-the [memory] table are then derived, and giving them too is refused.
+A scene with [viscoelastic] relaxation functions states its material there only: material.E,
+nu, lambda, mu and the [memory] table are then derived, and giving them too is refused. A
+table without relaxation functions holds a temperature and its shift function alone: the
+material stays in [material] and [memory], whose kernel then runs in reduced time when it is a
+recursion of exponentials (reduced_time_refusal says why the others are not).
 """
 from __future__ import annotations
 
@@ -74,7 +77,7 @@ class Viscoelastic(Table):
         the discrete material has a negative stiffness (k in reduced time, k / a_T, for a
         constant temperature; a step cut halves k)."""
         time, memory = scene["time"], scene["memory"]
-        if time["rule"] != "trapezoid" or memory["kernel"] != "prony":
+        if time["rule"] != "trapezoid" or memory["kernel"] != "prony" or self.thermal_only():
             return
         from contactvisco.model.material import lame_constants
         mat = scene["material"]
@@ -128,8 +131,13 @@ class Viscoelastic(Table):
         if finite(theta):
             error = ve.shift_error(self, theta)
             self.need(error is None, "temperature", str(error))
-        self.need(scene["memory"]["kernel"] in ("prony", "none"), "temperature",
-                  "viscoelastic.temperature: reduced time runs the Prony recursion")
+        reason = reduced_time_refusal(scene["memory"])
+        self.need(reason is None, "temperature", f"viscoelastic.temperature: {reason}")
+
+    def thermal_only(self) -> bool:
+        """True for a table without relaxation functions (no shear, bulk or young): it gives
+        a temperature and its shift function to the material of [material] and [memory]."""
+        return all(self[name] is None for name in ("shear", "bulk", "young"))
 
     def read_shift_table(self, base: pathlib.Path | None) -> None:
         """The points of viscoelastic.shift = 'table' (inline, or read from shift_file relative
@@ -329,6 +337,15 @@ class Viscoelastic(Table):
         functions: A = the instantaneous moduli, R = their derivative (paper_form)."""
         model = scene["material"]["model"]
         self.read_shift_table(base)
+        if self.thermal_only():
+            self.need(self["nu"] is None, "nu", "viscoelastic.nu goes with viscoelastic.young")
+            self.need(self["temperature"] is not None, "shear",
+                      "[viscoelastic] needs shear and bulk (each a relaxation function; a "
+                      "table without terms is elastic), or young and nu, or, for the material "
+                      "of [material] and [memory], a temperature with its shift function; got "
+                      "none of them")
+            self.functions = {}           # the material stays in the paper's form
+            return
         shear, bulk = self.shear_bulk(model, base)
         if model == "plane_stress" and not ve.proportional(shear, bulk):
             self.fail("bulk" if self["young"] is None else "young",
@@ -349,9 +366,65 @@ class Viscoelastic(Table):
         memory["terms"] = [{"alpha": a, "tau": tau, "part": part} for a, tau, part in terms]
 
 
+#: Kernels whose history runs as a recursion of exponentials, so in reduced time too.
+REDUCED_TIME_KERNELS = ("none", "constant", "exponential", "prony", "power")
+
+
+def reduced_time_refusal(memory) -> str | None:
+    """Why the memory kernel cannot run in reduced time, or None.
+
+    Parameters
+    ----------
+    memory : dict
+        The [memory] table.
+
+    Returns
+    -------
+    str or None
+        None for the kernels advanced by the recursion P_{n+1} = d P_n + dxi/2 (d e_n +
+        e_{n+1}), d = exp(-dxi/tau_i) per point (Prony, exponential, constant and the power
+        kernel as a sum of exponentials); else the reason.
+    """
+    kernel = memory["kernel"]
+    if kernel == "power" and memory["summation"] == "direct":
+        return ("memory.summation = 'direct' sums the exact power kernel over every past step, "
+                "R(t_{n+1} - t_j); in reduced time each point would need its own xi(t_{n+1}) - "
+                "xi(t_j) for every past step j (O(n) memory per point), which is not kept: use "
+                "memory.summation = 'soe' (a sum of exponentials, advanced by exp(-dxi/tau))")
+    if kernel == "table":
+        return ("memory.kernel = 'table' is convolved in full, R(t_{n+1} - t_j) summed over "
+                "every past step (no recursion); in reduced time each point would need its "
+                "own xi(t_{n+1}) - xi(t_j) for every past step j (O(n) memory per point), which "
+                "is not kept: give the kernel as Prony terms (memory.kernel = 'prony')")
+    if kernel == "fractional":
+        return ("memory.kernel = 'fractional' integrates its singular last step t^-beta "
+                "exactly over the step k in t (product integration); that step is not written "
+                "in reduced time, where its length dxi differs from point to point; use the "
+                "power kernel alpha (1 + t/tau)^-beta or Prony terms")
+    return None
+
+
+def _functions_given(raw: dict, assignments) -> bool:
+    """Whether the scene's [viscoelastic] has a relaxation function (shear, bulk or young),
+    in the file or by overrides."""
+    names = ("shear", "bulk", "young")
+    table = raw.get("viscoelastic")
+    if isinstance(table, dict) and any(table.get(n) is not None for n in names):
+        return True
+    for path, value in assignments:
+        if path[0] != "viscoelastic":
+            continue
+        if len(path) > 1 and path[1] in names:
+            return True
+        if len(path) == 1 and isinstance(value, dict) and any(n in value for n in names):
+            return True
+    return False
+
+
 def check_alone(raw: dict, assignments) -> None:
     """[viscoelastic] derives material.E, nu (lambda, mu) and [memory]: giving them as well (in
-    the file or by overrides) is refused, naming the key.
+    the file or by overrides) is refused, naming the key. A [viscoelastic] table without
+    relaxation functions (a temperature and its shift only) goes with [material] and [memory].
 
     Parameters
     ----------
@@ -362,7 +435,7 @@ def check_alone(raw: dict, assignments) -> None:
     """
     given = raw.get("viscoelastic") is not None or any(
         path[0] == "viscoelastic" for path, _ in assignments)
-    if not given:
+    if not given or not _functions_given(raw, assignments):
         return
     keys = [f"material.{k}" for k in (raw.get("material") or {}) if k in DERIVED_MATERIAL]
     keys += [f"memory.{k}" for k in (raw.get("memory") or {})]
@@ -392,7 +465,7 @@ def describe(scene) -> str | None:
     str or None
         A, as E, nu and the Lame constants, and R(t) term by term.
     """
-    if scene.get("viscoelastic") is None:
+    if scene.get("viscoelastic") is None or scene["viscoelastic"].thermal_only():
         return None
     from contactvisco.model.material import lame_constants
     mat = scene["material"]

@@ -1,0 +1,127 @@
+"""A temperature with the memory kernels of [memory] (a [viscoelastic] table holding only the
+temperature and its shift function): the kernels run by a recursion of exponentials (Prony,
+exponential, constant, and the power kernel as a sum of exponentials) advance it in reduced
+time; the table kernel, the direct power sum and the fractional kernel are refused, saying
+why."""
+import math
+
+import numpy as np
+import pytest
+
+from contactvisco.errors import SceneError
+from contactvisco.model import kernels
+from contactvisco.model import viscoelastic as ve
+from contactvisco.model.memory import History, ReducedTimeHistory
+from contactvisco.scene import loader
+from contactvisco.scene.toml_text import scene_text
+from contactvisco.studies import relaxation as rl
+
+WLF = {"shift": "wlf", "T_ref": 50.0, "C1": 17.44, "C2": 51.6}
+STRAIN = [[0.01, 0.004], [0.004, -0.002]]
+POWER = {"kernel": "power", "alpha": -3.0, "beta": 0.6, "tau": 0.2, "part": "deviatoric"}
+EXPONENTIAL = {"kernel": "exponential", "alpha": [-2.0, -1.0], "tau": [0.3, 2.0]}
+
+
+def thermal_scene(visco, memory, T, steps, rate=1.0):
+    """The homogeneous block under the ramp eps = rate t E, material in the paper's form
+    (E = 30, nu = 0.3, the [memory] kernel), with the [viscoelastic] table `visco` (None:
+    isothermal)."""
+    raw = rl.block_scene(visco, "plane_strain", STRAIN, "ramp", T, steps, rate=rate)
+    raw["material"].update(E=30.0, nu=0.3)
+    raw["memory"] = dict(memory)
+    if visco is None:
+        del raw["viscoelastic"]
+    return raw
+
+
+@pytest.mark.parametrize("memory", [POWER, EXPONENTIAL], ids=["power", "exponential"])
+@pytest.mark.parametrize("theta", [53.0, 45.0])
+def test_constant_temperature_is_scaled_time(memory, theta):
+    """At a constant theta the ramp eps = t E over [0, 2] equals the T_ref ramp eps = a_T t E
+    over [0, 2 / a_T] with the same 12 steps to round-off (the power kernel fitted over the
+    reduced span 2 / a_T in both), and differs from the isothermal run."""
+    a = 10 ** float(ve.log10_shift(WLF, theta))
+    assert abs(math.log10(a)) > 0.9
+    _, hot = rl.block_stress(thermal_scene(dict(WLF, temperature=theta), memory, 2.0, 12))
+    _, ref = rl.block_stress(thermal_scene(None, memory, 2.0 / a, 12, rate=a))
+    _, iso = rl.block_stress(thermal_scene(None, memory, 2.0, 12))
+    assert np.abs(hot - ref).max() <= 1e-13 * np.abs(ref).max()
+    assert np.abs(hot - iso).max() > 1e-2 * np.abs(iso).max()
+
+
+def ramp_stress(terms, theta_of, T, steps, R0):
+    """The memory stress at T of the strain eps(t) = sin(t) E0 at one point, trapezoid rule in
+    reduced time (ReducedTimeHistory): H_explicit + dxi/2 R(0) eps_N."""
+    E0 = np.array([0.01, 0.004, 0.004, -0.002])
+    k = T / steps
+    history = ReducedTimeHistory(History(terms, k, "trapezoid", 2), 4)
+    inverse = lambda t: 10.0 ** -ve.log10_shift(WLF, np.array([theta_of(t)]))
+    history.stage(inverse(0.0))
+    history.commit(0.0 * E0, None)
+    for n in range(1, steps + 1):
+        t = n * k
+        history.stage(inverse(t))
+        H = history.explicit(k)
+        weight = history.implicit(k)["full"]
+        out = H + weight * math.sin(t) * E0
+        history.commit(math.sin(t) * E0, k)
+    return out, history.reduced_time[0]
+
+
+def test_power_kernel_temperature_ramp_order():
+    """theta = 50 + 2 t (a_T from 1 to 0.02, xi(2) = 12.1): the power kernel's sum of
+    exponentials (fitted on [0, 20]) in reduced time against the same recursion with 2560
+    steps; the error falls with order 2."""
+    theta_of = lambda t: 50.0 + 2.0 * t
+    T = 2.0
+    fit = kernels.power_soe(-3.0, 0.6, 1.0, 20.0, 1e-8)
+    terms = [(w, 1.0 / s, "full") for w, s in zip(fit.weights, fit.rates)]
+    ref, xi = ramp_stress(terms, theta_of, T, 2560, fit(0.0))
+    assert 5.0 < xi < 20.0                       # reduced time well beyond t, inside the fit
+    errors = [np.abs(ramp_stress(terms, theta_of, T, n, fit(0.0))[0] - ref).max()
+              for n in (40, 80, 160)]
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert all(abs(p - 2.0) < 0.1 for p in orders), (errors, orders)
+
+
+def test_temperature_field_with_the_power_kernel():
+    """theta = 50 + 2 t + 1.5 x[0] over two cells: the fit spans the reduced time the step
+    times reach (the note says so), the points relax differently, and the hotter point lies
+    closer to the relaxed stress."""
+    visco = dict(WLF, temperature="50.0 + 2.0 * t + 1.5 * x[0]")
+    raw = thermal_scene(visco, POWER, 1.0, 10)
+    raw["geometry"]["cells"] = [2, 1]
+    t, sigma, points = rl.block_stress(raw, per_point=True)
+    _, iso = rl.block_stress(thermal_scene(None, POWER, 1.0, 10))
+    last = sigma[-1, :, 0, 1]
+    hot, cold = last[np.argmax(points[:, 0])], last[np.argmin(points[:, 0])]
+    assert abs(hot - cold) > 1e-2 * abs(cold)
+    assert hot < cold < iso[-1, 0, 1]            # R < 0: a faster clock relaxes more
+
+
+@pytest.mark.parametrize("memory, words", [
+    ({"kernel": "table", "times": [0.0, 1.0], "values": [-1.0, -0.5]}, "convolved in full"),
+    (dict(POWER, summation="direct"), "O(n) memory per point"),
+    ({"kernel": "fractional", "alpha": -1.0, "beta": 0.5}, "product integration"),
+])
+def test_kernels_without_a_recursion_refused(memory, words):
+    with pytest.raises(SceneError) as err:
+        loader.resolve(thermal_scene(dict(WLF, temperature=53.0), memory, 1.0, 4))
+    assert err.value.key == "viscoelastic.temperature" and words in str(err.value)
+
+
+def test_thermal_table_needs_a_temperature_and_round_trips(tmp_path):
+    """Without relaxation functions the table needs a temperature (else the message lists the
+    forms); with one, the scene writes back to TOML with [material] and [memory] kept."""
+    with pytest.raises(SceneError, match="none of them") as err:
+        loader.resolve(thermal_scene(dict(WLF), POWER, 1.0, 4))
+    assert err.value.key == "viscoelastic.shear"
+    scene = loader.resolve(thermal_scene(dict(WLF, temperature=53.0), POWER, 1.0, 4))
+    path = tmp_path / "again.toml"
+    path.write_text(scene_text(scene))
+    again = loader.load(str(path))
+    assert again["memory"]["kernel"] == "power" and again["material"]["E"] == 30.0
+    assert again["viscoelastic"]["temperature"] == 53.0
+    from contactvisco.post.figures import relaxation_figure
+    with pytest.raises(SceneError, match="relaxation functions"):
+        relaxation_figure(scene)
