@@ -292,7 +292,8 @@ def log10_shift(shift: dict, theta):
         Ea / (R ln 10) (1/T - 1/T_ref); ``{"shift": "table", "shift_temperatures",
         "shift_log10_aT"}``: log10 a_T interpolated piecewise linearly in T between the
         points of the table (:func:`shift_points`), monotone between two points and exact at
-        them; ``{"shift": "none"}``: 0 (a [viscoelastic] table).
+        them, or with ``"shift_interpolation": "monotone_cubic"`` by the monotone Hermite
+        cubic of :func:`monotone_cubic`; ``{"shift": "none"}``: 0 (a [viscoelastic] table).
     theta : float or array
         Temperatures.
 
@@ -307,6 +308,8 @@ def log10_shift(shift: dict, theta):
         return 0.0 * theta
     if kind == "table":
         temps, logs = shift_points(shift)
+        if shift.get("shift_interpolation", "linear") == "monotone_cubic":
+            return monotone_cubic(temps, logs, theta)
         return np.interp(theta, temps, logs)
     d = theta - float(shift["T_ref"])
     if kind == "wlf":
@@ -315,6 +318,94 @@ def log10_shift(shift: dict, theta):
         return (float(shift["activation_energy"]) / (GAS_CONSTANT * math.log(10.0))
                 * (1.0 / theta - 1.0 / float(shift["T_ref"])))
     raise ValueError(f"unknown shift type {kind!r}")
+
+
+def monotone_slopes(x, y, limited: bool = True) -> np.ndarray:
+    """The node slopes of the monotone piecewise-cubic Hermite interpolant (Fritsch and
+    Carlson, SIAM J. Numer. Anal. 17 (1980) 238-246).
+
+    Parameters
+    ----------
+    x : array_like
+        Increasing nodes x_0 < ... < x_n (n >= 1).
+    y : array_like
+        The values y_k.
+    limited : bool, optional
+        False: the three-point slopes as they are (the unlimited cubic, which may overshoot).
+
+    Returns
+    -------
+    numpy.ndarray
+        m_k. With h_k = x_{k+1} - x_k and the secants D_k = (y_{k+1} - y_k) / h_k: inside,
+        m_k = (h_k D_{k-1} + h_{k-1} D_k) / (h_{k-1} + h_k), the slope of the parabola through
+        three nodes (second order); at the ends the one-sided parabola,
+        m_0 = ((2 h_0 + h_1) D_0 - h_0 D_1) / (h_0 + h_1) (and its mirror at x_n); two nodes:
+        m = D_0. Limited: m_k = 0 where D_{k-1} D_k <= 0 (a local extremum of the data) or
+        where m_k has the sign opposite to the adjacent secant; on every interval with
+        D_k = 0 both slopes 0; and where a_k = m_k / D_k, b_k = m_{k+1} / D_k have
+        a_k^2 + b_k^2 > 9, both scaled by 3 / sqrt(a_k^2 + b_k^2) (the circle inside
+        Fritsch and Carlson's region of monotonicity), so that the cubic is monotone on
+        every interval where the data are.
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    h = np.diff(x)
+    D = np.diff(y) / h
+    if len(D) == 1:
+        return np.array([D[0], D[0]])
+    m = np.empty(len(x))
+    m[1:-1] = (h[1:] * D[:-1] + h[:-1] * D[1:]) / (h[:-1] + h[1:])
+    m[0] = ((2 * h[0] + h[1]) * D[0] - h[0] * D[1]) / (h[0] + h[1])
+    m[-1] = ((2 * h[-1] + h[-2]) * D[-1] - h[-1] * D[-2]) / (h[-1] + h[-2])
+    if not limited:
+        return m
+    m[1:-1][D[:-1] * D[1:] <= 0] = 0.0
+    if m[0] * D[0] <= 0:
+        m[0] = 0.0
+    if m[-1] * D[-1] <= 0:
+        m[-1] = 0.0
+    flat = D == 0
+    m[:-1][flat] = 0.0
+    m[1:][flat] = 0.0
+    safe = np.where(flat, 1.0, D)
+    a, b = m[:-1] / safe, m[1:] / safe
+    r2 = np.where(flat, 0.0, a * a + b * b)
+    for k in np.flatnonzero(r2 > 9.0):          # in order: a shared node keeps the smaller
+        scale = 3.0 / math.sqrt((m[k] / D[k]) ** 2 + (m[k + 1] / D[k]) ** 2)
+        if scale < 1.0:
+            m[k] *= scale
+            m[k + 1] *= scale
+    return m
+
+
+def monotone_cubic(x, y, xq, limited: bool = True) -> np.ndarray:
+    """The piecewise-cubic Hermite interpolant of (x_k, y_k) with the slopes of
+    :func:`monotone_slopes`, at the points xq (inside [x_0, x_n]; beyond, the end cubic).
+
+    Parameters
+    ----------
+    x, y : array_like
+        Increasing nodes and their values.
+    xq : float or array_like
+        Where to evaluate.
+    limited : bool, optional
+        As for :func:`monotone_slopes`.
+
+    Returns
+    -------
+    numpy.ndarray
+        On [x_k, x_{k+1}], with s = (xq - x_k) / h_k:
+        p = (2s^3 - 3s^2 + 1) y_k + (s^3 - 2s^2 + s) h_k m_k + (-2s^3 + 3s^2) y_{k+1}
+        + (s^3 - s^2) h_k m_{k+1}; exact at the nodes, and linear data are reproduced.
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    xq = np.asarray(xq, float)
+    m = monotone_slopes(x, y, limited)
+    k = np.clip(np.searchsorted(x, xq, side="right") - 1, 0, len(x) - 2)
+    h = x[k + 1] - x[k]
+    s = (xq - x[k]) / h
+    s2, s3 = s * s, s * s * s
+    return ((2 * s3 - 3 * s2 + 1) * y[k] + (s3 - 2 * s2 + s) * h * m[k]
+            + (3 * s2 - 2 * s3) * y[k + 1] + (s3 - s2) * h * m[k + 1])
 
 
 def shift_points(shift) -> tuple[np.ndarray, np.ndarray]:

@@ -28,6 +28,10 @@ SERIES_KEYS = ("instantaneous", "long_term", "tau", "moduli", "fractions", "file
 #: viscoelastic.shift: the shift functions a_T of time-temperature superposition.
 SHIFTS = ("none", "wlf", "arrhenius", "table")
 
+#: viscoelastic.shift_interpolation: log10 a_T between the points of a shift table, piecewise
+#: linear or the monotone Hermite cubic of Fritsch and Carlson (model.viscoelastic).
+SHIFT_INTERPOLATIONS = ("linear", "monotone_cubic")
+
 #: |log10 a_T(T_ref)| of a shift table above which it is refused (a_T(T_ref) = 1 by definition).
 SHIFT_TABLE_ZERO = 1e-12
 
@@ -62,6 +66,8 @@ class Viscoelastic(Table):
                               "a list of finite numbers (log10 a_T at shift_temperatures)"),
         "shift_file": Key(None, lambda x: x is None or (isinstance(x, str) and x != ""),
                           "the name of a CSV file (temperature, log10 a_T)"),
+        "shift_interpolation": Key("linear", one_of(*SHIFT_INTERPOLATIONS),
+                                   "linear or monotone_cubic"),
     }
 
     def rules(self, scene):
@@ -116,6 +122,11 @@ class Viscoelastic(Table):
             self.need(self[name] is None or name in needed, name,
                       f"viscoelastic.{name} belongs to another shift function than "
                       f"viscoelastic.shift = '{shift}'")
+        self.need(shift == "table" or self["shift_interpolation"] == "linear",
+                  "shift_interpolation",
+                  f"viscoelastic.shift_interpolation = '{self['shift_interpolation']}' "
+                  f"interpolates a shift table (viscoelastic.shift = 'table'), not "
+                  f"viscoelastic.shift = '{shift}'")
         if shift == "table":
             self._shift_table_rules()
         if shift == "arrhenius":
