@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 from contactvisco.errors import SceneError
 from contactvisco.model import kernels
@@ -91,8 +92,8 @@ def test_temperature_field_with_the_power_kernel():
     visco = dict(WLF, temperature="50.0 + 2.0 * t + 1.5 * x[0]")
     raw = thermal_scene(visco, POWER, 1.0, 10)
     raw["geometry"]["cells"] = [2, 1]
-    t, sigma, points = rl.block_stress(raw, per_point=True)
-    _, iso = rl.block_stress(thermal_scene(None, POWER, 1.0, 10))
+    t, sigma, points = rl.block_stress(raw, MPI.COMM_SELF, per_point=True)
+    _, iso = rl.block_stress(thermal_scene(None, POWER, 1.0, 10), MPI.COMM_SELF)
     last = sigma[-1, :, 0, 1]
     hot, cold = last[np.argmax(points[:, 0])], last[np.argmin(points[:, 0])]
     assert abs(hot - cold) > 1e-2 * abs(cold)
