@@ -1,0 +1,329 @@
+"""The projection operators of an interface between two bodies (contactvisco.fem.interface):
+node-to-segment and mortar Pi on plain arrays (flat, inclined and curved traces, matching and
+not) and on a DOLFINx mesh of two blocks, on 1 and 2 ranks."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from contactvisco.errors import SceneError
+from contactvisco.fem import interface
+
+METHODS = ("node_to_segment", "mortar")
+SEARCH = 0.05
+
+
+def rotation(degrees):
+    a = np.deg2rad(degrees)
+    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+
+
+def arc(n, curvature=0.0, start=0.0, end=1.0):
+    """n + 1 points of the curve y = curvature x (1 - x) over [start, end]."""
+    x = np.linspace(start, end, n + 1)
+    return np.stack([x, curvature * x * (1.0 - x)], axis=1)
+
+
+def master_of(points, first=1000):
+    """A master trace below the curve through `points` (outward normal up): segments from right
+    to left, nodes first + j."""
+    nodes = np.arange(first, first + len(points))
+    return interface.Surface.from_arrays(
+        np.stack([points[1:], points[:-1]], axis=1), np.stack([nodes[1:], nodes[:-1]], axis=1))
+
+
+def slave_of(points):
+    """A slave trace above the curve (outward normal down): segments from left to right, nodes
+    0, 1, ..."""
+    nodes = np.arange(len(points))
+    return nodes, interface.Surface.from_arrays(
+        np.stack([points[:-1], points[1:]], axis=1), np.stack([nodes[:-1], nodes[1:]], axis=1))
+
+
+def pairing(method, slave_points, master_points, search=SEARCH):
+    nodes, trace = slave_of(slave_points)
+    master = master_of(master_points)
+    if method == "mortar":
+        return interface.mortar(nodes, trace, master, search)
+    return interface.node_to_segment(nodes, slave_points, master, search)
+
+
+def positions(points, first=0):
+    return {first + j: p for j, p in enumerate(points)}
+
+
+def linear(p):
+    return 3.0 * p[0] - 2.0 * p[1] + 1.0
+
+
+# ------------------------------------------------------------------ plain arrays
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("degrees", [0.0, 30.0])
+def test_non_matching_flat_traces_reproduce_constants_and_linear_fields(method, degrees):
+    """10 master against 13 slave segments on a line (turned by 0 or 30 degrees): every row
+    of Pi sums to 1 and a linear field of the master is the field at the slave nodes."""
+    R = rotation(degrees)
+    slave, master = arc(13) @ R.T, arc(10) @ R.T
+    pi = pairing(method, slave, master)
+    assert not pi.unpaired
+    ones = pi.apply(lambda k: 1.0)
+    assert max(abs(v - 1.0) for v in ones.values()) < 1e-14
+    image = pi.apply(lambda k: linear(master[k - 1000]))
+    assert max(abs(image[i] - linear(slave[i])) for i in image) < 1e-13
+    # Pi is not the trivial operator: most slave nodes take more than one master node.
+    assert len(pi.rows) > len(slave) + 5
+
+
+def test_node_to_segment_on_a_curved_trace_takes_the_field_at_the_closest_point():
+    """Slave nodes anywhere on a curved master polyline get the master's linear field there
+    exactly; lifted off it along the facet normal by g, they get the gap g, that normal and
+    the field at their foot."""
+    rng = np.random.default_rng(3)
+    master = arc(10, curvature=0.8)
+    facet = rng.integers(0, 10, size=25)
+    s = rng.uniform(0.0, 1.0, size=25)
+    on = master[facet] + s[:, None] * (master[facet + 1] - master[facet])
+    surface = master_of(master)
+    nodes = np.arange(len(on))
+    pi = interface.node_to_segment(nodes, on, surface, SEARCH)
+    image = pi.apply(lambda k: linear(master[k - 1000]))
+    assert max(abs(image[i] - linear(on[i])) for i in nodes) < 1e-13
+    t = master[facet + 1] - master[facet]
+    normal = np.stack([-t[:, 1], t[:, 0]], axis=1) / np.linalg.norm(t, axis=1)[:, None]
+    gap = rng.uniform(-0.01, 0.01, size=25)
+    found = interface.project(on + gap[:, None] * normal, surface, SEARCH)
+    assert np.max(np.abs(found.gap - gap)) < 1e-13
+    assert np.max(np.abs(found.normal - normal)) < 1e-13
+    foot = np.einsum("nk,nkg->ng", found.shape, surface.coordinates[found.facet])
+    assert np.max(np.abs(foot - on)) < 1e-13
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("curvature", [0.0, 0.8])
+def test_matching_traces_give_the_identity_incidence(method, curvature):
+    """The same nodes on both sides (flat or curved): Pi_ik = 1 for the master node at slave
+    node i, 0 elsewhere."""
+    points = arc(12, curvature)
+    pi = pairing(method, points, points).as_dict()
+    expected = {(i, 1000 + i): 1.0 for i in range(len(points))}
+    assert {key for key, v in pi.items() if abs(v) > 1e-13} == set(expected)
+    assert max(abs(pi[key] - 1.0) for key in expected) < 1e-13
+
+
+def _plain_mortar(slave, master, points):
+    """M_ik by `points`-point Gauss on each whole slave segment (no cutting), the master point
+    of a slave point X found by intersecting the line X + s n_s with the master segments."""
+    nodes, trace = slave_of(slave)
+    surface = master_of(master)
+    xg, wg = np.polynomial.legendre.leggauss(points)
+    xg, wg = 0.5 * (xg + 1.0), 0.5 * wg
+    M = {}
+    for (A, B), (iA, iB), n in zip(trace.coordinates, trace.nodes, trace.normals):
+        L = np.linalg.norm(B - A)
+        for xi, w in zip(xg, wg):
+            X = A + xi * (B - A)
+            for (P, Q), (kP, kQ) in zip(surface.coordinates, surface.nodes):
+                # X + s n = P + eta (Q - P)
+                s, eta = np.linalg.solve(np.stack([n, P - Q], axis=1), P - X)
+                if 0.0 <= eta <= 1.0:
+                    break
+            else:
+                continue
+            for i, phi in ((iA, 2.0 - 3.0 * xi), (iB, 3.0 * xi - 1.0)):
+                for k, N in ((kP, 1.0 - eta), (kQ, eta)):
+                    M[(i, k)] = M.get((i, k), 0.0) + w * L * phi * N
+    return M
+
+
+def test_mortar_integrals_are_exact_where_plain_quadrature_converges():
+    """M of the cut segments against 20-, 40- and 160-point Gauss on whole slave segments (a
+    curved interface, 13 slave and 10 master segments): the plain quadrature's error (summed
+    over M's entries) falls as it is refined, about as n^-2 (the integrand has kinks at the
+    master nodes), towards the cut value."""
+    slave, master = arc(13, 0.3), arc(10, 0.3)
+    cut = pairing("mortar", slave, master)
+    exact = {(int(i), int(k)): v for i, k, v in zip(cut.rows, cut.cols, cut.mortar)}
+
+    def error(points):
+        plain = _plain_mortar(slave, master, points)
+        keys = set(plain) | set(exact)
+        return sum(abs(plain.get(key, 0.0) - exact.get(key, 0.0)) for key in keys)
+
+    errors = [error(n) for n in (20, 40, 160)]
+    assert errors[0] > 1e-6, errors                      # the plain rule is not exact
+    assert errors[1] < errors[0] / 2.5 and errors[2] < errors[1] / 4, errors
+    assert errors[2] < 2e-5, errors
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("degrees", [0.0, 30.0])
+def test_weighted_gap_of_a_rigid_translation_is_its_normal_component(method, degrees):
+    """The master moved by (a, b), Pi rebuilt on the moved master (the cut points move with
+    it): every slave node's gap n . (x_i - sum_k Pi_ik x_k) changes by -(a, b) . n exactly;
+    and the gap of the displacement field u_m = (a, b), u_s = 0 is -(a, b) . n."""
+    R = rotation(degrees)
+    slave, master = arc(13) @ R.T + R @ [0.0, 0.01], arc(10) @ R.T
+    normal = R @ [0.0, 1.0]
+    shift = np.array([0.037, -0.004])
+    normals = {i: normal for i in range(len(slave))}
+    before = interface.weighted_gap(pairing(method, slave, master), positions(slave),
+                                    positions(master, 1000), normals)
+    moved = pairing(method, slave, master + shift)
+    after = interface.weighted_gap(moved, positions(slave), positions(master + shift, 1000),
+                                   normals)
+    # The nodes whose support the moved master covers (x +- h in [a, 1 + a] along the line).
+    along, h = (R.T @ shift)[0], 1.0 / 13
+    inner = [i for i in range(len(slave)) if i * h - h >= along and i * h + h <= 1.0 + along]
+    assert len(inner) >= 9
+    assert max(abs(after[i] - before[i] + shift @ normal) for i in inner) < 1e-13
+    assert max(abs(before[i] - 0.01) for i in before) < 1e-13
+    u = interface.weighted_gap(moved, {i: np.zeros(2) for i in range(len(slave))},
+                               {1000 + k: shift for k in range(len(master))}, normals)
+    assert max(abs(u[i] + shift @ normal) for i in inner) < 1e-13
+
+
+def test_nodes_beyond_the_master_are_reported():
+    """A slave trace longer than the master: node_to_segment reports the nodes farther than
+    the search distance, mortar the nodes with no master on their support; the nodes whose
+    support the master covers keep rows that sum to 1."""
+    slave, master = arc(12, start=-0.5, end=1.5), arc(10)
+    n2s = pairing("node_to_segment", slave, master)
+    far = [i for i, p in enumerate(slave) if p[0] < -SEARCH or p[0] > 1.0 + SEARCH]
+    assert n2s.unpaired == far and far
+    mortar = pairing("mortar", slave, master)
+    h = 2.0 / 12
+    bare = [i for i, p in enumerate(slave) if p[0] + h <= 1e-12 or p[0] - h >= 1.0 - 1e-12]
+    assert mortar.unpaired == bare and bare
+    ones = mortar.apply(lambda k: 1.0)
+    covered = [i for i, p in enumerate(slave) if p[0] - h >= -1e-12 and p[0] + h <= 1 + 1e-12]
+    assert max(abs(ones[i] - 1.0) for i in covered) < 1e-14
+    partly = [i for i in range(len(slave)) if i not in covered and i not in bare]
+    assert all(abs(ones[i] - 1.0) > 1e-3 for i in partly)
+
+
+def test_closest_points_on_triangles():
+    """3D: points above and beside a triangulated patch of the plane z = x/2: the closest
+    point's distance is the least over a dense sampling of the triangles (never more, and
+    within the sampling's resolution), the shape functions reproduce a linear field at the
+    closest point, and the gap of a point above the patch is its height along the normal."""
+    rng = np.random.default_rng(5)
+    grid = np.array([[x, y, 0.5 * x] for y in (0.0, 0.5, 1.0) for x in (0.0, 0.5, 1.0)])
+    triangles = []
+    for j in range(2):
+        for i in range(2):
+            a, b, c, d = 3 * j + i, 3 * j + i + 1, 3 * j + i + 4, 3 * j + i + 3
+            triangles += [(a, b, c), (a, c, d)]
+    triangles = np.array(triangles)
+    surface = interface.Surface.from_arrays(grid[triangles], triangles)
+    normal = np.array([-0.5, 0.0, 1.0]) / np.sqrt(1.25)
+    assert np.allclose(surface.normals, normal)
+    points = rng.uniform([-0.3, -0.3, -0.2], [1.3, 1.3, 0.8], size=(40, 3))
+    found = interface.project(points, surface, 10.0)
+    assert not found.missing
+    foot = np.einsum("nk,nkg->ng", found.shape, surface.coordinates[found.facet])
+    distance = np.linalg.norm(points - foot, axis=1)
+    u, v = np.meshgrid(np.linspace(0, 1, 201), np.linspace(0, 1, 201))
+    keep = u + v <= 1.0
+    u, v = u[keep], v[keep]
+    samples = np.concatenate([tri[0] + u[:, None] * (tri[1] - tri[0])
+                              + v[:, None] * (tri[2] - tri[0]) for tri in grid[triangles]])
+    sampled = np.min(np.linalg.norm(points[:, None, :] - samples[None], axis=2), axis=1)
+    assert np.all(distance <= sampled + 1e-14)
+    assert np.all(sampled - distance < 0.5 * 0.5 / 200 * 1.5)
+    field = lambda p: 2.0 * p[..., 0] - p[..., 1] + 4.0 * p[..., 2]       # noqa: E731
+    values = np.einsum("nk,nk->n", found.shape, field(surface.coordinates[found.facet]))
+    assert np.max(np.abs(values - field(foot))) < 1e-13
+    above = interface.project(np.array([[0.3, 0.6, 0.15]]) + 0.02 * normal, surface, 0.1)
+    assert abs(above.gap[0] - 0.02) < 1e-14
+    assert interface.project(np.array([[0.3, 0.6, 0.5]]), surface, 0.1).missing == [0]
+
+
+def test_three_dimensional_mortar_is_refused():
+    grid = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    surface = interface.Surface.from_arrays(grid[None], [[0, 1, 2]])
+    with pytest.raises(SceneError, match="2D interfaces") as info:
+        interface.mortar([0], surface, surface, 1.0)
+    assert info.value.key == "contact.pairing"
+
+
+# ------------------------------------------------------------------ DOLFINx meshes
+
+def _mesh_pairing(comm, method, degrees=0.0, **parameters):
+    from contactvisco.fem import compat
+    geometry = interface.two_blocks(comm, rotation=degrees, **parameters)
+    V = compat.vector_space(geometry.mesh, "CG", 1)
+    master = interface.boundary_surface(V, geometry.facet_tags, geometry.names["master"])
+    slave = interface.slave_side(V, geometry.facet_tags, geometry.names["slave"])
+    return V, slave, master, interface.pair(slave, master, method, SEARCH)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_two_block_mesh_reproduces_a_linear_field_through_the_petsc_matrix(method):
+    """The two-block mesh turned by 30 degrees, 13 slave against 10 master segments: the
+    outward normals face each other, and Pi (x) I_2 as a PETSc matrix applied to a linear
+    vector field gives the field at every owned slave node."""
+    from contactvisco.fem import compat
+    from dolfinx import fem
+    V, slave, master, pi = _mesh_pairing(MPI.COMM_WORLD, method, 30.0)
+    R = rotation(30.0)
+    assert np.allclose(master.normals, R @ [0.0, 1.0])
+    assert np.allclose(slave.trace.normals, R @ [0.0, -1.0])
+    assert len(slave.trace.nodes) == 13 and len(master.nodes) == 10
+    assert not pi.unpaired
+    assert MPI.COMM_WORLD.allreduce(len(slave.nodes)) == 14
+    u = fem.Function(V)
+    field = lambda x: np.stack([1.0 + 2.0 * x[0] - x[1], -0.5 + 0.3 * x[0] + 4.0 * x[1]])  # noqa
+    u.interpolate(field)
+    sizes = interface.index_sizes(V)
+    A = pi.matrix(MPI.COMM_WORLD, sizes, sizes, block_size=2)
+    x = compat.petsc_vector(u)
+    y = x.duplicate()
+    A.mult(x, y)
+    start = V.dofmap.index_map.local_range[0]
+    values = y.getArray().reshape(-1, 2)[slave.nodes - start]
+    assert len(values) == len(slave.nodes)
+    if len(values):
+        assert np.max(np.abs(values - field(slave.coordinates.T).T)) < 1e-13
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_two_block_mesh_with_matching_traces_gives_the_identity_incidence(method):
+    """Both blocks with 10 interface segments: each slave node's row is a single 1 at the
+    master node at the same place."""
+    V, slave, master, pi = _mesh_pairing(MPI.COMM_WORLD, method, h_slave=0.1, h_master=0.1)
+    at = {int(k): p for k, p in zip(master.nodes.ravel(), master.coordinates.reshape(-1, 2))}
+    mine = dict(zip(slave.nodes.tolist(), slave.coordinates))
+    entries = {key: v for key, v in pi.as_dict().items() if abs(v) > 1e-13}
+    assert sorted(i for i, _ in entries) == sorted(mine)
+    for (i, k), v in entries.items():
+        assert abs(v - 1.0) < 1e-13
+        assert np.linalg.norm(at[k] - mine[i]) < 1e-13
+
+
+def _by_place(comm, method):
+    """Pi's entries keyed by the rounded places of the slave and master node, gathered."""
+    V, slave, master, pi = _mesh_pairing(comm, method)
+    at = {int(k): tuple(np.round(p, 12)) for k, p in
+          zip(np.concatenate([master.nodes.ravel(), slave.trace.nodes.ravel()]),
+              np.concatenate([master.coordinates.reshape(-1, 2),
+                              slave.trace.coordinates.reshape(-1, 2)]))}
+    mine = {(at[i], at[k]): v for (i, k), v in pi.as_dict().items()}
+    out = {}
+    for part in comm.allgather(mine):
+        assert not set(part) & set(out)                  # each slave row on one rank
+        out.update(part)
+    return out
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="compares a partitioned mesh with one "
+                                                      "rank's; run on 2 ranks")
+def test_ranks_give_the_same_operator(method):
+    """Pi of the mesh split over the ranks, gathered, is Pi of the whole mesh on one rank."""
+    world = _by_place(MPI.COMM_WORLD, method)
+    alone = _by_place(MPI.COMM_SELF, method)
+    assert MPI.COMM_WORLD.allreduce(len(_mesh_pairing(MPI.COMM_WORLD, method)[1].nodes)
+                                    > 0, MPI.LAND)
+    assert set(world) == set(alone)
+    assert max(abs(world[key] - alone[key]) for key in alone) < 1e-14
