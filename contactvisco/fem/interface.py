@@ -202,20 +202,15 @@ class Pairing:
         if np.any((local < 0) | (local >= owned)):
             raise SceneError("interface: Pi has rows outside this rank's owned range; the "
                              "slave space and the pairing do not belong together")
-        order = np.lexsort((self.cols, local))
-        local, cols, vals = local[order], self.cols[order], self.values[order]
-        counts = np.bincount(local, minlength=owned)
-        csr_rows = np.repeat(counts, b)
-        indptr = np.concatenate([[0], np.cumsum(csr_rows)]).astype(PETSc.IntType)
-        indices = np.empty(indptr[-1], dtype=PETSc.IntType)
-        data = np.empty(indptr[-1], dtype=PETSc.ScalarType)
-        starts = np.concatenate([[0], np.cumsum(counts)])
-        for r in range(owned):
-            entries = slice(starts[r], starts[r + 1])
-            for c in range(b):
-                row = r * b + c
-                indices[indptr[row]:indptr[row + 1]] = cols[entries] * b + c
-                data[indptr[row]:indptr[row + 1]] = vals[entries]
+        spread = np.arange(b)
+        csr_rows = (local[:, None] * b + spread).ravel()
+        csr_cols = (self.cols[:, None] * b + spread).ravel()
+        csr_vals = np.repeat(self.values, b)
+        order = np.lexsort((csr_cols, csr_rows))
+        counts = np.bincount(csr_rows, minlength=owned * b)
+        indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
+        indices = csr_cols[order].astype(PETSc.IntType)
+        data = csr_vals[order].astype(PETSc.ScalarType)
         A = PETSc.Mat().createAIJ(((owned * b, size * b), (columns[0] * b, columns[1] * b)),
                                   csr=(indptr, indices, data), comm=comm)
         A.assemble()

@@ -327,3 +327,33 @@ def test_ranks_give_the_same_operator(method):
                                     > 0, MPI.LAND)
     assert set(world) == set(alone)
     assert max(abs(world[key] - alone[key]) for key in alone) < 1e-14
+
+
+def test_box_faces_are_gathered_with_outward_normals():
+    """3D: the top and bottom faces of a 3 x 3 x 3 box of tetrahedra, gathered on every rank
+    (18 triangles each), have outward normals +z and -z whatever the partition, and
+    node_to_segment of points above the top face reproduces a linear field at their foot."""
+    from dolfinx import mesh as dmesh
+
+    from contactvisco.fem import compat
+    box = dmesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.ones(3)], [3, 3, 3],
+                           dmesh.CellType.tetrahedron)
+    found = [dmesh.locate_entities_boundary(box, 2, lambda x, z=z: np.isclose(x[2], z))
+             for z in (0.0, 1.0)]
+    indices = np.concatenate(found)
+    values = np.concatenate([np.full(len(f), tag, np.int32) for f, tag in zip(found, (1, 2))])
+    order = np.argsort(indices)
+    tags = dmesh.meshtags(box, 2, indices[order], values[order])
+    V = compat.vector_space(box, "CG", 1)
+    bottom, top = (interface.boundary_surface(V, tags, tag) for tag in (1, 2))
+    assert len(top.nodes) == len(bottom.nodes) == 18
+    assert np.allclose(top.normals, [0.0, 0.0, 1.0])
+    assert np.allclose(bottom.normals, [0.0, 0.0, -1.0])
+    rng = np.random.default_rng(7)
+    points = np.concatenate([rng.uniform(0.0, 1.0, size=(20, 2)), np.full((20, 1), 1.01)],
+                            axis=1)
+    pi = interface.node_to_segment(np.arange(20), points, top, SEARCH)
+    at = {int(k): p for k, p in zip(top.nodes.ravel(), top.coordinates.reshape(-1, 3))}
+    field = lambda p: 1.0 + p[0] - 2.0 * p[1] + 0.5 * p[2]                 # noqa: E731
+    image = pi.apply(lambda k: field(at[k]))
+    assert max(abs(image[i] - field(points[i] - [0.0, 0.0, 0.01])) for i in image) < 1e-13
