@@ -95,7 +95,8 @@ class Projection:
     shape : numpy.ndarray
         (n, d) the master facet's P1 shape functions at the closest point (they sum to 1).
     gap : numpy.ndarray
-        (n,) the signed gap g = (x - p) . n_m, > 0 on the outer side of the master.
+        (n,) the signed gap g = (x - p) . n_m, > 0 on the outer side of the master (for a
+        point whose closest point is a vertex, along the normal of the facet taken).
     normal : numpy.ndarray
         (n, gdim) the master facet's outward unit normal n_m.
     missing : list
@@ -318,6 +319,7 @@ def project(points, master: Surface, search_distance: float) -> Projection:
     facet = np.full(n, -1, dtype=np.int64)
     local = np.zeros((n, d - 1))
     dist2 = np.full(n, np.inf)
+    scale = np.max(np.abs(v)) ** 2 if len(v) else 0.0
     for start in range(0, n if len(v) else 0, _BLOCK):
         block = slice(start, min(n, start + _BLOCK))
         if d == 2:
@@ -326,7 +328,6 @@ def project(points, master: Surface, search_distance: float) -> Projection:
             xi, d2 = _closest_on_triangles(x[block], v[:, 0], v[:, 1], v[:, 2])
         # The first facet within a rounding of the least distance.
         least = d2.min(axis=1)
-        scale = np.max(np.abs(v)) ** 2
         first = np.argmax(d2 <= least[:, None] + 1e-24 * scale + 1e-14 * least[:, None],
                           axis=1)
         rows = np.arange(len(first))
@@ -659,6 +660,9 @@ def pair(slave: SlaveSide, master: Surface, method: str, search_distance: float,
     Pairing
         Pi's entries of this rank's slave nodes.
     """
+    if not (np.isfinite(search_distance) and search_distance > 0):
+        raise SceneError(f"{where}: the search distance must be a finite number > 0, got "
+                         f"{search_distance!r}", key=where)
     if method == "node_to_segment":
         return node_to_segment(slave.nodes, slave.coordinates, master, search_distance)
     if method == "mortar":

@@ -238,6 +238,16 @@ def test_closest_points_on_triangles():
     assert interface.project(np.array([[0.3, 0.6, 0.5]]), surface, 0.1).missing == [0]
 
 
+def test_bad_pairing_requests_are_scene_errors():
+    """An unknown method or a search distance that is not > 0 is a SceneError naming the key."""
+    nodes, trace = slave_of(arc(3))
+    side = interface.SlaveSide(nodes, arc(3), trace)
+    for method, search in (("closest", 0.1), ("mortar", 0.0), ("mortar", float("nan"))):
+        with pytest.raises(SceneError, match="node_to_segment|search distance") as info:
+            interface.pair(side, master_of(arc(2)), method, search)
+        assert info.value.key == "contact.pairing"
+
+
 def test_three_dimensional_mortar_is_refused():
     grid = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     surface = interface.Surface.from_arrays(grid[None], [[0, 1, 2]])
