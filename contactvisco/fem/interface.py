@@ -34,6 +34,10 @@ from contactvisco.fem import compat
 #: Slave nodes projected per block of the closest-point search (memory: block x facets x d).
 _BLOCK = 256
 
+#: Pieces of a slave facet shorter (2D) or smaller (3D) than this in its reference coordinates
+#: are left out: a master facet that only touches the slave facet at a point or along an edge.
+_SLIVER = 1e-14
+
 #: Two Gauss points on [0, 1]: exact for polynomials of degree 3.
 _GAUSS2 = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))
 
@@ -75,9 +79,8 @@ class Surface:
             The facets sorted by centroid, with their normals n = (t_y, -t_x)/|t| (2D) or
             (b - a) x (c - a)/|.| (3D).
         """
-        coordinates = np.asarray(coordinates, dtype=float)
-        return _canonical(coordinates, np.asarray(nodes, dtype=np.int64),
-                          _normals(coordinates))
+        return _canonical(np.asarray(coordinates, dtype=float),
+                          np.asarray(nodes, dtype=np.int64))
 
 
 @dataclass
@@ -238,13 +241,21 @@ def _normals(coordinates: np.ndarray) -> np.ndarray:
     return n / length[:, None]
 
 
-def _canonical(coordinates, nodes, normals) -> Surface:
-    """The facets sorted by centroid (the same order on any number of ranks)."""
+def _canonical(coordinates, nodes) -> Surface:
+    """The facets sorted by centroid, each triangle's vertices turned cyclically (its normal
+    kept) to start at its least vertex in lexicographic order: the same facets in the same
+    order, computed the same way, on any number of ranks."""
     if not len(coordinates):
-        return Surface(coordinates, nodes, normals)
+        return Surface(coordinates, nodes, np.zeros((0, coordinates.shape[-1])))
+    if coordinates.shape[1] == 3:
+        least = np.array([min(range(3), key=lambda j, f=f: tuple(f[j])) for f in coordinates])
+        turn = (least[:, None] + np.arange(3)) % 3
+        coordinates = np.take_along_axis(coordinates, turn[:, :, None], axis=1)
+        nodes = np.take_along_axis(nodes, turn, axis=1)
     centroid = coordinates.mean(axis=1)
     order = np.lexsort(centroid.T[::-1])
-    return Surface(coordinates[order], nodes[order], normals[order])
+    coordinates = coordinates[order]
+    return Surface(coordinates, nodes[order], _normals(coordinates))
 
 
 def _closest_on_segments(x, a, b):
@@ -388,54 +399,68 @@ def node_to_segment(nodes, points, master: Surface, search_distance: float) -> P
 
 def mortar(nodes, slave: Surface, master: Surface, search_distance: float,
            where: str = "contact.pairing") -> Pairing:
-    """The mortar projection operator of a 2D interface with the dual basis of the slave
-    trace: Pi = D^-1 M,
+    """The mortar projection operator with the dual basis of the slave trace: Pi = D^-1 M,
 
         D_i = int_{Gamma_s} N_i ds,    M_ik = int_{Gamma_s} Phi_i (N_k^m o chi) ds,
 
-    Phi_1 = 2 N_1 - N_2, Phi_2 = 2 N_2 - N_1 on each slave segment. chi maps the point of
-    local coordinate xi on a slave segment (A, B) to the point of a master segment (P, Q)
-    whose orthogonal projection onto the line AB is at xi; the segment is cut at the
-    projections xi_P, xi_Q of the master nodes, and on each piece Phi_i and N_k^m o chi are
-    linear in xi, so two Gauss points per piece give M exactly. A master segment is paired
-    with a slave segment when their outward normals face each other (n_s . n_m < 0) and the
-    distance between them along the slave normal is within search_distance somewhere on the
-    piece.
+    Phi_i the dual basis, biorthogonal to the P1 basis (int Phi_i N_j = delta_ij int N_j):
+    Phi_1 = 2 N_1 - N_2, Phi_2 = 2 N_2 - N_1 on a slave segment, Phi_i = 4 N_i - 1 on a slave
+    triangle. chi maps a point of a slave facet to the point of a master facet whose orthogonal
+    projection onto the slave facet's line (plane) it is, i.e. along the slave facet's normal.
+    2D: each slave segment is cut at the projections of the master nodes; 3D: each master
+    triangle projected onto the slave triangle's plane is clipped by the slave triangle (both
+    are convex) and the polygon cut into triangles from one vertex (Puso & Laursen, CMAME 193
+    (2004) 601). On each piece chi is affine, Phi_i and N_k^m o chi are linear, and the rule
+    used (two Gauss points on a piece of segment, the three edge midpoints of a triangle) is
+    exact for their product: M is exact. A master facet is paired with a slave facet when
+    their outward normals face each other (n_s . n_m < 0) and the distance between them along
+    the slave normal is within search_distance at a vertex of the piece.
 
     Parameters
     ----------
     nodes : array_like
         The global slave nodes whose rows are wanted (this rank's owned ones).
     slave : Surface
-        The slave trace: all its segments (gathered), for the weights of the rows wanted.
+        The slave trace: all its facets (gathered), for the weights of the rows wanted.
     master : Surface
-        The master segments.
+        The master facets (of the same kind: segments or triangles).
     search_distance : float
         The largest distance between paired points of the two traces.
     where : str, optional
-        The key named by the error of a 3D interface.
+        The key named by the error of traces of different kinds.
 
     Returns
     -------
     Pairing
         Pi's entries of the rows wanted; `weights` holds D_i, `mortar` M's entries, and
         `unpaired` the nodes with no master piece on their support.
-
-    Raises
-    ------
-    SceneError
-        For a 3D interface (triangle facets): the mortar pairing is 2D only here; the
-        node_to_segment pairing works in 3D.
     """
     nodes = np.asarray(nodes, dtype=np.int64)
-    if slave.coordinates.shape[1] != 2 or (len(master.coordinates)
-                                           and master.coordinates.shape[1] != 2):
-        raise SceneError(f"{where}: the mortar pairing is implemented for 2D interfaces "
-                         "(segments) only; a 3D interface needs clipping of triangle pairs. "
-                         "Use the node_to_segment pairing in 3D", key=where)
+    d = slave.coordinates.shape[1]
+    if len(master.coordinates) and master.coordinates.shape[1] != d:
+        raise SceneError(f"{where}: the slave and master traces must both be segments (2D) or "
+                         "both triangles (3D)", key=where)
     wanted = {int(i): j for j, i in enumerate(nodes)}
     weights = np.zeros(len(nodes))
     entries: dict[tuple[int, int], float] = {}
+    integrate = _mortar_segments if d == 2 else _mortar_triangles
+    integrate(wanted, weights, entries, slave, master, search_distance)
+    keys = sorted(entries)
+    rows = np.array([k[0] for k in keys], dtype=np.int64)
+    cols = np.array([k[1] for k in keys], dtype=np.int64)
+    m_values = np.array([entries[k] for k in keys], dtype=float)
+    values = m_values / weights[[wanted[r] for r in rows]] if len(rows) else m_values
+    paired = set(rows.tolist())
+    unpaired = [int(i) for i in nodes if int(i) not in paired]
+    return Pairing(rows, cols, values, nodes, weights, m_values, unpaired)
+
+
+def _add(entries, key, value):
+    entries[key] = entries.get(key, 0.0) + value
+
+
+def _mortar_segments(wanted, weights, entries, slave, master, search_distance):
+    """D and M of a 2D interface, added into weights and entries (see `mortar`)."""
     P, Q = (master.coordinates[:, 0], master.coordinates[:, 1]) if len(master.coordinates) \
         else (np.zeros((0, 2)), np.zeros((0, 2)))
     for (A, B), (iA, iB), n_s in zip(slave.coordinates, slave.nodes, slave.normals):
@@ -452,7 +477,7 @@ def mortar(nodes, slave: Surface, master: Surface, search_distance: float,
         lo = np.maximum(0.0, np.minimum(xi_P, xi_Q))
         hi = np.minimum(1.0, np.maximum(xi_P, xi_Q))
         span = xi_Q - xi_P
-        for m in np.flatnonzero(facing & (hi > lo) & (np.abs(span) > 1e-14)):
+        for m in np.flatnonzero(facing & (hi - lo > _SLIVER) & (np.abs(span) > 1e-14)):
             # Distances between the slave points at the piece's ends and their images.
             ends = np.array([lo[m], hi[m]])
             eta = (ends - xi_P[m]) / span[m]
@@ -468,15 +493,84 @@ def mortar(nodes, slave: Surface, master: Surface, search_distance: float,
                 phi = {int(iA): 2.0 - 3.0 * xi, int(iB): 3.0 * xi - 1.0}
                 for r in rows:
                     for k, N in ((k_P, 1.0 - e), (k_Q, e)):
-                        entries[(r, k)] = entries.get((r, k), 0.0) + w * phi[r] * N
-    keys = sorted(entries)
-    rows = np.array([k[0] for k in keys], dtype=np.int64)
-    cols = np.array([k[1] for k in keys], dtype=np.int64)
-    m_values = np.array([entries[k] for k in keys], dtype=float)
-    values = m_values / weights[[wanted[r] for r in rows]] if len(rows) else m_values
-    paired = set(rows.tolist())
-    unpaired = [int(i) for i in nodes if int(i) not in paired]
-    return Pairing(rows, cols, values, nodes, weights, m_values, unpaired)
+                        _add(entries, (r, k), w * phi[r] * N)
+
+
+def _clip(polygon: list, coefficients) -> list:
+    """A convex polygon (a list of 2D points) clipped by the half-plane c0 + c1 xi + c2 eta
+    >= 0 (Sutherland-Hodgman)."""
+    c0, c1, c2 = coefficients
+    out = []
+    for j, p in enumerate(polygon):
+        q = polygon[(j + 1) % len(polygon)]
+        fp, fq = c0 + c1 * p[0] + c2 * p[1], c0 + c1 * q[0] + c2 * q[1]
+        if fp >= 0:
+            out.append(p)
+        if (fp >= 0) != (fq >= 0):
+            s = fp / (fp - fq)
+            out.append(p + s * (q - p))
+    return out
+
+
+#: The slave reference triangle xi >= 0, eta >= 0, 1 - xi - eta >= 0 as half-planes.
+_REFERENCE = ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, -1.0, -1.0))
+
+
+def _mortar_triangles(wanted, weights, entries, slave, master, search_distance):
+    """D and M of a 3D interface, added into weights and entries (see `mortar`): in the slave
+    triangle's affine coordinates (xi, eta), X = A + xi (B - A) + eta (C - A), the master
+    triangle projected along the slave normal is clipped by the reference triangle."""
+    V = master.coordinates
+    for (A, B, C), slave_nodes, n_s in zip(slave.coordinates, slave.nodes, slave.normals):
+        rows = [(r, j) for j, r in enumerate(int(i) for i in slave_nodes) if r in wanted]
+        if not rows:
+            continue
+        E = np.stack([B - A, C - A], axis=1)                   # (3, 2)
+        jacobian = float(np.linalg.norm(np.cross(B - A, C - A)))
+        for r, _ in rows:
+            weights[wanted[r]] += jacobian / 6.0
+        if not len(V):
+            continue
+        # Affine coordinates of the master vertices' projections onto the slave plane.
+        local = np.linalg.solve(E.T @ E, np.einsum("gk,mvg->mkv", E, V - A)).transpose(0, 2, 1)
+        facing = master.normals @ n_s < 0.0
+        near = ((local[..., 0].max(axis=1) > 0) & (local[..., 1].max(axis=1) > 0)
+                & (local.sum(axis=2).min(axis=1) < 1))
+        for m in np.flatnonzero(facing & near):
+            p0, p1, p2 = local[m]
+            F = np.stack([p1 - p0, p2 - p0], axis=1)           # master barycentrics: F^-1
+            if abs(np.linalg.det(F)) <= 1e-14:
+                continue
+            polygon = [p0, p1, p2]
+            for half in _REFERENCE:
+                polygon = _clip(polygon, half)
+                if not polygon:
+                    break
+            if len(polygon) < 3:
+                continue
+            polygon = np.array(polygon)
+            lam = np.linalg.solve(F, (polygon - p0).T).T       # (points, 2)
+            images = (V[m, 0] + lam[:, :1] * (V[m, 1] - V[m, 0])
+                      + lam[:, 1:] * (V[m, 2] - V[m, 0]))
+            gaps = np.linalg.norm(images - (A + polygon @ E.T), axis=1)
+            if gaps.min() > search_distance:
+                continue
+            master_nodes = [int(k) for k in master.nodes[m]]
+            for j in range(1, len(polygon) - 1):
+                q0, q1, q2 = polygon[0], polygon[j], polygon[j + 1]
+                area = 0.5 * abs((q1[0] - q0[0]) * (q2[1] - q0[1])
+                                 - (q1[1] - q0[1]) * (q2[0] - q0[0]))
+                if area <= _SLIVER:
+                    continue
+                for q in (0.5 * (q0 + q1), 0.5 * (q1 + q2), 0.5 * (q2 + q0)):
+                    w = jacobian * area / 3.0
+                    N_s = (1.0 - q[0] - q[1], q[0], q[1])
+                    l1, l2 = np.linalg.solve(F, q - p0)
+                    N_m = (1.0 - l1 - l2, l1, l2)
+                    for r, j_s in rows:
+                        phi = 4.0 * N_s[j_s] - 1.0
+                        for k, N in zip(master_nodes, N_m):
+                            _add(entries, (r, k), w * phi * N)
 
 
 def weighted_gap(pairing: Pairing, slave_points: dict, master_points: dict,
@@ -529,8 +623,11 @@ class SlaveSide:
     trace: Surface
 
 
-def _vertex_dofs(space) -> np.ndarray:
-    """The P1 node (block) of every local vertex, from the cells' vertices and dofs."""
+def _vertex_dofs(space) -> tuple[np.ndarray, np.ndarray]:
+    """The P1 node (block) of every local vertex, from the cells' vertices and dofs, and the
+    coordinates of every local node copied from the mesh geometry (tabulated dof coordinates
+    are pushed forward from the reference cell, with roundoff that depends on the cell, hence
+    on the partition)."""
     mesh = space.mesh
     tdim = mesh.topology.dim
     mesh.topology.create_connectivity(tdim, 0)
@@ -539,9 +636,14 @@ def _vertex_dofs(space) -> np.ndarray:
     layout = space.dofmap.dof_layout
     vertex_map = mesh.topology.index_map(0)
     out = np.full(vertex_map.size_local + vertex_map.num_ghosts, -1, dtype=np.int64)
+    geometry = compat.geometry_nodes(mesh)
+    index_map = space.dofmap.index_map
+    x = np.zeros((index_map.size_local + index_map.num_ghosts, mesh.geometry.dim))
     for j in range(tdim + 1):
-        out[c2v[:, j]] = dofs[:, layout.entity_dofs(0, j)[0]]
-    return out
+        column = dofs[:, layout.entity_dofs(0, j)[0]]
+        out[c2v[:, j]] = column
+        x[column] = mesh.geometry.x[geometry[:, j], :mesh.geometry.dim]
+    return out, x
 
 
 def boundary_surface(space, facet_tags, tag: int, where: str = "contact.boundary") -> Surface:
@@ -580,8 +682,7 @@ def boundary_surface(space, facet_tags, tag: int, where: str = "contact.boundary
     f2v = mesh.topology.connectivity(fdim, 0).array.reshape(-1, tdim)
     f2c = mesh.topology.connectivity(fdim, tdim)
     c2v = mesh.topology.connectivity(tdim, 0).array.reshape(-1, tdim + 1)
-    vertex_dofs = _vertex_dofs(space)
-    x = space.tabulate_dof_coordinates()[:, :gdim]
+    vertex_dofs, x = _vertex_dofs(space)
     verts = f2v[facets]
     cells = f2c.array[f2c.offsets[facets]]
     cell_verts = c2v[cells]
@@ -594,20 +695,15 @@ def boundary_surface(space, facet_tags, tag: int, where: str = "contact.boundary
         swap = [1, 0] if tdim == 2 else [0, 2, 1]
         dofs = np.where(outward[:, None], dofs, dofs[:, swap])
         coords = x[dofs]
-        normals = _normals(coords)
-    else:
-        normals = np.zeros((0, gdim))
     nodes = space.dofmap.index_map.local_to_global(
         np.ascontiguousarray(dofs.ravel(), dtype=np.int32)).reshape(-1, tdim)
     comm = mesh.comm
-    parts = comm.allgather((coords.reshape(-1, tdim, gdim), np.asarray(nodes, np.int64),
-                            normals))
+    parts = comm.allgather((coords.reshape(-1, tdim, gdim), np.asarray(nodes, np.int64)))
     coords = np.concatenate([p[0] for p in parts])
     if not len(coords):
         raise SceneError(f"{where}: the boundary tagged {tag} has no facets in this mesh",
                          key=where)
-    return _canonical(coords, np.concatenate([p[1] for p in parts]),
-                      np.concatenate([p[2] for p in parts]))
+    return _canonical(coords, np.concatenate([p[1] for p in parts]))
 
 
 def slave_side(space, facet_tags, tag: int, where: str = "contact.boundary") -> SlaveSide:

@@ -248,11 +248,132 @@ def test_bad_pairing_requests_are_scene_errors():
         assert info.value.key == "contact.pairing"
 
 
-def test_three_dimensional_mortar_is_refused():
-    grid = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    surface = interface.Surface.from_arrays(grid[None], [[0, 1, 2]])
-    with pytest.raises(SceneError, match="2D interfaces") as info:
-        interface.mortar([0], surface, surface, 1.0)
+def square_grid(n, flip=False, first=0):
+    """The unit square z = 0 cut into n x n squares of two triangles each (diagonals one way
+    or the other), counter-clockwise seen from +z: (vertices, triangles with node numbers)."""
+    t = np.linspace(0.0, 1.0, n + 1)
+    points = np.array([[x, y, 0.0] for y in t for x in t])
+    triangles = []
+    for j in range(n):
+        for i in range(n):
+            a, b, c, d = (j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1,
+                          (j + 1) * (n + 1) + i)
+            triangles += [(a, b, d), (b, c, d)] if flip else [(a, b, c), (a, c, d)]
+    return points, np.array(triangles) + first
+
+
+def mortar_3d(slave_grid, master_grid, turn=np.eye(3), lift=0.0):
+    """Pi of a slave grid (normal -z) above a master grid (normal +z), both turned by `turn`."""
+    (xs, ts), (xm, tm) = slave_grid, master_grid
+    xs, xm = (xs + [0.0, 0.0, lift]) @ turn.T, xm @ turn.T
+    slave = interface.Surface.from_arrays(xs[ts[:, ::-1]], ts[:, ::-1])
+    master = interface.Surface.from_arrays(xm[tm - 1000], tm)
+    return xs, xm, interface.mortar(np.arange(len(xs)), slave, master, SEARCH)
+
+
+TURN = np.array([[0.6, 0.0, -0.8], [0.0, 1.0, 0.0], [0.8, 0.0, 0.6]])
+
+
+@pytest.mark.parametrize("turn", [np.eye(3), TURN], ids=["flat", "turned"])
+def test_mortar_3d_reproduces_constants_and_linear_fields(turn):
+    """A 5 x 5 slave grid against a 4 x 4 master grid with the other diagonals (a plane, turned
+    or not): rows sum to 1 and a linear field of the master is the field at the slave
+    nodes, to 1e-13."""
+    xs, xm, pi = mortar_3d(square_grid(5), square_grid(4, flip=True, first=1000), turn)
+    assert not pi.unpaired
+    ones = pi.apply(lambda k: 1.0)
+    assert max(abs(v - 1.0) for v in ones.values()) < 1e-13
+    field = lambda p: 1.0 + 2.0 * p[0] - 3.0 * p[1] + 0.7 * p[2]              # noqa: E731
+    image = pi.apply(lambda k: field(xm[k - 1000]))
+    assert max(abs(image[i] - field(xs[i])) for i in image) < 1e-13
+    assert len(pi.rows) > 3 * len(xs)
+
+
+def test_mortar_3d_matching_grids_give_the_identity_incidence():
+    xs, xm, pi = mortar_3d(square_grid(4), square_grid(4, first=1000), TURN)
+    entries = {key: v for key, v in pi.as_dict().items() if abs(v) > 1e-13}
+    assert set(entries) == {(i, 1000 + i) for i in range(len(xs))}
+    assert max(abs(v - 1.0) for v in entries.values()) < 1e-13
+
+
+def test_mortar_3d_weighted_gap_of_a_rigid_translation():
+    """The master grid moved by (a, b, c) in its plane and across it, Pi rebuilt: the gap
+    n . (x_i - sum_k Pi_ik x_k) of every slave node whose support the moved master covers
+    changes by exactly -(a, b, c) . n."""
+    shift = np.array([0.03, -0.02, 0.004])
+    normal = TURN @ [0.0, 0.0, 1.0]
+    xs, xm, before = mortar_3d(square_grid(5), square_grid(4, True, 1000), TURN, 0.01)
+    slave, master = square_grid(5), square_grid(4, True, 1000)
+    master = (master[0] + shift @ TURN, master[1])          # TURN^T shift: moved by shift
+    xs, xm_moved, after = mortar_3d(slave, master, TURN, 0.01)
+    assert np.allclose(xm_moved - xm, shift)
+    normals = {i: normal for i in range(len(xs))}
+    g0 = interface.weighted_gap(before, positions(xs), positions(xm, 1000), normals)
+    g1 = interface.weighted_gap(after, positions(xs), positions(xm_moved, 1000), normals)
+    h = 0.2
+    inner = [i for i, p in enumerate(square_grid(5)[0])
+             if p[0] - h >= 0.03 and p[1] + h <= 0.98]
+    assert len(inner) >= 12
+    assert max(abs(g0[i] - 0.01) for i in g0) < 1e-13
+    assert max(abs(g1[i] - g0[i] + shift @ normal) for i in inner) < 1e-13
+
+
+def _plain_mortar_3d(xs, ts, xm, tm, k):
+    """M_ik of 3D grids on z = 0 by the edge-midpoint rule on k x k sub-triangles of each slave
+    triangle (no clipping), the master triangle of a point found by its barycentrics."""
+    M = {}
+    slave_tri = ts[:, ::-1]
+    for tri in slave_tri:
+        A, B, C = xs[tri]
+        J = np.linalg.norm(np.cross(B - A, C - A))
+        for a in range(k):
+            for b in range(k - a):
+                cells = [((a, b), (a + 1, b), (a, b + 1))]
+                if a + b + 1 < k:
+                    cells.append(((a + 1, b), (a + 1, b + 1), (a, b + 1)))
+                for cell in cells:
+                    q = np.array(cell, float) / k
+                    for mid in (0.5 * (q[0] + q[1]), 0.5 * (q[1] + q[2]), 0.5 * (q[2] + q[0])):
+                        X = A + mid[0] * (B - A) + mid[1] * (C - A)
+                        N_s = (1.0 - mid[0] - mid[1], mid[0], mid[1])
+                        for mtri in tm:
+                            P = xm[mtri - 1000]
+                            l1, l2 = np.linalg.solve(np.stack([P[1, :2] - P[0, :2],
+                                                               P[2, :2] - P[0, :2]], axis=1),
+                                                     X[:2] - P[0, :2])
+                            if min(l1, l2, 1 - l1 - l2) >= -1e-15:
+                                break
+                        w = J * 0.5 / k ** 2 / 3.0
+                        for i, N_i in zip(tri, N_s):
+                            for kk, N in zip(mtri, (1 - l1 - l2, l1, l2)):
+                                M[(i, kk)] = M.get((i, kk), 0.0) + w * (4 * N_i - 1) * N
+    return M
+
+
+def test_mortar_3d_integrals_are_exact_where_plain_quadrature_converges():
+    """M of the clipped triangles against the edge-midpoint rule on 3, 5 and 9 subdivisions of
+    each slave triangle (3 x 3 slave against 2 x 2 master grids; odd counts, so that no
+    sub-triangle edge falls on a master edge): the plain rule's error, summed over M's
+    entries, falls about as k^-2 towards the clipped value."""
+    (xs, ts), (xm, tm) = square_grid(3), square_grid(2, True, 1000)
+    _, _, pi = mortar_3d((xs, ts), (xm, tm))
+    exact = {(int(i), int(k)): v for i, k, v in zip(pi.rows, pi.cols, pi.mortar)}
+
+    def error(k):
+        plain = _plain_mortar_3d(xs, ts, xm, tm, k)
+        return sum(abs(plain.get(key, 0.0) - exact.get(key, 0.0))
+                   for key in set(plain) | set(exact))
+
+    errors = [error(k) for k in (3, 5, 9)]
+    assert errors[0] > 1e-6, errors                      # the plain rule is not exact
+    assert errors[1] < errors[0] / 2 and errors[2] < errors[1] / 2.5, errors
+
+
+def test_mixed_traces_are_refused():
+    triangle = interface.Surface.from_arrays(np.eye(3)[None], [[0, 1, 2]])
+    segment = interface.Surface.from_arrays(np.eye(2)[None], [[0, 1]])
+    with pytest.raises(SceneError, match="both triangles") as info:
+        interface.mortar([0], segment, triangle, 1.0)
     assert info.value.key == "contact.pairing"
 
 
@@ -310,51 +431,70 @@ def test_two_block_mesh_with_matching_traces_gives_the_identity_incidence(method
         assert np.linalg.norm(at[k] - mine[i]) < 1e-13
 
 
-def _by_place(comm, method):
-    """Pi's entries keyed by the rounded places of the slave and master node, gathered."""
-    V, slave, master, pi = _mesh_pairing(comm, method)
-    at = {int(k): tuple(np.round(p, 12)) for k, p in
-          zip(np.concatenate([master.nodes.ravel(), slave.trace.nodes.ravel()]),
-              np.concatenate([master.coordinates.reshape(-1, 2),
-                              slave.trace.coordinates.reshape(-1, 2)]))}
-    mine = {(at[i], at[k]): v for (i, k), v in pi.as_dict().items()}
+def _box_pairing(comm, method):
+    """Pi of a slave box (4 x 4 cells across) on a master box (3 x 3), two meshes on comm."""
+    Vs, slave_tags = _box([0.0, 0.0, 0.0], [1.0, 1.0, 0.5], [4, 4, 1], comm)
+    Vm, master_tags = _box([0.0, 0.0, -0.5], [1.0, 1.0, 0.0], [3, 3, 1], comm)
+    slave = interface.slave_side(Vs, slave_tags, 1)
+    master = interface.boundary_surface(Vm, master_tags, 2)
+    return Vs, Vm, slave, master, interface.pair(slave, master, method, SEARCH)
+
+
+def _by_place(comm, method, d):
+    """Pi's entries keyed by the rounded places of the slave and master node, gathered, and
+    whether every rank owns slave nodes."""
+    if d == 2:
+        _, slave, master, pi = _mesh_pairing(comm, method)
+    else:
+        _, _, slave, master, pi = _box_pairing(comm, method)
+    at_slave, at_master = ({int(k): tuple(np.round(p, 12)) for k, p in
+                            zip(side.nodes.ravel(), side.coordinates.reshape(-1, d))}
+                           for side in (slave.trace, master))
+    mine = {(at_slave[i], at_master[k]): v for (i, k), v in pi.as_dict().items()}
     out = {}
     for part in comm.allgather(mine):
         assert not set(part) & set(out)                  # each slave row on one rank
         out.update(part)
-    return out
+    return out, comm.allreduce(len(slave.nodes) > 0, MPI.LAND)
 
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("d", [2, 3])
 @pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="compares a partitioned mesh with one "
                                                       "rank's; run on 2 ranks")
-def test_ranks_give_the_same_operator(method):
-    """Pi of the mesh split over the ranks, gathered, is Pi of the whole mesh on one rank."""
-    world = _by_place(MPI.COMM_WORLD, method)
-    alone = _by_place(MPI.COMM_SELF, method)
-    assert MPI.COMM_WORLD.allreduce(len(_mesh_pairing(MPI.COMM_WORLD, method)[1].nodes)
-                                    > 0, MPI.LAND)
+def test_ranks_give_the_same_operator(method, d):
+    """Pi of the meshes split over the ranks (every rank owning slave nodes), gathered, is Pi
+    of the whole meshes on one rank: the two-block mesh (2D), the two boxes (3D)."""
+    world, split = _by_place(MPI.COMM_WORLD, method, d)
+    alone, _ = _by_place(MPI.COMM_SELF, method, d)
+    assert split
     assert set(world) == set(alone)
     assert max(abs(world[key] - alone[key]) for key in alone) < 1e-14
+
+
+def _box(lower, upper, cells, comm=MPI.COMM_WORLD):
+    """A box of tetrahedra with its faces z = lower (tag 1) and z = upper (tag 2) tagged, and
+    its vector P1 space."""
+    from dolfinx import mesh as dmesh
+
+    from contactvisco.fem import compat
+    box = dmesh.create_box(comm, [np.array(lower, float), np.array(upper, float)], cells,
+                           dmesh.CellType.tetrahedron)
+    found = [dmesh.locate_entities_boundary(box, 2, lambda x, z=z: np.isclose(x[2], z))
+             for z in (lower[2], upper[2])]
+    indices = np.concatenate(found)
+    values = np.concatenate([np.full(len(f), tag, np.int32) for f, tag in zip(found, (1, 2))])
+    order = np.argsort(indices)
+    return compat.vector_space(box, "CG", 1), dmesh.meshtags(box, 2, indices[order],
+                                                             values[order])
 
 
 def test_box_faces_are_gathered_with_outward_normals():
     """3D: the top and bottom faces of a 3 x 3 x 3 box of tetrahedra, gathered on every rank
     (18 triangles each), have outward normals +z and -z whatever the partition, and
     node_to_segment of points above the top face reproduces a linear field at their foot."""
-    from dolfinx import mesh as dmesh
-
-    from contactvisco.fem import compat
-    box = dmesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.ones(3)], [3, 3, 3],
-                           dmesh.CellType.tetrahedron)
-    found = [dmesh.locate_entities_boundary(box, 2, lambda x, z=z: np.isclose(x[2], z))
-             for z in (0.0, 1.0)]
-    indices = np.concatenate(found)
-    values = np.concatenate([np.full(len(f), tag, np.int32) for f, tag in zip(found, (1, 2))])
-    order = np.argsort(indices)
-    tags = dmesh.meshtags(box, 2, indices[order], values[order])
-    V = compat.vector_space(box, "CG", 1)
+    V, tags = _box([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [3, 3, 3])
     bottom, top = (interface.boundary_surface(V, tags, tag) for tag in (1, 2))
     assert len(top.nodes) == len(bottom.nodes) == 18
     assert np.allclose(top.normals, [0.0, 0.0, 1.0])
@@ -367,3 +507,29 @@ def test_box_faces_are_gathered_with_outward_normals():
     field = lambda p: 1.0 + p[0] - 2.0 * p[1] + 0.5 * p[2]                 # noqa: E731
     image = pi.apply(lambda k: field(at[k]))
     assert max(abs(image[i] - field(points[i] - [0.0, 0.0, 0.01])) for i in image) < 1e-13
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_two_box_meshes_reproduce_a_linear_field_through_the_petsc_matrix(method):
+    """3D, two meshes: a slave box (4 x 4 cells across) on a master box (3 x 3), each
+    partitioned over the ranks; Pi (x) I_3 from the master's P1 dofs to the slave's, applied
+    to a linear field of the master, gives the field at every owned slave node of the
+    interface z = 0."""
+    from dolfinx import fem
+
+    from contactvisco.fem import compat
+    Vs, Vm, slave, master, pi = _box_pairing(MPI.COMM_WORLD, method)
+    assert not pi.unpaired
+    assert MPI.COMM_WORLD.allreduce(len(slave.nodes)) == 25
+    field = lambda x: np.stack([1.0 + x[0] - x[1], 2.0 * x[1] + 0.5 * x[0],     # noqa: E731
+                                -1.0 + 3.0 * x[0] + x[2]])
+    u = fem.Function(Vm)
+    u.interpolate(field)
+    A = pi.matrix(MPI.COMM_WORLD, interface.index_sizes(Vs), interface.index_sizes(Vm), 3)
+    image = fem.Function(Vs)              # kept alive: its PETSc vector wraps its memory
+    y = compat.petsc_vector(image)
+    A.mult(compat.petsc_vector(u), y)
+    start = Vs.dofmap.index_map.local_range[0]
+    values = y.getArray().reshape(-1, 3)[slave.nodes - start]
+    if len(values):
+        assert np.max(np.abs(values - field(slave.coordinates.T).T)) < 1e-13
