@@ -7,14 +7,16 @@ Two pairings build Pi:
 
 - node_to_segment: Pi_ik = N_k(p_i), N_k the master's P1 shape functions at the closest point
   p_i of slave node i on the master facets (2D segments, 3D triangles);
-- mortar (2D): Pi = D^-1 M with D_i = int_{Gamma_s} N_i ds (the slave vertex weights) and
+- mortar: Pi = D^-1 M with D_i = int_{Gamma_s} N_i ds (the slave vertex weights) and
   M_ik = int_{Gamma_s} Phi_i (N_k^m o chi) ds, Phi_i the dual basis of the slave trace
-  (Phi_1 = 2 N_1 - N_2, Phi_2 = 2 N_2 - N_1 on a segment, biorthogonal: int Phi_i N_j =
-  delta_ij int N_j; Wohlmuth, SIAM J. Numer. Anal. 38 (2000) 989; Popp, Gee & Wall, IJNME 79
-  (2009) 1354). chi maps a point of a slave segment to the master segment above it along the
-  slave segment's normal, an affine map on each piece of the segment cut at the projections
-  of the master nodes; on each piece Phi_i and N_k^m o chi are linear, so two Gauss points
-  per piece integrate M exactly.
+  (Phi_1 = 2 N_1 - N_2, Phi_2 = 2 N_2 - N_1 on a segment, Phi_i = 4 N_i - 1 on a triangle;
+  biorthogonal: int Phi_i N_j = delta_ij int N_j; Wohlmuth, SIAM J. Numer. Anal. 38 (2000)
+  989; Popp, Gee & Wall, IJNME 79 (2009) 1354). chi maps a point of a slave facet to the
+  master facet in front of it along the slave facet's normal, an affine map on each piece of
+  the slave facet cut at the projected master facets (2D: at the projections of the master
+  nodes; 3D: projected master triangles clipped by the slave triangle, Puso & Laursen, CMAME
+  193 (2004) 601); on each piece Phi_i and N_k^m o chi are linear and a rule exact for their
+  product integrates M exactly.
 
 Both boundaries' facets are gathered on every rank (O(N^((d-1)/d)) numbers for N nodes in d
 dimensions); each rank computes the rows of the slave nodes it owns. Nothing of the solver
@@ -648,9 +650,9 @@ def _vertex_dofs(space) -> tuple[np.ndarray, np.ndarray]:
 
 def boundary_surface(space, facet_tags, tag: int, where: str = "contact.boundary") -> Surface:
     """The facets of a tagged boundary, gathered on every rank (allgather of each rank's
-    owned facets: d vertex coordinates, global P1 nodes and the outward normal per facet,
-    O(N^((d-1)/d)) numbers for N nodes), ordered by centroid and oriented outward (see
-    Surface).
+    owned facets: d vertex coordinates and d global P1 nodes per facet, O(N^((d-1)/d))
+    numbers for N nodes), each facet's vertices ordered so that its normal points out of its
+    cell, the facets ordered by centroid (see Surface).
 
     Parameters
     ----------
@@ -745,7 +747,7 @@ def pair(slave: SlaveSide, master: Surface, method: str, search_distance: float,
     master : Surface
         The master facets (`boundary_surface`).
     method : str
-        "node_to_segment" (Pi_ik = N_k(p_i)) or "mortar" (Pi = D^-1 M, 2D).
+        "node_to_segment" (Pi_ik = N_k(p_i)) or "mortar" (Pi = D^-1 M).
     search_distance : float
         The largest distance at which a slave node (or piece of slave segment) is paired.
     where : str, optional
