@@ -534,15 +534,17 @@ def _mortar_triangles(wanted, weights, entries, slave, master, search_distance):
         if not len(V):
             continue
         # Affine coordinates of the master vertices' projections onto the slave plane.
-        local = np.linalg.solve(E.T @ E, np.einsum("gk,mvg->mkv", E, V - A)).transpose(0, 2, 1)
+        local = (V - A) @ (np.linalg.inv(E.T @ E) @ E.T).T      # (masters, 3 vertices, 2)
         facing = master.normals @ n_s < 0.0
         near = ((local[..., 0].max(axis=1) > 0) & (local[..., 1].max(axis=1) > 0)
                 & (local.sum(axis=2).min(axis=1) < 1))
         for m in np.flatnonzero(facing & near):
             p0, p1, p2 = local[m]
-            F = np.stack([p1 - p0, p2 - p0], axis=1)           # master barycentrics: F^-1
-            if abs(np.linalg.det(F)) <= 1e-14:
+            (a, b), (c, d) = p1 - p0, p2 - p0                  # F = [[a, c], [b, d]]
+            det = a * d - b * c
+            if abs(det) <= 1e-14:
                 continue
+            F_inv = np.array([[d, -c], [-b, a]]) / det          # master barycentrics
             polygon = [p0, p1, p2]
             for half in _REFERENCE:
                 polygon = _clip(polygon, half)
@@ -551,28 +553,30 @@ def _mortar_triangles(wanted, weights, entries, slave, master, search_distance):
             if len(polygon) < 3:
                 continue
             polygon = np.array(polygon)
-            lam = np.linalg.solve(F, (polygon - p0).T).T       # (points, 2)
+            lam = (polygon - p0) @ F_inv.T                     # (points, 2)
             images = (V[m, 0] + lam[:, :1] * (V[m, 1] - V[m, 0])
                       + lam[:, 1:] * (V[m, 2] - V[m, 0]))
             gaps = np.linalg.norm(images - (A + polygon @ E.T), axis=1)
             if gaps.min() > search_distance:
                 continue
-            master_nodes = [int(k) for k in master.nodes[m]]
-            for j in range(1, len(polygon) - 1):
-                q0, q1, q2 = polygon[0], polygon[j], polygon[j + 1]
-                area = 0.5 * abs((q1[0] - q0[0]) * (q2[1] - q0[1])
-                                 - (q1[1] - q0[1]) * (q2[0] - q0[0]))
-                if area <= _SLIVER:
-                    continue
-                for q in (0.5 * (q0 + q1), 0.5 * (q1 + q2), 0.5 * (q2 + q0)):
-                    w = jacobian * area / 3.0
-                    N_s = (1.0 - q[0] - q[1], q[0], q[1])
-                    l1, l2 = np.linalg.solve(F, q - p0)
-                    N_m = (1.0 - l1 - l2, l1, l2)
-                    for r, j_s in rows:
-                        phi = 4.0 * N_s[j_s] - 1.0
-                        for k, N in zip(master_nodes, N_m):
-                            _add(entries, (r, k), w * phi * N)
+            # The polygon cut into triangles (q0, q1, q2) from its first vertex; the rule: the
+            # three edge midpoints, weight area / 3 each.
+            q0, q1, q2 = polygon[0], polygon[1:-1], polygon[2:]
+            area = 0.5 * np.abs((q1[:, 0] - q0[0]) * (q2[:, 1] - q0[1])
+                                - (q1[:, 1] - q0[1]) * (q2[:, 0] - q0[0]))
+            keep = area > _SLIVER
+            if not keep.any():
+                continue
+            q1, q2, area = q1[keep], q2[keep], area[keep]
+            points = np.concatenate([0.5 * (q0 + q1), 0.5 * (q1 + q2), 0.5 * (q2 + q0)])
+            w = np.concatenate([jacobian * area / 3.0] * 3)
+            N_s = np.stack([1.0 - points[:, 0] - points[:, 1], points[:, 0], points[:, 1]], 1)
+            lam = (points - p0) @ F_inv.T
+            N_m = np.stack([1.0 - lam[:, 0] - lam[:, 1], lam[:, 0], lam[:, 1]], axis=1)
+            block = np.einsum("q,qi,qk->ik", w, 4.0 * N_s - 1.0, N_m)
+            for r, j_s in rows:
+                for k, value in zip(master.nodes[m], block[j_s]):
+                    _add(entries, (r, int(k)), float(value))
 
 
 def weighted_gap(pairing: Pairing, slave_points: dict, master_points: dict,
