@@ -474,8 +474,9 @@ class FractionalHistory:
     strains (product integration: the kernel is integrated exactly, R(0) never evaluated).
 
     Last step [t_n, t_{n+1}], exactly (sigma = t_{n+1} - s):
-        trapezoid (and exponential, the same product integration): alpha k^(1-beta) ((1-beta) P eps_n + P eps_{n+1}) / Gamma(3 - beta)
-                   (eps_{n+1} implicit, see implicit());
+        trapezoid: alpha k^(1-beta) ((1-beta) P eps_n + P eps_{n+1}) / Gamma(3 - beta)
+                   (eps_{n+1} implicit, see implicit()); rule = "exponential" is the same
+                   product integration;
         paper:     alpha k^(1-beta) / Gamma(2 - beta) P eps_n (eps frozen at the left point,
                    explicit, as the paper's rule).
     Older steps, sigma >= k: r ~ sum_j w_j exp(-s_j sigma) (a fit with the stated relative
