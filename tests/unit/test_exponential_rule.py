@@ -246,3 +246,18 @@ def test_kernels_refused_and_fractional_accepted():
     _, trapezoid = rl.block_stress(raw)
     assert np.array_equal(exponential, trapezoid)
     assert np.abs(exponential[-1]).max() > 0
+
+
+def test_paper_scene_constant_kernel_is_the_trapezoid_rule():
+    """The paper's scene (contact, friction, R = alpha I, tau = inf): w0 = w1 = k/2, so the
+    exponential rule is the trapezoid rule, to round-off, through the whole time loop."""
+    from contactvisco.solver.time_loop import simulate
+    runs = {}
+    for rule in ("exponential", "trapezoid"):
+        scene = loader.load("paper", ["geometry.cells=[8, 8]", "time.steps=5",
+                                      f"time.rule='{rule}'"])
+        result = simulate(scene, progress=False)
+        runs[rule] = np.array([[p["u"] for p in s["probes"]] for s in result.steps])
+    assert np.abs(runs["exponential"] - runs["trapezoid"]).max() \
+        <= 1e-12 * np.abs(runs["trapezoid"]).max()
+    assert np.abs(runs["trapezoid"][-1] - runs["trapezoid"][1]).max() > 1e-3
