@@ -792,8 +792,8 @@ class Time(Table):
                   "steps",
                   f"time.steps = {steps}: the paper's time rule is unstable here (b = "
                   f"k R(0) (1 + nu) / E = {b:.3g} >= 1, the solution grows without bound); use "
-                  f"time.steps > {steps_for_stability(steps, b)}, time.rule = 'trapezoid', "
-                  "or set time.allow_unstable = true to run it anyway")
+                  f"time.steps > {steps_for_stability(steps, b)}, time.rule = 'trapezoid' or "
+                  "'exponential', or set time.allow_unstable = true to run it anyway")
         self._exponential_rule(scene)
 
     def _exponential_rule(self, scene) -> None:
