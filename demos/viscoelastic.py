@@ -69,9 +69,10 @@ print(prony_csv.read_text())
 # **The time rule.** The fastest term has $\tau_1 = 10^{-5}$ s, so $|\mathcal{R}(0)| =
 # \sum_i E_i/\tau_i \approx 5 \cdot 10^7$ MPa/s: the trapezoid rule's stiffness $E(0) +
 # k/2\,\mathcal{R}(0)$ stays positive only for $k < 6 \cdot 10^{-5}$ s, and the paper's rule
-# is unstable beyond about the same step. `time.rule = "exponential"` integrates each term
-# exactly against the strain taken linear over the step: its stiffness stays between
-# $E_\infty$ and $E(0)$ for every step, and the run takes steps of seconds.
+# is stable only for $k < 10^{-5}$ s (its check $b = k |\mathcal{R}(0)| (1 + \nu)/E < 1$).
+# `time.rule = "exponential"` integrates each term exactly against the strain taken linear
+# over the step: its stiffness stays between $E_\infty$ and $E(0)$ for every step, and the
+# run takes steps of seconds.
 
 # %%
 text = f"""name = "asphalt_on_a_base"
