@@ -21,7 +21,21 @@ H_{n+1} = sum_i alpha_i B_i,n + k/2 R(0) eps_{n+1}. The last term is implicit an
 left-hand side (see :func:`implicit_weights`); :meth:`History.advance` returns the rest.
 For the scalar analogue m u' = -alpha u with b = alpha k / m, the paper's rule is forward Euler
 for the first step and then the two-step Adams-Bashforth method, stable for b < 1. The
-trapezoid rule is the Crank-Nicolson method, stable for every b.
+trapezoid rule is the Crank-Nicolson method, stable for every b; its implicit stiffness
+A + k/2 R(0) stays positive only for k < 2A/|R(0)|.
+
+rule = "exponential" integrates each exponential term exactly against the strain taken linear
+over each step (the recursive algorithm of Taylor, Pister & Goudreau, IJNME 2 (1970) 45;
+Simo & Hughes, Computational Inelasticity (1998) ch. 10). With S_i,n = int_0^{t_n}
+exp(-(t_n - s)/tau_i) e_i(s) ds and z = k/tau_i (:func:`exponential_weights`):
+
+    S_i,n+1 = d_i S_i,n + w0_i e_n + w1_i e_{n+1},
+    w0 = tau^2 (1 - d)/k - tau d = k phi2(z),   w1 = tau (1 - d) - w0 = k (phi1 - phi2)(z),
+
+H_{n+1} = sum_i alpha_i S_i,n+1, whose w1 term is implicit. alpha w1 -> alpha k/2 (the
+trapezoid) for k << tau and -> alpha tau = -G_i for k >> tau: the step's stiffness
+A + sum_i alpha_i w1_i stays >= the long-term modulus for every k; second order, and exact
+for a piecewise-linear strain. tau = inf gives w0 = w1 = k/2, the trapezoid rule.
 
 A general kernel (a table of R(t)) has no recursion. :class:`DirectHistory` sums eq (19)
 directly, at O(n) work and memory per step.
@@ -40,6 +54,67 @@ import math
 import numpy as np
 
 PARTS = ("full", "deviatoric", "volumetric")
+
+#: time.rule: eq (19) as printed, the trapezoid rule on the last sub-interval, and each
+#: exponential integrated exactly against the strain taken linear over each step.
+RULES = ("paper", "trapezoid", "exponential")
+
+#: Below this z = k/tau, phi1 and phi2 are summed as their Taylor series (the closed forms
+#: cancel: 1 - e^-z (1 + z) ~ z^2/2).
+SERIES_BELOW = 0.1
+
+
+def _phi_exact(z):
+    """phi1 = (1 - e^-z)/z and phi2 = (1 - e^-z (1 + z))/z^2 for z >= 0 (arrays), to round-off:
+    Taylor series phi1 = sum_n (-z)^n/(n+1)!, phi2 = sum_n (n+1) (-z)^n/(n+2)! (14 terms,
+    truncation below 1e-20) under SERIES_BELOW, the closed forms (expm1) above."""
+    z = np.asarray(z, float)
+    small = z < SERIES_BELOW
+    zs = np.where(small, 1.0, z)
+    phi1 = -np.expm1(-zs) / zs
+    phi2 = (-np.expm1(-zs) - zs * np.exp(-zs)) / zs**2
+    if np.any(small):
+        s1 = np.zeros_like(z)
+        s2 = np.zeros_like(z)
+        for n in range(13, -1, -1):                       # Horner in -z
+            s1 = s1 * -z + 1.0 / math.factorial(n + 1)
+            s2 = s2 * -z + (n + 1) / math.factorial(n + 2)
+        phi1 = np.where(small, s1, phi1)
+        phi2 = np.where(small, s2, phi2)
+    return phi1, phi2
+
+
+def exponential_weights(k, tau: float):
+    """The weights of one step of the exponential rule for the term exp(-t/tau).
+
+    For e linear on [t_n, t_n + k] (sigma = t_{n+1} - s),
+    int_0^k exp(-sigma/tau) e(s) dsigma = w0 e_n + w1 e_{n+1} with, z = k/tau, d = exp(-z),
+
+        w0 = tau^2 (1 - d)/k - tau d = k phi2(z),     w1 = tau (1 - d) - w0 = k (phi1 - phi2)(z),
+        phi1 = (1 - e^-z)/z,   phi2 = (1 - e^-z (1 + z))/z^2,
+
+    evaluated without cancellation for small z (series). w1 -> k/2 for z -> 0 and -> tau for
+    z -> inf; tau = inf gives d = 1, w0 = w1 = k/2 (the trapezoid rule).
+
+    Parameters
+    ----------
+    k : float or numpy.ndarray
+        The step (or the reduced-time increments, one per point), >= 0.
+    tau : float
+        The relaxation time, > 0 (inf: the constant kernel).
+
+    Returns
+    -------
+    tuple
+        (d, w0, w1), numbers for a number k, else arrays shaped like k.
+    """
+    array = isinstance(k, np.ndarray)
+    z = np.asarray(k, float) / tau
+    phi1, phi2 = _phi_exact(z)
+    d, w0, w1 = np.exp(-z), k * phi2, k * (phi1 - phi2)
+    if array:
+        return d, w0, w1
+    return float(d), float(w0), float(w1)
 
 
 def project(eps: np.ndarray, part: str, d: int) -> np.ndarray:
@@ -64,6 +139,14 @@ class History:
     with c = 1 for the paper's rule (left point on the last sub-interval) and c = 1/2 for the
     trapezoid rule, whose remaining k/2 R(0) eps_{n+1} is implicit. For uniform steps this is
     eq (19) term by term; each call is O(1) in the number of steps.
+
+    rule = "exponential" keeps instead S_i,n, each term integrated exactly against the
+    piecewise-linear strain (:func:`exponential_weights`):
+
+        S_{n+1} = d S_n + w0 e_n + w1 e_{n+1}                      (commit)
+        H_{n+1} = sum_i alpha_i (d_i S_i,n + w0_i e_i,n)           (explicit)
+
+    and sum_i alpha_i w1_i P_i eps_{n+1} is implicit.
     """
 
     def __init__(self, terms, k: float = None, rule: str = "paper", d: int = 2):
@@ -80,6 +163,11 @@ class History:
             self.sums = [np.zeros_like(eps) for _ in self.terms]
         else:
             for total, (_, tau, part) in zip(self.sums, self.terms):
+                if self.rule == "exponential":
+                    dec, w0, w1 = exponential_weights(k, tau)
+                    total *= dec
+                    total += w0 * self.last[part] + w1 * parts[part]
+                    continue
                 dec = _decay(k, tau)                  # 1 if tau = inf
                 total *= dec
                 total += (0.5 * k * dec) * self.last[part] + (0.5 * k) * parts[part]
@@ -91,6 +179,10 @@ class History:
         c = 1.0 if self.rule == "paper" else 0.5
         out = np.zeros_like(self.sums[0])
         for (a, tau, part), total in zip(self.terms, self.sums):
+            if self.rule == "exponential":
+                dec, w0, _ = exponential_weights(k, tau)
+                out += (a * dec) * total + (a * w0) * self.last[part]
+                continue
             dec = _decay(k, tau)
             out += (a * dec) * total + (a * c * k * dec) * self.last[part]
         return out
@@ -101,7 +193,13 @@ class History:
         return self.explicit(self.k)
 
     def implicit(self, k: float) -> dict[str, float]:
-        """Per part, the weight of P eps_{n+1} in H_{n+1}: k/2 R(0) (trapezoid rule)."""
+        """Per part, the weight of P eps_{n+1} in H_{n+1}: k/2 R(0) (trapezoid rule),
+        sum_i alpha_i w1_i (exponential rule; arrays for an array of increments k)."""
+        if self.rule == "exponential":
+            out: dict = {}
+            for a, tau, part in self.terms:
+                out[part] = out.get(part, 0.0) + a * exponential_weights(k, tau)[2]
+            return out
         return {part: 0.5 * k * R0 for part, R0 in implicit_weights(self.terms,
                                                                      self.rule).items()}
 
@@ -170,8 +268,11 @@ class ReducedTimeHistory:
         key = (k, self._version)
         if getattr(self, "_cached", None) is None or self._cached[0] != key:
             dxi = self.increment(k)[:, None]
-            decays = [None if math.isinf(tau) else np.exp(-dxi / tau)
-                      for _, tau, _ in self.history.terms]
+            if self.rule == "exponential":           # (d, w0, w1) per term and point
+                decays = [exponential_weights(dxi, tau) for _, tau, _ in self.history.terms]
+            else:
+                decays = [None if math.isinf(tau) else np.exp(-dxi / tau)
+                          for _, tau, _ in self.history.terms]
             self._cached = (key, dxi, decays)
         return self._cached[1], self._cached[2]
 
@@ -182,6 +283,8 @@ class ReducedTimeHistory:
         if k is None:
             h.commit(eps, None)
             self.reduced_time = np.zeros_like(self.staged)
+        elif self.rule == "exponential":
+            self._commit_exponential(eps, k)
         else:
             dxi, decays = self._factors(k)
             half = 0.5 * dxi
@@ -200,11 +303,33 @@ class ReducedTimeHistory:
             self.reduced_time = self.reduced_time + dxi[:, 0]
         self.committed = self.staged.copy()
 
+    def _commit_exponential(self, eps: np.ndarray, k: float):
+        """The exponential rule's commit in reduced time: S_{n+1} = d S_n + w0 e_n + w1 e_{n+1}
+        per point, with the weights of :func:`exponential_weights` at dxi."""
+        h, block = self.history, self.block
+        dxi, weights = self._factors(k)
+        parts = {part: project(eps, part, h.d).reshape(-1, block)
+                 for part in {part for _, _, part in h.terms}}
+        for total, (_, _, part), (dec, w0, w1) in zip(h.sums, h.terms, weights):
+            total = total.reshape(-1, block)              # a view: updated in place
+            total *= dec
+            total += w0 * h.last[part].reshape(-1, block)
+            total += w1 * parts[part]
+        h.last = {part: value.reshape(-1).copy() for part, value in parts.items()}
+        self.reduced_time = self.reduced_time + dxi[:, 0]
+
     def explicit(self, k: float) -> np.ndarray:
         """The history stress (explicit part) of a step of size k to the staged time:
-        sum_i alpha_i (d_i P_i,n + c dxi d_i e_i,n), c = 1 (paper's rule) or 1/2."""
+        sum_i alpha_i (d_i P_i,n + c dxi d_i e_i,n), c = 1 (paper's rule) or 1/2;
+        sum_i alpha_i (d_i S_i,n + w0_i e_i,n) for the exponential rule."""
         h, block = self.history, self.block
         dxi, decays = self._factors(k)
+        if self.rule == "exponential":
+            out = np.zeros((h.sums[0].size // block, block))
+            for (a, _, part), total, (dec, w0, _) in zip(h.terms, h.sums, decays):
+                out += a * (dec * total.reshape(-1, block)
+                            + w0 * h.last[part].reshape(-1, block))
+            return out.reshape(-1)
         c = 1.0 if h.rule == "paper" else 0.5
         out = np.zeros((h.sums[0].size // block, block))
         last = {part: (c * dxi) * h.last[part].reshape(-1, block)
@@ -215,8 +340,8 @@ class ReducedTimeHistory:
         return out.reshape(-1)
 
     def implicit(self, k: float) -> dict:
-        """Per part, the weight dxi/2 R(0) per point (trapezoid rule; a number 0 before a
-        step is prepared)."""
+        """Per part, the weight dxi/2 R(0) per point (trapezoid rule), sum_i alpha_i w1_i(dxi)
+        (exponential rule); a number 0 before a step is prepared."""
         if self.committed is None or self.staged is None:
             return self.history.implicit(0.0)
         return self.history.implicit(self.increment(k))
@@ -350,7 +475,8 @@ class FractionalHistory:
 
     Last step [t_n, t_{n+1}], exactly (sigma = t_{n+1} - s):
         trapezoid: alpha k^(1-beta) ((1-beta) P eps_n + P eps_{n+1}) / Gamma(3 - beta)
-                   (eps_{n+1} implicit, see implicit());
+                   (eps_{n+1} implicit, see implicit()); rule = "exponential" is the same
+                   product integration;
         paper:     alpha k^(1-beta) / Gamma(2 - beta) P eps_n (eps frozen at the left point,
                    explicit, as the paper's rule).
     Older steps, sigma >= k: r ~ sum_j w_j exp(-s_j sigma) (a fit with the stated relative
@@ -396,7 +522,7 @@ class FractionalHistory:
         return decay @ self.sums + self._last_weights(k)[0] * self.last
 
     def implicit(self, k: float) -> dict[str, float]:
-        return {self.part: self._last_weights(k)[1]} if self.rule == "trapezoid" else {}
+        return {self.part: self._last_weights(k)[1]} if self.rule != "paper" else {}
 
     def advance(self, eps: np.ndarray) -> np.ndarray:
         self.commit(eps, None if self.sums is None else self.k)

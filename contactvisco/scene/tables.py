@@ -17,7 +17,7 @@ import numpy as np
 
 from contactvisco.errors import SceneError
 from contactvisco.model.material import LAWS, dimension
-from contactvisco.model.memory import PARTS
+from contactvisco.model.memory import PARTS, RULES
 from contactvisco.model.memory_kernel import as_list
 from contactvisco.scene.viscoelastic_table import Viscoelastic
 from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
@@ -776,7 +776,7 @@ class Time(Table):
     KEYS = {
         "T": Key(1.0, lambda x: finite(x) and x > 0, "> 0"),
         "steps": Key(10, lambda x: integer(x) and x >= 1, "an integer >= 1"),
-        "rule": choice("paper", "paper", "trapezoid"),
+        "rule": choice("paper", *RULES),
         "allow_unstable": Key(False, boolean, "true or false"),
     }
 
@@ -792,8 +792,27 @@ class Time(Table):
                   "steps",
                   f"time.steps = {steps}: the paper's time rule is unstable here (b = "
                   f"k R(0) (1 + nu) / E = {b:.3g} >= 1, the solution grows without bound); use "
-                  f"time.steps > {steps_for_stability(steps, b)}, time.rule = 'trapezoid', "
-                  "or set time.allow_unstable = true to run it anyway")
+                  f"time.steps > {steps_for_stability(steps, b)}, time.rule = 'trapezoid' or "
+                  "'exponential', or set time.allow_unstable = true to run it anyway")
+        self._exponential_rule(scene)
+
+    def _exponential_rule(self, scene) -> None:
+        """time.rule = 'exponential' integrates each exponential of the kernel exactly: a
+        kernel that is no sum of exponentials (a table, the power kernel summed directly) has
+        none to integrate; the fractional kernel's product integration is that rule already."""
+        if self["rule"] != "exponential":
+            return
+        memory = scene["memory"]
+        kernel = memory["kernel"]
+        self.need(kernel != "table", "rule",
+                  "time.rule = 'exponential' integrates each exponential term of the kernel "
+                  "exactly over a step; memory.kernel = 'table' has no exponential terms (its "
+                  "R(t) is summed directly): use time.rule = 'trapezoid' or 'paper'")
+        self.need(kernel != "power" or memory["summation"] != "direct", "rule",
+                  "time.rule = 'exponential' integrates each exponential term of the kernel "
+                  "exactly over a step; memory.summation = 'direct' sums the power kernel "
+                  "itself: use memory.summation = 'soe' (the kernel as a sum of exponentials) "
+                  "or time.rule = 'trapezoid'")
 
 
 class Discretization(Table):

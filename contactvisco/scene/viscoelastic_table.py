@@ -108,7 +108,9 @@ class Viscoelastic(Table):
                       + (" (in reduced time, k / a_T)" if theta is not None else "")
                       + f" makes the {part} stiffness of the trapezoid rule, A + k/2 R(0) = "
                       f"{A[part]:.4g} - {k / 2 * -r:.4g}, <= 0 (the relaxation terms are too "
-                      f"fast for the step); take k < {k_max:.4g} (more time steps)")
+                      f"fast for the step); take k < {k_max:.4g} (more time steps), or "
+                      "time.rule = 'exponential' (each term integrated exactly over the step: "
+                      "the stiffness stays >= the long-term modulus for every k)")
 
     def _shift_rules(self, scene) -> None:
         shift = self["shift"]

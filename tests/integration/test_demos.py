@@ -2,6 +2,7 @@
 environment) without error, at the small sizes CONTACTVISCO_QUICK selects, and the paper demo
 prints the paper's zone counts."""
 import os
+import shutil
 
 import pytest
 from mpi4py import MPI
@@ -22,6 +23,7 @@ SLOW = ("block3d", "paper", "creep_indentation", "cattaneo_mindlin")
                                   else d for d in DEMOS], ids=[d.stem for d in DEMOS])
 def test_demo_runs_as_notebook(demo, tmp_path, monkeypatch):
     monkeypatch.setitem(os.environ, "CONTACTVISCO_QUICK", "1")   # the kernel inherits it
+    shutil.copytree(ROOT / "demos" / "data", tmp_path / "data")   # the files beside the demos
     jupytext = pytest.importorskip("jupytext")
     nbclient = pytest.importorskip("nbclient")
     notebook = jupytext.read(demo)

@@ -146,7 +146,7 @@ SCENE_ERRORS = [  # (scene, overrides, words)
     ("paper", ["time.T=0"], "time.T must be > 0"),
     ("paper", ["time.steps=0"], "time.steps must be an integer >= 1"),
     ("paper", ["time.steps=2.5"], "time.steps must be an integer >= 1, got 2.5"),
-    ("paper", ["time.rule='euler'"], "time.rule must be paper or trapezoid"),
+    ("paper", ["time.rule='euler'"], "time.rule must be paper, trapezoid or exponential"),
     ("paper", ["contact.stifness=1"], "did you mean 'stiffness'"),
     ("paper", ["materials.E=1"], "no scene key 'materials'"),
     ("paper", ["geometry.cells=3"], "geometry.cells must be a list, got 3"),

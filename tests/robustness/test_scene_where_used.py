@@ -27,7 +27,7 @@ def small(name="paper", **overrides):
 # ---- a scene changed in Python after load_scene ----
 
 CHANGES = [
-    ("time", "rule", "trapeziod", "time.rule must be paper or trapezoid"),
+    ("time", "rule", "trapeziod", "time.rule must be paper, trapezoid or exponential"),
     ("material", "model", "plane_strian", "material.model must be plane_stress"),
     ("memory", "kernel", "exponentail", "memory.kernel must be none, constant"),
     ("discretization", "contact_quadrature", "gaus", "contact_quadrature must be nodal or"),
