@@ -295,13 +295,9 @@ def test_cattaneo_mindlin_through_a_force_controlled_plane():
     """The half cylinder (nu = 0.49, top clamped) loaded through a plane obstacle under force
     control in both components: P, then Q ~ 0.44 mu P with P held (Coulomb friction, slip per
     step). The stick zone's half-width is Cattaneo-Mindlin's c = a sqrt(1 - Q / (mu P)) within
-    8 % of a (measured 6.9 % at a/h = 11, as the same load through the clamped top), the
-    recorded forces are the prescribed ones, and the same obstacle moved by the displacements
-    force control found gives the same contact and stick/slip states, the pressures within
-    1e-6 after the normal step (measured 1.3e-8) and the tractions within 1e-3 of the peak
-    pressure after the pull (measured 1.4e-4). Both states solve the discrete equations to
-    1e-13; with friction they are not the same solution to round-off, as they are without
-    (test_force_control_gives_the_displacement_controlled_state)."""
+    8 % of a (measured 6.9 % at a/h = 11, as the same load through the clamped top), and the
+    recorded forces are the prescribed ones (the displacement-controlled run along the same
+    path: test_force_control_with_friction_gives_the_displacement_controlled_state)."""
     from contactvisco.studies.coulomb import cattaneo_mindlin, cattaneo_obstacle_scene
     P, Q = 0.632, 0.0839
     raw = cattaneo_obstacle_scene(0.005, P, Q)
@@ -313,18 +309,59 @@ def test_cattaneo_mindlin_through_a_force_controlled_plane():
     half, end = (forced.steps[i]["obstacle"] for i in (1, 2))
     for record, t in ((half, 0.5), (end, 1.0)):
         assert np.allclose(record["force"], [Q * max(2 * t - 1, 0), P], rtol=0, atol=1e-9 * P)
-    moves = [f"conditional(t <= 0.5, {a!r} * 2 * t, {a!r} + ({b!r} - {a!r}) * (2 * t - 1))"
-             for a, b in zip(half["displacement"], end["displacement"])]
+
+
+def piecewise_linear(times, values) -> str:
+    """The expression in t of the function linear between the points (times[i], values[i]),
+    on each interval (v0 (t1 - t) + v1 (t - t0)) / (t1 - t0), which is v1 at t1 to round-off;
+    constant after the last point."""
+    times, values = [float(t) for t in times], [float(v) for v in values]
+    text = repr(values[-1])
+    points = list(zip(times, values))
+    for (t0, v0), (t1, v1) in reversed(list(zip(points, points[1:]))):
+        text = (f"conditional(t <= {t1!r}, ({v0!r} * ({t1!r} - t) + {v1!r} * (t - {t0!r})) "
+                f"/ {t1 - t0!r}, {text})")
+    return text
+
+
+@pytest.mark.parametrize("frictionless_pressing", [False, True])
+def test_force_control_with_friction_gives_the_displacement_controlled_state(
+        frictionless_pressing):
+    """Cattaneo-Mindlin's loading (P, then Q = 0.44 mu P with P held; Coulomb friction, slip
+    per step, pressed with mu = 0.3 or without friction) through a plane under force control,
+    and the same plane moved along the path of d that force control found, piecewise linear
+    through every accepted state (friction depends on the path, not only on the end): the
+    same time steps, the same contact and stick/slip states, and the reactions and
+    displacements within 1e-9 of their size after the pressing and after the pull (measured
+    1.3e-13: both solve the same discrete equations to round-off), the plane's normal (0, -1)
+    at every node while it moves sideways, on 1 and 2 ranks."""
+    from contactvisco.studies.coulomb import cattaneo_obstacle_scene
+    P, Q = 0.632, 0.0839
+    raw = cattaneo_obstacle_scene(0.005, P, Q, frictionless_pressing=frictionless_pressing)
+    forced = simulate(scene_module.resolve(raw), comm=COMM, progress=False, keep_tables=True)
+    times = [step["t"] for step in forced.steps]
+    path = np.array([step["obstacle"]["displacement"] for step in forced.steps])
     moved = dict(raw, obstacle={"shape": "plane", "point": [0.0, 0.0], "normal": [0.0, 1.0],
-                                "displacement": moves})
+                                "displacement": [piecewise_linear(times, path[:, j])
+                                                 for j in range(2)]})
     driven = simulate(scene_module.resolve(moved), comm=COMM, progress=False, keep_tables=True)
-    for a, b, tolerance in zip(forced.tables[1:], driven.tables[1:], (1e-6, 1e-3)):
+    assert [s["t"] for s in driven.steps] == times and times == [0.0, 0.5, 1.0]
+    assert all(s["cuts"] == 0 for s in forced.steps + driven.steps)
+    assert np.array_equal(path, [s["obstacle"]["displacement"] for s in driven.steps])
+    assert path[-1, 0] > 1e-3, path
+    for a, b in zip(forced.tables[1:], driven.tables[1:]):
         assert np.array_equal(a["status"], b["status"])
         assert np.array_equal(a["friction"], b["friction"])
         scale = np.max(np.abs(a["reaction_nu"]))
         for key in ("reaction_nu", "reaction_tau"):
-            assert np.max(np.abs(a[key] - b[key])) < tolerance * scale, key
-    assert np.allclose(driven.steps[-1]["obstacle"]["force"], [Q, P], rtol=0, atol=1e-4 * P)
+            assert np.max(np.abs(a[key] - b[key])) < 1e-9 * scale, key
+        size = np.max(np.abs(a["u_nu"]))
+        for key in ("u_nu", "u_tau"):
+            assert np.max(np.abs(a[key] - b[key])) < 1e-9 * size, key
+        assert np.allclose(b["normal"], [0.0, -1.0], rtol=0, atol=1e-14)
+    for step, t in zip(driven.steps[1:], times[1:]):
+        assert np.allclose(step["obstacle"]["force"], [Q * max(2 * t - 1, 0), P * min(2 * t, 1)],
+                           rtol=0, atol=1e-9 * P), step["obstacle"]
 
 
 @pytest.mark.parametrize("nu, c_bound", [(0.49, 0.10), (0.3, 0.05)])
