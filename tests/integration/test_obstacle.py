@@ -596,3 +596,113 @@ def test_frictionless_pressing_under_force_control_holds_the_tangential_position
     assert np.max(np.abs(table["reaction_tau"])) < 1e-12 * np.max(table["reaction_nu"])
     result = cattaneo_mindlin(0.005, raw=raw)
     assert result["c_error"] < 0.02, result["c_error"]
+
+
+def _shared_folders(factory, *names) -> list[str]:
+    """Folders made on rank 0 and named on every rank."""
+    return [COMM.bcast(str(factory.mktemp(name)) if COMM.rank == 0 else None)
+            for name in names]
+
+
+def _force_controlled_scenes():
+    """A curved obstacle (a cylinder under F = 0.2 t, 4 steps: its normals and gaps follow
+    its position) and Cattaneo-Mindlin through a plane under force control in both
+    components (friction with the slip per step: the state depends on the path)."""
+    from contactvisco.studies.coulomb import cattaneo_obstacle_scene
+    cylinder = layer_under_cylinder(0.05, {"shape": "cylinder", "centre": [1.0, -R],
+                                           "radius": R, "force_components": [1],
+                                           "force": ["0.2 * t"]}, steps=4)
+    cattaneo = cattaneo_obstacle_scene(0.01, 0.632, 0.0839)
+    cattaneo["time"]["steps"] = 4
+    return {"cylinder": (cylinder, 2), "cattaneo": (cattaneo, 3)}
+
+
+@pytest.mark.parametrize("case", ["cylinder", "cattaneo"])
+def test_force_controlled_run_restarts_to_the_same_answer(case, tmp_path_factory,
+                                                          monkeypatch):
+    """A run under force control stopped after its checkpoint of step k and restarted from
+    it equals the uninterrupted run: the checkpoint holds the obstacle's position d and the
+    position its normals were evaluated at, so the remaining steps start from where the
+    obstacle was. Displacements, reactions and d within 1e-12 of their size at every step
+    after the restart, the same contact and stick/slip states, on 1 and 2 ranks."""
+    from helpers import run_stopped_after_checkpoint
+    raw, count = _force_controlled_scenes()[case]
+    scene = scene_module.resolve(raw, ["output.figures=false", "output.xdmf=false"])
+    whole_dir, stopped_dir = _shared_folders(tmp_path_factory, "whole", "stopped")
+    whole = simulate(scene, out=whole_dir, comm=COMM, progress=False, keep_tables=True)
+    run_stopped_after_checkpoint(monkeypatch, count, lambda: simulate(
+        scene, out=stopped_dir, comm=COMM, progress=False))
+    restarted = simulate(scene, out=stopped_dir, comm=COMM, progress=False,
+                         keep_tables=True, restart=True)
+    steps = scene["time"]["steps"]
+    assert len(restarted.steps) == steps + 1 - count
+    depth = abs(whole.steps[-1]["obstacle"]["displacement"][1])
+    assert depth > 1e-3
+    for a, b, ta, tb in zip(whole.steps[count:], restarted.steps, whole.tables[count:],
+                            restarted.tables):
+        assert a["t"] == b["t"]
+        assert np.max(np.abs(np.subtract(a["obstacle"]["displacement"],
+                                         b["obstacle"]["displacement"]))) < 1e-12 * depth
+        assert np.array_equal(ta["status"], tb["status"])
+        assert np.array_equal(ta["friction"], tb["friction"])
+        for key in ("u_nu", "u_tau", "reaction_nu", "reaction_tau"):
+            size = max(np.max(np.abs(ta[key])), 1e-300)
+            assert np.max(np.abs(ta[key] - tb[key])) <= 1e-12 * size, key
+        assert np.allclose(ta["normal"], tb["normal"], rtol=0, atol=1e-14)
+
+
+def _without_the_obstacle(folder):
+    """The checkpoint in `folder` rewritten as one written before it kept the obstacle's
+    position: its arrays taken out of every part, meta.json's list of fields, part lengths
+    and checksums written again (rank 0)."""
+    import io
+    import json
+    import pathlib
+    from contactvisco.io import checkpoint
+    root = pathlib.Path(folder) / "checkpoint"
+    meta = json.loads((root / "meta.json").read_text())
+    meta["fields"] = [f for f in meta["fields"] if not f.startswith("obstacle_")]
+    for entry in meta["parts"]:
+        arrays = dict(np.load(root / entry["file"]))
+        buffer = io.BytesIO()
+        np.savez(buffer, **{k: v for k, v in arrays.items() if not k.startswith("obstacle_")})
+        (root / entry["file"]).write_bytes(buffer.getvalue())
+        entry["sha256"] = checkpoint._digest(buffer.getvalue())
+        entry["bytes"] = len(buffer.getvalue())
+    meta["sha256"] = checkpoint._meta_digest(meta)
+    (root / "meta.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize("controlled", [False, True])
+def test_checkpoint_without_the_obstacle_position(controlled, tmp_path_factory, monkeypatch):
+    """A checkpoint written before checkpoints kept the obstacle's position (after step 1 of
+    3) restarts a displacement-controlled cylinder to the uninterrupted run's answer within
+    1e-12 (its d follows from t) and refuses a force-controlled one, naming
+    obstacle.force_components."""
+    from helpers import run_stopped_after_checkpoint
+    obstacle = {"shape": "cylinder", "centre": [1.0, -R], "radius": R}
+    obstacle.update({"force_components": [1], "force": ["0.2 * t"]} if controlled
+                    else {"displacement": [0.0, "0.0035 * t"]})
+    scene = scene_module.resolve(layer_under_cylinder(0.05, obstacle, steps=3),
+                                 ["output.figures=false", "output.xdmf=false"])
+    whole_dir, folder = _shared_folders(tmp_path_factory, "whole", "old")
+    run_stopped_after_checkpoint(monkeypatch, 2, lambda: simulate(
+        scene, out=folder, comm=COMM, progress=False))
+    if COMM.rank == 0:
+        _without_the_obstacle(folder)
+    COMM.barrier()
+    if controlled:
+        with pytest.raises(SceneError, match="holds no position of the obstacle") as err:
+            simulate(scene, out=folder, comm=COMM, progress=False, restart=True)
+        assert err.value.key == "obstacle.force_components"
+        return
+    restarted = simulate(scene, out=folder, comm=COMM, progress=False, keep_tables=True,
+                         restart=True)
+    whole = simulate(scene, out=whole_dir, comm=COMM, progress=False, keep_tables=True)
+    assert len(restarted.steps) == 2
+    a, b = whole.tables[-1], restarted.tables[-1]
+    assert (a["status"] == 2).sum() >= 3 and np.array_equal(a["status"], b["status"])
+    for key in ("u_nu", "reaction_nu"):
+        assert np.max(np.abs(a[key] - b[key])) <= 1e-12 * np.max(np.abs(a[key])), key
+    assert restarted.steps[-1]["obstacle"]["displacement"] == \
+        whole.steps[-1]["obstacle"]["displacement"]
