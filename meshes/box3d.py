@@ -2,12 +2,14 @@
 
 Boundaries: "left"/"right" (x), "front"/"back" (y), "bottom"/"top" (z). With h_corner the
 mesh is refined to h_corner within `refine` of the corner (0, 0, 0), growing to h (an
-indenter at the corner of a quarter model).
+indenter at the corner of a quarter model); with h_edge, to h_edge within `refine` of the
+edge x = 0, z = 0 along y (a cylinder along y at the edge of a half model).
 """
 from refinement import refine_near
 
 
-def build(gmsh, lx=1.0, ly=1.0, lz=0.5, h=0.125, h_corner=None, refine=0.25):
+def build(gmsh, lx=1.0, ly=1.0, lz=0.5, h=0.125, h_corner=None, refine=0.25,
+          h_edge=None):
     occ = gmsh.model.occ
     volume = occ.addBox(0, 0, 0, lx, ly, lz)
     occ.synchronize()
@@ -30,4 +32,9 @@ def build(gmsh, lx=1.0, ly=1.0, lz=0.5, h=0.125, h_corner=None, refine=0.25):
         corner = gmsh.model.getEntitiesInBoundingBox(-eps, -eps, -eps, eps, eps, eps, dim=0)
         refine_near(gmsh, h_corner, h, refine, 2 * refine + 4 * h,
                     points=[tag for _, tag in corner])
+    elif h_edge is not None:
+        gmsh.option.setNumber("Mesh.MeshSizeMin", h_edge)
+        edge = gmsh.model.getEntitiesInBoundingBox(-eps, -eps, -eps, eps, ly + eps, eps, dim=1)
+        refine_near(gmsh, h_edge, h, refine, 2 * refine + 4 * h,
+                    curves=[tag for _, tag in edge])
     gmsh.model.mesh.generate(3)

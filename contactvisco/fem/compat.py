@@ -10,6 +10,7 @@ import functools
 import inspect
 
 import numpy as np
+import ufl
 from dolfinx import fem, geometry, io
 from dolfinx.fem import petsc as fem_petsc
 from petsc4py import PETSc
@@ -73,6 +74,18 @@ def interpolation_points(space) -> np.ndarray:
     return points() if callable(points) else points
 
 
+def expression(value, space):
+    """An Expression of the UFL `value` at the interpolation points of `space`, with its
+    derivatives applied first. DOLFINx 0.5 hands the kernel the constants of `value` as
+    written, while the kernel, compiled after differentiation, takes only those that remain:
+    a constant that appears only under a derivative (grad of x - c) drops out of the kernel
+    but not out of the packed list, and the constants after it are read from its values.
+    Applying the derivatives first makes both lists the same (DOLFINx 0.10 and later give
+    the same values either way)."""
+    value = ufl.algorithms.expand_derivatives(value)
+    return fem.Expression(value, interpolation_points(space))
+
+
 def petsc_vector(function) -> PETSc.Vec:
     """The PETSc vector that shares the (owned and ghost) values of a Function."""
     x = function.x
@@ -121,7 +134,6 @@ def settle_coordinate_element(mesh) -> None:
     sub = getattr(element, "_sub_element", None)
     if sub is None or getattr(sub, "_variant", "set") is not None:
         return
-    import ufl
     scalar = ufl.FiniteElement(element.family(), element.cell(), element.degree(),
                                element.quadrature_scheme(), variant="equispaced")
     domain._ufl_coordinate_element = ufl.VectorElement(scalar)

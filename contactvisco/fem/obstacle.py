@@ -226,8 +226,8 @@ def build(scene: dict, Q, W, nodes, t) -> ObstaclePart:
         scene=scene, normal=fem.Function(W, name="obstacle_normal"),
         gap=fem.Function(Q, name="gap"), D=fem.Function(W, name="obstacle_displacement"),
         D_previous=fem.Function(W), reference=reference, nodes=nodes, t=t,
-        _normal_expression=fem.Expression(nu, compat.interpolation_points(W)),
-        _gap_expression=fem.Expression(h, compat.interpolation_points(Q)))
+        _normal_expression=compat.expression(nu, W),
+        _gap_expression=compat.expression(h, Q))
     part.move_to()
     return part
 

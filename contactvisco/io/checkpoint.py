@@ -18,7 +18,14 @@ naming the file and what is wrong. The scene must equal the checkpoint's except 
 [output] table; a refused restart lists the keys that differ. The mesh must be the
 checkpoint's (mesh_signature), a caller's mesh given to the Python interface included.
 meta.json also keeps the length and SHA-256 of each record file at that step (the output
-writer's record_state), which the restart checks (contactvisco.io.output.check_records)."""
+writer's record_state), which the restart checks (contactvisco.io.output.check_records).
+
+With an [obstacle], each part also holds the obstacle's committed displacement d and the
+position d_ref at which its normals and gaps were last evaluated (the same on every rank, like
+the step times of a table kernel); the restart puts the obstacle back there, so a run under
+force control, whose d is an unknown, continues from its own position. A checkpoint written
+without them restarts a displacement-controlled obstacle (d follows from t) but not a
+force-controlled one."""
 from __future__ import annotations
 
 import hashlib
@@ -112,12 +119,35 @@ def _fields(problem):
     if problem.memory is not None:
         out += [(f"history_{key}", problem.tensor_space, value)
                 for key, value in problem.memory.history.state().items()]
+    obstacle = problem.contact and problem.contact.obstacle
+    if obstacle is not None:
+        out += [(name, None, value) for name, value in obstacle_state(obstacle).items()]
     return out
 
 
+def obstacle_state(obstacle) -> dict:
+    """The obstacle's arrays of a checkpoint: ``obstacle_displacement``, its displacement d
+    at the committed state, and ``obstacle_reference``, the position d_ref at which its normal
+    and gap were evaluated (shape (dim,) each; the same on every rank).
+
+    Parameters
+    ----------
+    obstacle : contactvisco.fem.obstacle.ObstaclePart
+        The problem's obstacle.
+
+    Returns
+    -------
+    dict
+        name -> numpy.ndarray: d and d_ref, the state ``restore_obstacle`` puts back.
+    """
+    return {"obstacle_displacement": obstacle.displacement(),
+            "obstacle_reference": np.asarray(obstacle.reference.value, float).copy()}
+
+
 def _global(name: str) -> bool:
-    """Arrays that are the same on every rank (the table kernel's step times), not per dof."""
-    return name.startswith("history_times")
+    """Arrays that are the same on every rank (the table kernel's step times, the obstacle's
+    position), not per dof."""
+    return name.startswith(("history_times", "obstacle_"))
 
 
 def _box(coordinates: np.ndarray):
@@ -364,8 +394,48 @@ def load(folder, problem, comm) -> dict:
     state = _restore(fields, mine, data, first, scale, comm)
     if problem.memory is not None:
         problem.memory.history.restore(state)
+    restore_obstacle(problem, meta, first)
     problem.time.committed = meta["t"]
     return meta
+
+
+def restore_obstacle(problem, meta: dict, first) -> None:
+    """Put the obstacle back where the checkpoint left it: its normal and gap evaluated at
+    d_ref, its displacement d, and d as the committed position (the next step's first
+    guess of a force-controlled component and the origin of its slip). A checkpoint without
+    the obstacle's arrays (written before they were kept) restores nothing: right for a
+    displacement-controlled obstacle, whose d follows from t; refused for a force-controlled
+    one (SceneError naming obstacle.force_components).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem being restarted.
+    meta : dict
+        The checkpoint's meta.json (its ``fields``).
+    first : mapping
+        The arrays of the checkpoint's first part (the obstacle's are the same in every part).
+    """
+    obstacle = problem.contact and problem.contact.obstacle
+    if obstacle is None:
+        return
+    names = ("obstacle_displacement", "obstacle_reference")
+    if not all(name in meta["fields"] for name in names):
+        if obstacle.controlled:
+            raise SceneError("obstacle.force_components: the checkpoint holds no position of "
+                             "the obstacle (it was written before checkpoints kept one), and "
+                             "under force control the position is an unknown; run it from "
+                             "t = 0", key="obstacle.force_components")
+        return
+    d, reference = (np.asarray(first[name], float) for name in names)
+    if d.shape != (obstacle.dim,) or reference.shape != (obstacle.dim,) or \
+            not np.all(np.isfinite(d)) or not np.all(np.isfinite(reference)):
+        raise Damaged(f"--restart: checkpoint {meta['parts'][0]['file']}: the obstacle's "
+                      f"position has shape {d.shape} and {reference.shape} (want "
+                      f"({obstacle.dim},)) or non-finite values")
+    obstacle.place(reference)
+    obstacle.set_displacement(d)
+    obstacle.committed = d.copy()
 
 
 def _check_scene(meta: dict, scene: dict):

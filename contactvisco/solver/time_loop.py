@@ -28,7 +28,6 @@ from contactvisco.io.lock import FolderLock
 from contactvisco.solver import diagnosis, predictor, report
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure
-from contactvisco.errors import SceneError
 
 
 @dataclass
@@ -149,12 +148,6 @@ class Run:
         self.say = report.printer(comm, progress)
         points = scene["output"]["probes"]
         self.probes = Probes(problem.geometry.mesh, points) if points else None
-        obstacle = problem.contact and problem.contact.obstacle
-        if restart and obstacle is not None and obstacle.controlled:
-            raise SceneError("obstacle.force_components: a run under force control does not "
-                             "restart from a checkpoint (the checkpoint holds no position of "
-                             "the obstacle); run it from t = 0",
-                             key="obstacle.force_components")
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
         self.predictor = predictor.create(scene, problem.unknowns)
         opts = scene["output"]
