@@ -312,7 +312,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         time=TimeState(context.t, updates, u, memory, contact and contact.u_previous,
                        obstacle=contact and contact.obstacle),
         loads=loads, tensor_space=tensor_space,
-        sigma_expression=fem.Expression(sigma, compat.interpolation_points(tensor_space)),
+        sigma_expression=compat.expression(sigma, tensor_space),
         length_scale=_length_scale(mesh), memory=memory, contact=contact,
         tangent=constants.pop("tangent", None))
     rigid.check(problem)
@@ -750,7 +750,7 @@ def _memory_part(history, weights, u, tensor_space) -> MemoryPart:
     return MemoryPart(
         history=history, H=fem.Function(tensor_space, name="history_stress"),
         eps_function=fem.Function(tensor_space),
-        eps_expression=fem.Expression(strain(u), compat.interpolation_points(tensor_space)),
+        eps_expression=compat.expression(strain(u), tensor_space),
         tensor_space=tensor_space,
         constants={f"memory_implicit_{part}": c for part, c in weights.items()},
         implicit_terms=[(c, part) for part, c in weights.items()])
@@ -779,7 +779,7 @@ def _interpolator(function, value, space):
         zero = _scalar(space.mesh, 0.0)
         value = value + zero * (x[0] if value.ufl_shape == ()
                                 else ufl.as_vector([x[0]] * value.ufl_shape[0]))
-    expression = fem.Expression(value, compat.interpolation_points(space))
+    expression = compat.expression(value, space)
     return lambda: function.interpolate(expression)
 
 

@@ -48,8 +48,7 @@ class TangentCheck:
         self.n, self.mu = n, mu
         self.space = compat.blocked_space(mesh, "DG", degree, n * n)
         self.values = fem.Function(self.space)
-        self.expression = fem.Expression(ufl.as_vector(entries),
-                                         compat.interpolation_points(self.space))
+        self.expression = compat.expression(ufl.as_vector(entries), self.space)
 
     def smallest(self, comm=MPI.COMM_WORLD) -> dict:
         """The smallest eigenvalue of the tangent over the mesh (collective).
