@@ -102,7 +102,8 @@ def _add_plot(sub) -> None:
     plot.add_argument("folder", help="a run's output folder")
     plot.add_argument("--format", choices=["png", "pdf", "svg"], default="png",
                       help="file format of the figures (default png)")
-    plot.add_argument("--dpi", type=int, default=300, help="resolution of raster output")
+    plot.add_argument("--dpi", type=int, default=150,
+                      help="resolution of raster output (default 150; 300 or more for print)")
     plot.add_argument("--times", type=float, nargs="+", default=None, metavar="T",
                       help="draw the figures at these times, each named with the time it "
                       "shows (stress_t0.5.png); where no state was kept at a time, the "
