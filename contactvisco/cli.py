@@ -164,6 +164,18 @@ def main(argv=None):
         return 128 + signum
     finally:
         parallel.restore_signals(previous)
+        if argv is None:                  # the command is the process: it ends here
+            _before_exit()
+
+
+def _before_exit():
+    """Move every object left to the garbage collector's permanent generation (gc.freeze):
+    the interpreter's shutdown then frees them by their reference counts, without the full
+    collections that trace every object of DOLFINx, UFL, PETSc and matplotlib (about a second
+    of a `run` with figures on this machine, `benchmarks/performance/startup.py`). The run's
+    files are closed by then (its writer, lock and figures close theirs before returning)."""
+    import gc
+    gc.freeze()
 
 
 def _main(argv=None):

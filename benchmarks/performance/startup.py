@@ -106,7 +106,8 @@ def child(out, extra):
 
     sys.meta_path.insert(0, Finder())
     from contactvisco.cli import main
-    code = main(["run", "paper", "--out", out, *extra])
+    sys.argv = ["contactvisco", "run", "paper", "--out", out, *extra]
+    code = main()                              # as the console script calls it
     ended = time.monotonic()
     pathlib.Path(out + ".times.json").write_text(json.dumps(
         {"begun": begun, "ended": ended, "code": code, "spans": spans}))
