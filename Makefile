@@ -28,7 +28,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
 .PHONY: install demo test test-serial test-parallel test-fast benchmark benchmark-newton benchmark-peer \
-        benchmark-scaling \
+        benchmark-scaling benchmark-startup \
         benchmark-reliability clean apt-packages compare-stacks figures notebook docs
 
 install: $(VENV)/.installed
@@ -107,6 +107,12 @@ benchmark-newton: install
 benchmark-peer: install
 	@$(PY) -c 'import getfem' 2>/dev/null || { echo "benchmark-peer needs GetFEM's Python interface: apt-get install -y python3-getfem (as root; the Debian route's $(VENV) sees it through its system site packages)" >&2; exit 1; }
 	$(PY) $(BENCH)/performance/peer.py
+
+# Where the wall time of `contactvisco run paper` goes, the whole process (interpreter start,
+# imports, set-up, steps, per-step output, figures, exit): median of 3 runs after a warm-up,
+# with and without figures, the load recorded (about a minute): docs/scaling.md.
+benchmark-startup: install
+	$(PY) $(BENCH)/performance/startup.py
 
 # Size, solver and rank scaling (about an hour on 2 cores; each configuration its own mpirun).
 benchmark-scaling: install

@@ -217,10 +217,13 @@ def _check_mesh(saved: dict | None, now: dict):
 
 
 def save(folder, problem, comm, t: float, count: int, step: float | None,
-         records: dict | None = None):
+         records: dict | None = None, durable: bool = True):
     """Write the state after `count` accepted steps (collective: every rank calls it).
     `records` (rank 0): the output writer's record_state(), kept in meta.json for the
-    restart's check of the record files (contactvisco.io.output.check_records)."""
+    restart's check of the record files (contactvisco.io.output.check_records). durable:
+    the files are synced to the disk (files.replace_with); the time loop syncs the last
+    checkpoint of a run and the one of a stop only, like its record files (a kill of the
+    process loses no step either way; only a power loss could take the unsynced ones)."""
     root = pathlib.Path(folder) / "checkpoint"
     folder_name = f"state-{count:06d}"
     here = root / folder_name
@@ -250,7 +253,8 @@ def save(folder, problem, comm, t: float, count: int, step: float | None,
     data = buffer.getvalue()
     if files.what(here) != "a directory":     # made a link by someone else meanwhile
         raise files.refusal(here, files.what(here) or "absent", "the checkpoint folder (a directory)")
-    files.replace(here / f"part-{comm.rank}.npz", data, tmp=here / f"part-{comm.rank}.tmp.npz")
+    files.replace(here / f"part-{comm.rank}.npz", data, tmp=here / f"part-{comm.rank}.tmp.npz",
+                  durable=durable)
     cache = problem.__dict__.setdefault("_checkpoint_keys", {})
     if "box" not in cache:             # the positions never change during a run
         cache["box"] = _box(np.concatenate(points)) if points else None
@@ -267,7 +271,8 @@ def save(folder, problem, comm, t: float, count: int, step: float | None,
             meta["records"] = records
         meta["sha256"] = _meta_digest(meta)
         # The checkpoint of step `count` is the one once meta.json is replaced.
-        files.replace(root / META, json.dumps(meta), tmp=root / "meta.tmp.json")
+        files.replace(root / META, json.dumps(meta), tmp=root / "meta.tmp.json",
+                      durable=durable)
         for old in root.iterdir():
             if old.name != folder_name and old.name.startswith("state-") and \
                     files.what(old) == "a directory":      # a link is not followed

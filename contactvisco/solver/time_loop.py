@@ -233,7 +233,8 @@ class Run:
         if self.out and self.scene["output"]["checkpoint"] and (
                 signum or self.checkpoints.due(count - 1, final)):
             checkpoint.save(self.out, self.problem, self.comm, state.t, count, state.k,
-                            records=self.writer and self.writer.record_state())
+                            records=self.writer and self.writer.record_state(),
+                            durable=final or bool(signum))
             self.checkpoints.written()
         if signum:                        # every rank stops after this same step
             raise parallel.Stopped(signum, count - 1, state.t)
