@@ -28,9 +28,11 @@ ufl.max_value (whose UFL derivative takes the side of the second argument at a t
 
 - the bound, min(s, g) at s = g (saturate): the compliance side, slope 1 (BOUND_TIE). The
   augmented-Lagrangian step of a node on the bound puts it at s = g up to round-off, so the
-  tie is met at every iterate after such a step, and the compliance slope there lets Newton
-  keep the compliance force's change in its step; the slope 0 of the bound side costs one
-  iteration in most steps of the paper scene (docs/scaling.md);
+  tie is met at every iterate after such a step. With the bound side (slope 0) a node that
+  leaves the bound for the compliance zone has no normal stiffness from p_nu in the next
+  Newton matrix, and the step takes one more iteration: in most steps of the paper scene
+  (docs/scaling.md; an independent semismooth Newton solver in GetFEM, whose min takes the
+  slope 1 at a tie, has the compliance side's counts);
 - the positive part, s_+ at s = 0 (p_nu at u_nu = 0, R_nu where r (u_nu - g) = lambda_nu):
   the active side, slope 1, so a body resting at u_nu = 0 still has a non-singular Newton
   matrix (slope 0 costs an iteration at t_0 of the paper scene);
