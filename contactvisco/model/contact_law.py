@@ -18,6 +18,26 @@ form.
 Every function takes the array namespace `ops` it is evaluated in: UFL (the forms of
 contactvisco.fem.problem) or NUMPY (the node values of the contact table, one row per node,
 vectors as (n, d) arrays). The law is thus one set of expressions for both.
+
+The kinks and Newton's derivative there. The law is piecewise smooth; Newton differentiates
+each piece, and where an iterate sits exactly on a kink, both pieces give the same value but
+different slopes, each an element of the generalized (B-)differential of the semismooth
+Newton method (Qi and Sun 1993; Hintermueller, Ito and Kunisch 2002). The side taken is
+written out, a conditional with its comparison, rather than left to ufl.min_value or
+ufl.max_value (whose UFL derivative takes the side of the second argument at a tie):
+
+- the bound, min(s, g) at s = g (saturate): the compliance side, slope 1 (BOUND_TIE). The
+  augmented-Lagrangian step of a node on the bound puts it at s = g up to round-off, so the
+  tie is met at every iterate after such a step. With the bound side (slope 0) a node that
+  leaves the bound for the compliance zone has no normal stiffness from p_nu in the next
+  Newton matrix, and the step takes one more iteration: in most steps of the paper scene
+  (docs/scaling.md; an independent semismooth Newton solver in GetFEM, whose min takes the
+  slope 1 at a tie, has the compliance side's counts);
+- the positive part, s_+ at s = 0 (p_nu at u_nu = 0, R_nu where r (u_nu - g) = lambda_nu):
+  the active side, slope 1, so a body resting at u_nu = 0 still has a non-singular Newton
+  matrix (slope 0 costs an iteration at t_0 of the paper scene);
+- the friction ball, |z| = radius in project_ball: the stick side, the identity, which is
+  defined at z = 0 where the slip side's z/|z| is not (a node with no pressure and no slip).
 """
 from __future__ import annotations
 
@@ -55,6 +75,41 @@ class NUMPY:
     divide = staticmethod(lambda v, s: v / _per_node(s, v))
 
 
+#: The side of min(s, g) whose derivative Newton takes at s = g (module description):
+#: "compliance" (slope 1, s <= g) or "bound" (slope 0, s >= g, ufl.min_value's choice).
+BOUND_TIE = "compliance"
+BOUND_TIES = ("compliance", "bound")
+
+
+def saturate(s, g, ops=UFL, tie=None):
+    """The penetration saturated at the bound, min(s, g), with the side of its derivative at
+    s = g chosen.
+
+    Parameters
+    ----------
+    s : UFL expression or numpy.ndarray
+        The penetration.
+    g : float or Constant
+        The bound.
+    ops : class, optional
+        The array namespace, UFL or NUMPY.
+    tie : str, optional
+        The side taken at s = g: "compliance", d/ds min(s, g) = 1 for s <= g (and 0 for
+        s > g), or "bound", d/ds = 0 for s >= g (and 1 for s < g). None: BOUND_TIE.
+
+    Returns
+    -------
+    UFL expression or numpy.ndarray
+        min(s, g), the same value for either side.
+    """
+    tie = BOUND_TIE if tie is None else tie
+    if tie == "compliance":
+        return ops.where_le(s, g, s, g)
+    if tie == "bound":
+        return ops.where_ge(s, g, g, s)
+    raise ValueError(f"tie = {tie!r}: allowed are {', '.join(BOUND_TIES)}")
+
+
 def positive_part(s, ops=UFL):
     """s_+ = max(0, s), with slope 1 taken at s = 0 so a body resting at u_nu = 0 still has a
     non-singular Newton matrix."""
@@ -72,9 +127,9 @@ def tangential_part(u, nu, ops=UFL):
 
 
 def law_argument(u_nu, g=None, ops=UFL):
-    """The argument of the prescribed functions: max(0, min(s, g)) (min(s, g) without
-    the max when g is None: no bound)."""
-    s = u_nu if g is None else ops.minimum(u_nu, g)
+    """The argument of the prescribed functions: max(0, min(s, g)) (max(0, s) when g is
+    None: no bound), min by saturate."""
+    s = u_nu if g is None else saturate(u_nu, g, ops)
     return positive_part(s, ops)
 
 
@@ -104,7 +159,7 @@ def p_nu(u_nu, stiffness, g=None, ops=UFL, law=None):
     """
     if law is not None:
         return law(law_argument(u_nu, g, ops))
-    s = u_nu if g is None else ops.minimum(u_nu, g)
+    s = u_nu if g is None else saturate(u_nu, g, ops)
     return stiffness * positive_part(s, ops)
 
 

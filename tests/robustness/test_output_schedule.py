@@ -208,8 +208,9 @@ def test_field_times_land_on_the_nearest_step_and_the_final_one():
 
 
 @pytest.mark.slow
-def test_cut_steps_count_as_accepted_states(tmp_path):
-    """The ironing load in 5 large steps with at most 8 Newton iterations: steps are cut, and
+def test_cut_steps_count_as_accepted_states(tmp_path, hard_newton_steps):
+    """The ironing load in 5 large steps with at most 8 Newton iterations and Newton's
+    derivative at the bound taken on the bound side (hard_newton_steps): steps are cut, and
     field_every, checkpoint_every count the accepted states (the records' step numbers, the
     halves included); field_times and the final state fall on the 5 steps' ends. One rank:
     where steps are cut depends on the partition. Each step starts from the last accepted

@@ -16,7 +16,8 @@ STEPS = 5
 
 def ironing(max_newton):
     """The moving load of the ironing scene in 5 large steps: up to 29 Newton iterations per
-    step without cuts."""
+    step without cuts with Newton's derivative at the bound taken on the bound side (the
+    tests' fixture hard_newton_steps)."""
     scene = load_scene("ironing", geometry={"parameters": {"h": 0.1}}, time={"steps": STEPS},
                        output={"probes": []},
                        solver={"petsc_options": {"snes_max_it": max_newton}})
@@ -24,7 +25,7 @@ def ironing(max_newton):
     return scene, problem, solver_module.create(problem, MPI.COMM_SELF)
 
 
-def test_cut_states_tile_the_step_and_converge():
+def test_cut_states_tile_the_step_and_converge(hard_newton_steps):
     scene, problem, snes = ironing(8)
     t_end = scene["time"]["T"]
     try:
@@ -55,7 +56,7 @@ def test_cut_states_tile_the_step_and_converge():
         snes.destroy()
 
 
-def test_a_step_that_may_not_be_cut_restores_the_unknowns():
+def test_a_step_that_may_not_be_cut_restores_the_unknowns(hard_newton_steps):
     scene, problem, snes = ironing(8)
     t_end = scene["time"]["T"]
     try:

@@ -1,0 +1,88 @@
+"""Newton's derivative where an iterate sits on a kink of the contact law
+(contactvisco.model.contact_law, module description):
+
+- the pieces: at s = g the saturated penetration min(s, g) takes the slope of the side asked
+  for (1: compliance, 0: bound), s_+ at s = 0 the slope 1, the friction ball at |z| = radius
+  the identity, and min(s, g) has the same value for either side;
+- on the scenes whose nodes reach the bound (the paper scene, ironing) the compliance side
+  (the default) and the bound side (ufl.min_value's choice, selectable through
+  contact_law.BOUND_TIE) solve the same discrete problem: their converged contact values
+  agree to the Newton tolerance at every step, and the compliance side takes fewer Newton
+  iterations, with each step started from the last accepted state and from the prediction.
+"""
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem, mesh as dolfinx_mesh
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from contactvisco.fem import compat
+from contactvisco.model import contact_law as law
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
+
+KEYS = ("u_nu", "u_tau", "lambda_nu", "reaction_nu", "reaction_tau")
+
+
+def _slope(expression_of, value):
+    """d/ds expression_of(s) at the constant s = value, by UFL's derivative of the form
+    int expression_of(s) dx on the unit interval (its length 1); s is piecewise constant, so
+    that it equals `value` exactly at the quadrature points."""
+    domain = dolfinx_mesh.create_unit_interval(MPI.COMM_SELF, 1)
+    Q = compat.scalar_space(domain, "DG", 0)
+    s, direction = fem.Function(Q), fem.Function(Q)
+    s.x.array[:] = value
+    direction.x.array[:] = 1.0
+    form = ufl.derivative(expression_of(s, domain) * ufl.dx, s, direction)
+    return fem.assemble_scalar(fem.form(form))
+
+
+def _bound(domain):
+    return fem.Constant(domain, PETSc.ScalarType(0.05))
+
+
+@pytest.mark.parametrize("tie, slope", [("compliance", 1.0), ("bound", 0.0)])
+def test_the_bound_takes_the_side_asked_for(tie, slope):
+    at = _slope(lambda s, d: law.saturate(s, _bound(d), law.UFL, tie), 0.05)
+    below = _slope(lambda s, d: law.saturate(s, _bound(d), law.UFL, tie), 0.04)
+    above = _slope(lambda s, d: law.saturate(s, _bound(d), law.UFL, tie), 0.06)
+    assert (at, below, above) == pytest.approx((slope, 1.0, 0.0), abs=1e-14)
+    s = np.array([0.04, 0.05, 0.06])
+    assert np.array_equal(law.saturate(s, 0.05, law.NUMPY, tie), np.minimum(s, 0.05))
+
+
+def test_the_default_tie_and_the_other_kinks():
+    assert law.BOUND_TIE == "compliance"
+    assert _slope(lambda s, d: law.p_nu(s, 100.0, _bound(d)), 0.05) == pytest.approx(100.0)
+    assert _slope(lambda s, d: law.positive_part(s), 0.0) == pytest.approx(1.0)
+    # the ball of radius 0.5 at |z| = 0.5 (exact in binary): the stick side, P_B(z) = z
+    assert _slope(lambda s, d: law.project_ball(ufl.as_vector([s, 0.0 * s]), 0.5)[0],
+                  0.5) == pytest.approx(1.0)
+    assert _slope(lambda s, d: law.project_ball(ufl.as_vector([s, 0.0 * s]), 0.5)[0],
+                  0.6) == pytest.approx(0.0, abs=1e-14)
+    with pytest.raises(ValueError, match="compliance, bound"):
+        law.saturate(np.zeros(2), 0.05, law.NUMPY, "middle")
+
+
+def _run(monkeypatch, tie, name, overrides):
+    monkeypatch.setattr(law, "BOUND_TIE", tie)
+    result = simulate(scene_module.load(name, overrides), comm=MPI.COMM_WORLD,
+                      progress=False, keep_tables=True)
+    return ([s["newton_iterations"] for s in result.steps],
+            [{key: np.asarray(table[key]) for key in KEYS} for table in result.tables])
+
+
+@pytest.mark.parametrize("name, predictor", [("paper", "none"), ("paper", "extrapolate"),
+                                             ("ironing", "extrapolate")])
+def test_both_sides_converge_to_the_same_state(monkeypatch, name, predictor):
+    overrides = [f"solver.predictor='{predictor}'", "output.probes=[]"]
+    counts, tables = {}, {}
+    for tie in law.BOUND_TIES:
+        counts[tie], tables[tie] = _run(monkeypatch, tie, name, overrides)
+    assert len(tables["compliance"]) == len(tables["bound"])
+    for new, old in zip(tables["compliance"], tables["bound"]):
+        for key in KEYS:
+            scale = max(np.max(np.abs(old[key])), 1e-300)
+            assert np.max(np.abs(new[key] - old[key])) <= 1e-10 * scale, key
+    assert sum(counts["compliance"]) < sum(counts["bound"]), counts
