@@ -379,7 +379,8 @@ class Viscoelastic(Table):
         memory["terms"] = [{"alpha": a, "tau": tau, "part": part} for a, tau, part in terms]
 
 
-#: Kernels whose history runs as a recursion of exponentials, so in reduced time too.
+#: Kernels whose history runs as a recursion of exponentials (the fractional kernel's older
+#: steps; its last step integrated exactly over the reduced step), so in reduced time too.
 REDUCED_TIME_KERNELS = ("none", "constant", "exponential", "prony", "power", "fractional")
 
 
