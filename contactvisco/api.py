@@ -305,6 +305,8 @@ def check(scene: dict, mesh=None, facet_tags=None, boundaries=None, comm=None) -
     dict
         ``cells``, ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
         ``linear_system``, ``linear_solver``, ``stability_number``, ``unstable``,
+        ``implicit_stiffness`` (per mode, the smallest stiffness of a step A + w P of the
+        trapezoid and exponential rules, and the elastic one), ``unconditionally_stable``,
         ``history_bytes`` (the memory's storage at the last step, all ranks) and
         ``output_bytes`` (an estimate of what ``solve(scene, out=...)`` writes, figures left
         out).

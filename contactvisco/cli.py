@@ -264,14 +264,37 @@ def _check(args) -> int:
               f"  unknowns: {unknowns}\n"
               f"  linear system: {report['linear_system']}, {report['linear_solver']}\n"
               f"  time rule: {scene['time']['rule']}, {scene['time']['steps']} steps, "
-              f"b = k R(0) (1 + nu) / E = {b:.3g}"
-              + (" (unstable: the run will warn)" if report["unstable"] else "") + "\n"
+              + _rule_stability(scene, report, b) + "\n"
               f"  memory of the history at the last step: {_size(report['history_bytes'])}\n"
               f"  output (estimate, figures left out): {_size(report['output_bytes'])}"
               + (f" (above output.max_bytes = {_size(scene['output']['max_bytes'])}: the run "
                  "will be refused without --allow-large-output)"
                  if report["output_bytes"] > scene["output"]["max_bytes"] else ""))
     return 0
+
+
+def _rule_stability(scene, report, b: float) -> str:
+    """What bounds the step of the time rule: the paper's rule its number b (stable below 1);
+    the trapezoid rule (and the exponential rule with a constant or fractional kernel) the
+    smallest stiffness of a step A + w P per mode, > 0; the exponential rule of relaxing terms
+    nothing (the step's stiffness >= the long-term modulus)."""
+    if scene["time"]["rule"] == "paper":
+        return (f"b = k R(0) (1 + nu) / E = {b:.3g}"
+                + (" (unstable: the run will warn)" if report["unstable"] else ""))
+    if report["unconditionally_stable"]:
+        return ("unconditionally stable (each exponential integrated exactly: the step's "
+                "stiffness stays above the long-term modulus for every k)")
+    margins = report["implicit_stiffness"]
+    if not margins:
+        return "no memory: stable for every k"
+    names = {"deviatoric": "2 mu", "volumetric": "d lambda + 2 mu"}
+    parts = [f"{mode} {least:.3g} ({names[mode]} = {elastic:.3g})"
+             for mode, (least, elastic) in margins.items()]
+    lost = any(least <= 0.0 for least, _ in margins.values())
+    return ("smallest stiffness of a step A + w P (w the implicit weight of eps_n+1): "
+            + ", ".join(parts)
+            + (": not > 0, a step loses its stiffness (take smaller steps)" if lost
+               else ": > 0, stable for this k"))
 
 
 def versions() -> str:

@@ -43,7 +43,9 @@ from contactvisco.model.material import (elasticity, energy_stress, hencky_energ
                                          invariants, lame_constants, strain)
 from contactvisco.fem.tangent import TangentCheck
 from contactvisco.scene.expressions import Context
-from contactvisco.model.memory import DirectHistory, History, ReducedTimeHistory, table_kernel
+from contactvisco.model.memory import (DirectHistory, FractionalHistory, History,
+                                       ReducedFractionalHistory, ReducedTimeHistory,
+                                       table_kernel)
 from contactvisco.errors import SceneError
 from contactvisco.model.memory_kernel import memory_power, memory_table, memory_terms
 from contactvisco.model import kernels
@@ -660,8 +662,9 @@ def _memory(scene, mesh, u, context=None, updates=None) -> MemoryPart | None:
     if table is not None:
         history = DirectHistory(table_kernel(*table), dt, time["rule"])
     elif power is not None:
-        span = _reduced_span(scene, mesh, context) if thermal else None
-        history = kernels.history(power, time, scene["solver"]["max_cuts"], d, span=span)
+        least, span = _reduced_range(scene, mesh, context) if thermal else (1.0, None)
+        history = kernels.history(power, time, scene["solver"]["max_cuts"], d, span=span,
+                                  least=least)
     else:
         history = History(terms, dt, time["rule"], d)
     if thermal:
@@ -684,26 +687,31 @@ def _temperature_field(scene, mesh, context):
 SPAN_MARGIN = 1.1
 
 
-def _reduced_span(scene, mesh, context) -> float:
-    """The reduced end time xi(T) that a kernel fitted as a sum of exponentials must cover:
-    T / a_T for a constant temperature (exactly the T_ref run of T / a_T); for an expression,
-    SPAN_MARGIN T max 1/a_T over the points and the step times t_n = n T / N (xi(T) <= T max
-    1/a_T; the run stops if a step would pass the span)."""
+def _reduced_range(scene, mesh, context) -> tuple[float, float]:
+    """(least, span) that the fit of a power or fractional kernel must cover in reduced time:
+    the reduced end time xi(T) (the span) and the least 1/a_T, which scales the shortest
+    reduced step (least k / 2^max_cuts). At a constant temperature, 1/a_T and T / a_T (exactly
+    the T_ref run of T / a_T); for an expression, over the points and the step times
+    t_n = n T / N, min(1, 1/a_T) / SPAN_MARGIN and SPAN_MARGIN T max(1, 1/a_T) (xi(T) <=
+    T max 1/a_T; the run stops if a step would pass the span)."""
     from contactvisco.model.viscoelastic import inverse_shift, log10_shift
     visco, T, N = scene["viscoelastic"], scene["time"]["T"], scene["time"]["steps"]
     theta = visco["temperature"]
     if isinstance(theta, (int, float)) and not isinstance(theta, bool):
-        return T * 10.0 ** -float(log10_shift(visco, theta))
+        inverse = 10.0 ** -float(log10_shift(visco, theta))
+        return inverse, T * inverse
     _, field, follow = _temperature_field(scene, mesh, context)
-    start, largest = float(context.t.value), 1.0
+    start, least, largest = float(context.t.value), 1.0, 1.0
     for n in range(N + 1):
         context.t.value = n * T / N
         follow()
         inverse, error = inverse_shift(visco, field.x.array)
         if error is None and inverse.size:     # an error stops the run at its step
+            least = min(least, float(inverse.min()))
             largest = max(largest, float(inverse.max()))
     context.t.value = start
-    return SPAN_MARGIN * T * mesh.comm.allreduce(largest, op=MPI.MAX)
+    return (mesh.comm.allreduce(least, op=MPI.MIN) / SPAN_MARGIN,
+            SPAN_MARGIN * T * mesh.comm.allreduce(largest, op=MPI.MAX))
 
 
 def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates):
@@ -712,7 +720,8 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
     the implicit weights as fields (one value per point)."""
     from contactvisco.model.viscoelastic import inverse_shift
     d = mesh.geometry.dim
-    reduced = ReducedTimeHistory(history, d * d)
+    fractional = isinstance(history, FractionalHistory)
+    reduced = (ReducedFractionalHistory if fractional else ReducedTimeHistory)(history, d * d)
     visco = scene["viscoelastic"]
     scalars, theta, follow = _temperature_field(scene, mesh, context)
     reduced.owned = scalars.dofmap.index_map.size_local    # points of this rank (then ghosts)

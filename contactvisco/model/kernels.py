@@ -190,7 +190,8 @@ def mittag_leffler(gamma: float, x) -> np.ndarray:
     return out
 
 
-def history(mem: dict, time: dict, max_cuts: int, d: int, span: float | None = None):
+def history(mem: dict, time: dict, max_cuts: int, d: int, span: float | None = None,
+            least: float = 1.0):
     """The history of a power or fractional kernel (the resolved memory and time tables):
     the sum of exponentials over [k / 2^max_cuts, T] (the smallest step a cut may take) run
     by the Prony recursion, or the direct O(n) sum. Its `note` says which, with the number of
@@ -206,7 +207,12 @@ def history(mem: dict, time: dict, max_cuts: int, d: int, span: float | None = N
         The dimension of the strain.
     span : float, optional
         In reduced time (a temperature), the end xi(T) that the power kernel's fit must cover
-        (T by default): alpha (1 + xi/tau)^-beta on [0, span]; kept as the attribute `span`.
+        (T by default): alpha (1 + xi/tau)^-beta on [0, span], and the fractional kernel's
+        alpha xi^-beta / Gamma(1 - beta) on [least k / 2^max_cuts, span]; kept as the
+        attribute `span`.
+    least : float, optional
+        In reduced time, the smallest 1/a_T a step may see (1 by default): the shortest
+        reduced step is then least k / 2^max_cuts.
 
     Returns
     -------
@@ -236,10 +242,12 @@ def history(mem: dict, time: dict, max_cuts: int, d: int, span: float | None = N
             out.note = ("memory: fractional kernel, product integration with the exact kernel, "
                         "O(n) work and memory per step")
             return out
-        lo = k / 2 ** max_cuts
-        fit = fractional_soe(alpha, beta, lo, T, float(mem["tolerance"]))
+        lo = k / 2 ** max_cuts * (1.0 if span is None else float(least))
+        end = T if span is None else float(span)
+        fit = fractional_soe(alpha, beta, lo, end, float(mem["tolerance"]))
         out = FractionalHistory(alpha, beta, fit, rule, part, d, k)
-        span = f"[{lo:.3g}, {T:g}]"
+        out.span = span
+        span = f"[{lo:.3g}, {end:g}]" + ("" if span is None else " in reduced time")
     out.fit = fit
     out.note = (f"memory: {mem['kernel']} kernel as a sum of {len(fit)} exponentials, "
                 f"measured relative error {fit.error:.2e} on {span} (memory.tolerance "

@@ -379,8 +379,9 @@ class Viscoelastic(Table):
         memory["terms"] = [{"alpha": a, "tau": tau, "part": part} for a, tau, part in terms]
 
 
-#: Kernels whose history runs as a recursion of exponentials, so in reduced time too.
-REDUCED_TIME_KERNELS = ("none", "constant", "exponential", "prony", "power")
+#: Kernels whose history runs as a recursion of exponentials (the fractional kernel's older
+#: steps; its last step integrated exactly over the reduced step), so in reduced time too.
+REDUCED_TIME_KERNELS = ("none", "constant", "exponential", "prony", "power", "fractional")
 
 
 def reduced_time_refusal(memory) -> str | None:
@@ -396,7 +397,9 @@ def reduced_time_refusal(memory) -> str | None:
     str or None
         None for the kernels advanced by the recursion P_{n+1} = d P_n + dxi/2 (d e_n +
         e_{n+1}), d = exp(-dxi/tau_i) per point (Prony, exponential, constant and the power
-        kernel as a sum of exponentials); else the reason.
+        kernel as a sum of exponentials) and for the fractional kernel (its last step
+        integrated exactly over dxi per point, older steps as a sum of exponentials); else the
+        reason.
     """
     kernel = memory["kernel"]
     if kernel == "power" and memory["summation"] == "direct":
@@ -409,11 +412,12 @@ def reduced_time_refusal(memory) -> str | None:
                 "every past step (no recursion); in reduced time each point would need its "
                 "own xi(t_{n+1}) - xi(t_j) for every past step j (O(n) memory per point), which "
                 "is not kept: give the kernel as Prony terms (memory.kernel = 'prony')")
-    if kernel == "fractional":
-        return ("memory.kernel = 'fractional' integrates its singular last step t^-beta "
-                "exactly over the step k in t (product integration); that step is not written "
-                "in reduced time, where its length dxi differs from point to point; use the "
-                "power kernel alpha (1 + t/tau)^-beta or Prony terms")
+    if kernel == "fractional" and memory["summation"] == "direct":
+        return ("memory.summation = 'direct' sums the exact fractional kernel over every past "
+                "step; in reduced time each point would need its own xi(t_{n+1}) - xi(t_j) for "
+                "every past step j (O(n) memory per point), which is not kept: use "
+                "memory.summation = 'soe' (older steps as a sum of exponentials, advanced by "
+                "exp(-dxi/tau))")
     return None
 
 

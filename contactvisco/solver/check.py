@@ -12,6 +12,8 @@ from mpi4py import MPI
 
 from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.problem import build
+from contactvisco.model.material import lame_constants
+from contactvisco.model.memory import History
 from contactvisco.model.stability import amplifies, stability_number
 from contactvisco.solver import newton
 from contactvisco.solver.time_loop import FieldSchedule
@@ -39,6 +41,7 @@ def history_values(history, steps: int) -> int:
         return 0
     if history.direct:
         return steps + 1
+    history = getattr(history, "history", history)      # a reduced-time history wraps it
     rates = getattr(getattr(history, "fit", None), "rates", None)
     terms = len(rates) if rates is not None else len(history.terms)
     return terms + 1
@@ -126,6 +129,76 @@ def size_text(n: float) -> str:
     return f"{n:.1f} TB" if n < 1e15 else f"{n:.3g} TB"
 
 
+def unconditionally_stable(scene: dict, history) -> bool:
+    """Whether the step's stiffness stays positive for every step: time.rule = 'exponential'
+    with a kernel whose terms all relax (finite tau_i; a Prony history, the power kernel's sum
+    of exponentials), where A + sum_i alpha_i w1_i >= the long-term modulus for every k
+    (model/memory.py: alpha_i w1_i = -G_i (1 - phi1(k/tau_i)))."""
+    inner = getattr(history, "history", history)       # a reduced-time history wraps it
+    return (scene["time"]["rule"] == "exponential" and type(inner) is History
+            and all(tau < float("inf") for _, tau, _ in inner.terms))
+
+
+def implicit_stiffness(scene: dict, problem, comm=MPI.COMM_WORLD) -> dict[str, float]:
+    """The smallest stiffness of a step of the implicit rules, per mode of A that the memory
+    acts on: A + w P with w the implicit weight of P eps_{n+1} (k/2 R(0) for the trapezoid
+    rule, sum_i alpha_i w1_i for the exponential rule, alpha k^(1-beta) / Gamma(3 - beta) for
+    the fractional kernel), on the deviatoric strains 2 mu + w_full + w_deviatoric and on the
+    volumetric ones d lambda + 2 mu + w_full + w_volumetric (A I = (d lambda + 2 mu) I). The
+    step is well posed while these stay > 0. In reduced time w is taken at dxi = k / a_T per
+    point at every step time t_n = n k (the temperature moved there; nothing solved), the
+    smallest over the points and times. Collective.
+
+    Parameters
+    ----------
+    scene : dict
+        The scene.
+    problem : contactvisco.fem.problem.Problem
+        The built problem (its memory's history gives w).
+    comm : MPI.Comm
+        The communicator.
+
+    Returns
+    -------
+    dict
+        ``deviatoric`` and/or ``volumetric`` (the modes the memory acts on), each
+        (smallest stiffness, the elastic stiffness 2 mu or d lambda + 2 mu); empty for the
+        paper's rule or without memory.
+    """
+    import numpy as np
+    memory = problem.memory
+    if memory is None or scene["time"]["rule"] == "paper":
+        return {}
+    history = memory.history
+    steps, k = scene["time"]["steps"], scene["time"]["T"] / scene["time"]["steps"]
+    if getattr(history, "staged", False) is False:            # isothermal: numbers
+        samples = [history.implicit(k)]
+    else:                                                     # reduced time: fields
+        samples = []
+        for n in range(steps + 1):
+            problem.time.move_to(n * k)
+            samples.append(history.history.implicit(k * history.staged[:history.owned]))
+        problem.time.move_to(0.0)
+    d = problem.geometry.mesh.geometry.dim
+    lam, mu = lame_constants(scene["material"]["model"], scene["material"]["E"],
+                             scene["material"]["nu"])
+    elastic = {"deviatoric": 2.0 * mu, "volumetric": d * lam + 2.0 * mu}
+    acts = {"full": ("deviatoric", "volumetric"), "deviatoric": ("deviatoric",),
+            "volumetric": ("volumetric",)}
+    modes = sorted({mode for part in samples[0] for mode in acts[part]})
+    out = {}
+    for mode in modes:
+        least = np.inf
+        for weights in samples:
+            total = sum(np.asarray(w, float) for part, w in weights.items()
+                        if mode in acts[part])
+            if np.size(total):
+                least = min(least, float(np.min(total)))
+        least = comm.allreduce(least, op=MPI.MIN)
+        out[mode] = (elastic[mode] + least, elastic[mode])
+    return out
+
+
 def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     """Build a scene's mesh, problem and solver, run every check a run makes before solving,
     and report the size of the run. Collective.
@@ -145,8 +218,10 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     dict
         ``cells``, ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
         ``linear_system``, ``linear_solver``, ``stability_number`` and ``unstable`` (the
-        paper's rule at b >= 1), ``history_bytes`` (all ranks, at the last step) and
-        ``output_bytes`` (an estimate for the whole run).
+        paper's rule at b >= 1), ``implicit_stiffness`` (the trapezoid and exponential rules:
+        :func:`implicit_stiffness`) and ``unconditionally_stable`` (:func:`unconditionally_stable`),
+        ``history_bytes`` (all ranks, at the last step) and ``output_bytes`` (an estimate for
+        the whole run).
 
     Raises
     ------
@@ -178,6 +253,8 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
         "linear_system": system, "linear_solver": solver,
         "stability_number": b,
         "unstable": scene["time"]["rule"] == "paper" and amplifies(b, steps),
+        "implicit_stiffness": implicit_stiffness(scene, problem, comm),
+        "unconditionally_stable": unconditionally_stable(scene, history),
         "history_bytes": FLOAT * tensor * history_values(history, steps),
         "output_bytes": output_bytes(scene, problem, counts, tensor),
     }

@@ -114,6 +114,26 @@ def test_show_prints_toml_that_run_reads():
     assert tomllib.loads(proc.stdout)["time"]["steps"] == 3
 
 
+def test_check_states_what_bounds_the_step_of_each_rule():
+    """The paper's rule: its number b; the trapezoid rule: the smallest stiffness of a step
+    per mode (lost at k = 1 with alpha = -500); the exponential rule of relaxing terms:
+    unconditionally stable."""
+    small = ["--set", "geometry.cells=[4, 4]", "--set", "output.probes=[]"]
+    lines = {}
+    for rule, more in (("paper", []), ("trapezoid", ["memory.alpha=-500.0", "time.steps=1"]),
+                       ("exponential", ["memory.kernel='exponential'", "memory.alpha=[-300.0]",
+                                        "memory.tau=[0.05]", "time.steps=1"])):
+        sets = [a for m in more for a in ("--set", m)]
+        proc = cli("check", "paper", *small, "--set", f"time.rule='{rule}'", *sets)
+        assert proc.returncode == 0, proc.stderr
+        lines[rule] = next(line for line in proc.stdout.splitlines() if "time rule" in line)
+    assert "b = k R(0) (1 + nu) / E = 0.13" in lines["paper"]
+    assert "b = " not in lines["trapezoid"] and "b = " not in lines["exponential"]
+    assert "deviatoric -173 (2 mu = 76.9)" in lines["trapezoid"]
+    assert "a step loses its stiffness" in lines["trapezoid"]
+    assert "unconditionally stable" in lines["exponential"]
+
+
 def test_show_into_a_closed_pipe_ends_quietly():
     """`contactvisco show paper | head -1`: no PETSc signal report, no MPI abort."""
     proc = subprocess.run(f"{sys.executable} -m contactvisco show paper --all | head -1",

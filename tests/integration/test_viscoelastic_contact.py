@@ -15,7 +15,7 @@ from helpers import run_stopped_after_checkpoint
 WLF = {"shift": "wlf", "T_ref": 50.0, "C1": 17.44, "C2": 51.6}
 
 
-def raw_scene(material: dict, T: float = 4.0, steps: int = 8) -> dict:
+def raw_scene(material: dict, T: float = 4.0, steps: int = 8, rule: str = "trapezoid") -> dict:
     return {"name": "prony_block",
             "geometry": {"lower": [0.0, 0.0], "upper": [2.0, 1.0], "cells": [12, 6]},
             "material": {"model": "plane_strain", **material.pop("material", {})},
@@ -23,15 +23,16 @@ def raw_scene(material: dict, T: float = 4.0, steps: int = 8) -> dict:
             "dirichlet": [{"boundary": "left", "components": [0]}],
             "traction": [{"boundary": "top", "value": [0.0, "-2.0 * x[0]"]}],
             "contact": {"boundary": "bottom", "stiffness": 100.0, "g": 0.03},
-            "time": {"T": T, "steps": steps, "rule": "trapezoid"},
+            "time": {"T": T, "steps": steps, "rule": rule},
             "output": {"probes": [[2.0, 1.0], [1.0, 0.0]]}}
 
 
-def prony_scene(tmp_path, T=4.0, steps=8, **extra):
+def prony_scene(tmp_path, T=4.0, steps=8, rule="trapezoid", **extra):
     (tmp_path / "shear.csv").write_text("tau (s),g_i\n0.5,0.3\n3.0,0.25\n")
     raw = raw_scene({"viscoelastic": {
         "shear": {"instantaneous": 30.0, "file": "shear.csv", "values": "fractions"},
-        "bulk": {"long_term": 50.0, "tau": [1.0], "moduli": [15.0]}, **WLF, **extra}}, T, steps)
+        "bulk": {"long_term": 50.0, "tau": [1.0], "moduli": [15.0]}, **WLF, **extra}}, T, steps,
+        rule)
     path = tmp_path / "block.toml"
     path.write_text(document_text(raw))
     return loader.load(str(path))
@@ -99,16 +100,27 @@ def test_ranks_agree(tmp_path):
 
 
 
-def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch):
+@pytest.mark.parametrize("rule", ["trapezoid", "exponential", "fractional"])
+def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch, rule):
     """A run with a temperature field stopped after its checkpoint of step 3 and restarted
     reaches the uninterrupted run's answer and reduced time: the checkpoint holds 1/a_T and xi
-    at each point besides the Prony sums."""
+    at each point besides the Prony sums (trapezoid and exponential rules), or besides the
+    sums of the fractional kernel's exponentials (its [memory] in reduced time, trapezoid
+    rule)."""
     comm = MPI.COMM_WORLD
     folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
                for name in ("csv", "whole", "stopped")]
     import pathlib
-    scene = prony_scene(pathlib.Path(folders[0]), steps=16,
-                        temperature="50.0 + 0.5 * t + 0.5 * x[0]")
+    temperature = "50.0 + 0.5 * t + 0.5 * x[0]"
+    if rule == "fractional":
+        scene = loader.resolve(raw_scene({
+            "material": {"E": 75.0, "nu": 0.25},
+            "memory": {"kernel": "fractional", "alpha": -20.0, "beta": 0.5,
+                       "part": "deviatoric"},
+            "viscoelastic": dict(WLF, temperature=temperature)}, steps=16))
+    else:
+        scene = prony_scene(pathlib.Path(folders[0]), steps=16, rule=rule,
+                            temperature=temperature)
     whole = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True)
     run_stopped_after_checkpoint(monkeypatch, 4, lambda: simulate(
         scene, out=folders[2], comm=comm, progress=False))
