@@ -444,7 +444,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     if degree == 1 and not np.allclose(u.function_space.tabulate_dof_coordinates(),
                                        W.tabulate_dof_coordinates()):
         raise RuntimeError("displacement and multiplier node numberings differ")
-    obstacle = _obstacle(scene, Q, W, nodes, context, updates)
+    obstacle = _obstacle(scene, Q, W, nodes, context, updates, geometry, u.function_space)
     if obstacle is None:
         normal = _contact_normal(mesh, Q, W, dsc, nodes)
         gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
@@ -471,6 +471,8 @@ def _contact(scene, geometry, u, v, ds, context, updates):
         F_u = tangential if F_u is None else F_u + tangential
         pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
                                                       ufl.TestFunction(W)) * dsc))
+    if (scene.get("obstacle") or {}).get("shape") == "body":
+        _body_terms(obstacle, F_u, pairs)
     if obstacle is not None and obstacle.controlled:
         obstacle.force_forms = obstacle_module.force_forms(
             obstacle, F_u, v, [u] + [f for f, _ in pairs], [F_u] + [r for _, r in pairs])
@@ -485,7 +487,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     return part, F_u, pairs
 
 
-def _obstacle(scene, Q, W, nodes, context, updates):
+def _obstacle(scene, Q, W, nodes, context, updates, geometry=None, V=None):
     """The scene's rigid obstacle (contactvisco.fem.obstacle; None without one): its normal nu
     and gap h at the contact nodes, re-evaluated at each time when it moves. The contact
     nodes' normals become the obstacle's; no node is a corner (one normal per node)."""
@@ -493,13 +495,24 @@ def _obstacle(scene, Q, W, nodes, context, updates):
     if table is None or table["shape"] == "none":
         return None
     if table["shape"] == "body":
-        raise SceneError("obstacle.shape = 'body': contact between two deformable bodies is "
-                         "not solved by this version", key="obstacle.shape")
+        from contactvisco.fem import body_contact
+        return body_contact.build(scene, geometry, V, Q, W, nodes,
+                                  _length_scale(geometry.mesh))
     part = obstacle_module.build(scene, Q, W, nodes, context.t)
     nodes.corners = np.zeros(0, dtype=nodes.nodes.dtype)
     if table["displacement"] is not None and context.depends_on_time(table["displacement"]):
         updates.append(part.move_to)
     return part
+
+
+def _body_terms(obstacle, contact_terms, multipliers):
+    """Keep the contact terms of F_u for the master's share (fem.body_contact): a normal
+    compliance without bound or friction, whose law needs no multiplier."""
+    if multipliers or contact_terms is None:
+        raise SceneError("obstacle.shape = 'body' takes a normal compliance (contact.stiffness "
+                         "> 0 or contact.p_nu) without a bound or friction: contact.g = inf, "
+                         "contact.mu = 0", key="contact.g")
+    obstacle.contact_form = contact_terms
 
 
 def _relative_motion(u, u_previous, obstacle):

@@ -735,6 +735,9 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
                          f"condensed Newton system, not the {system} one (it needs nodal "
                          "contact multipliers: a finite contact.g or friction)",
                          key="obstacle.force_components")
+    if getattr(obstacle, "contact_form", None) is not None:    # another body (fem.body_contact)
+        from contactvisco.solver.interface_newton import InterfaceSNES
+        return InterfaceSNES(problem, comm, options, defaults, reuse=kind == "direct")
     if system == "condensed":
         newton = CondensedSNES(problem, comm, options, defaults, reuse=kind == "direct")
     else:

@@ -1,0 +1,115 @@
+"""Two deformable bodies in contact (obstacle.shape = "body"): the patch test of two blocks
+with non-matching interface nodes (meshes/two_blocks.py: 13 slave against 10 master segments).
+
+The upper (slave) block is pressed by a uniform pressure p on its top onto the lower (master)
+block, held at its bottom (y), both blocks' sides held in x, frictionless normal compliance at
+the interface: the exact solution has u_x = 0, uniform stresses sigma_yy = -p,
+sigma_xx = -p nu / (1 - nu), sigma_xy = 0 in both blocks, and a uniform interface pressure p
+(the compliance's uniform penetration p / c_nu). The mortar pairing reproduces it to round-off;
+node to segment does not (its error is measured, not bounded).
+"""
+import numpy as np
+import pytest
+from dolfinx import fem
+from mpi4py import MPI
+
+from contactvisco.errors import SceneError
+from contactvisco.fem import geometry as geometry_module
+from contactvisco.fem.problem import build
+from contactvisco.scene import loader
+from contactvisco.solver.newton import create
+
+PRESSURE, NU = 0.01, 0.3
+
+
+def patch_scene(pairing="mortar", **contact) -> dict:
+    return {
+        "name": "patch",
+        "geometry": {"type": "gmsh", "script": "two_blocks",
+                     "parameters": {"h_slave": 0.077, "h_master": 0.1}},
+        "material": {"model": "plane_strain", "E": 1.0, "nu": NU},
+        "dirichlet": [{"boundary": "bottom", "components": [1]},
+                      {"boundary": "master_sides", "components": [0]},
+                      {"boundary": "slave_sides", "components": [0]}],
+        "traction": [{"boundary": "top", "value": [0.0, -PRESSURE]}],
+        "contact": {"boundary": "slave", "stiffness": 100.0, "pairing": pairing, **contact},
+        "obstacle": {"shape": "body", "boundary": "master"},
+        "time": {"T": 1.0, "steps": 1},
+        "solver": {"petsc_options": {"snes_rtol": 1e-14, "snes_atol": 1e-15}},
+        "output": {"probes": []},
+    }
+
+
+def solve_patch(raw):
+    """The converged patch: per block (slave, master) the largest deviation of the stress
+    from the exact one over p, the interface pressure's deviation over p, and the resultants
+    of the slave's contact forces and of what the master receives."""
+    comm = MPI.COMM_WORLD
+    scene = loader.resolve(raw)
+    geometry = geometry_module.build(scene, comm)
+    problem = build(scene, geometry)
+    snes = create(problem, comm)
+    problem.time.stage(1.0)
+    iterations = snes.solve()
+    sigma = fem.Function(problem.tensor_space)
+    sigma.interpolate(problem.sigma_expression)
+    owned = problem.tensor_space.dofmap.index_map.size_local
+    values = sigma.x.array.reshape(-1, 2, 2)[:owned]
+    y = problem.tensor_space.tabulate_dof_coordinates()[:owned, 1]
+    exact = np.array([[-PRESSURE * NU / (1 - NU), 0.0], [0.0, -PRESSURE]])
+    deviation = np.abs(values - exact).max(axis=(1, 2)) / PRESSURE
+    blocks = [comm.allreduce(float(deviation[side].max(initial=0.0)), MPI.MAX)
+              for side in (y > 0, y < 0)]
+    c = snes.contact_forces().array.reshape(-1, 2)
+    share = snes.master_share().array.reshape(-1, 2)
+    nodes = problem.contact.nodes
+    own = nodes.nodes[nodes.owned]
+    pressure = -c[own, 1] / nodes.weights[nodes.owned]
+    spread = comm.allreduce(float(np.abs(pressure / PRESSURE - 1).max(initial=0.0)), MPI.MAX)
+    slave = comm.allreduce(c.sum(axis=0), MPI.SUM)
+    master = comm.allreduce(-share.sum(axis=0), MPI.SUM)
+    return dict(blocks=blocks, pressure=spread, slave=slave, master=master,
+                iterations=iterations)
+
+
+def test_mortar_patch_test_is_passed():
+    """Mortar: uniform stresses in both blocks and a uniform interface pressure to 1e-10 of p;
+    the master receives the opposite of the slave's resultant (to 1e-12 of p times the
+    interface's length), which equals the load."""
+    out = solve_patch(patch_scene("mortar"))
+    print("mortar: stress deviation (slave, master) / p:", out["blocks"],
+          "pressure:", out["pressure"])
+    assert max(out["blocks"]) < 1e-10
+    assert out["pressure"] < 1e-10
+    assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
+    assert out["slave"] == pytest.approx([0.0, -PRESSURE], abs=1e-12 * PRESSURE)
+
+
+def test_node_to_segment_balances_forces():
+    """Node to segment: the resultants balance to round-off (every row of Pi sums to 1); its
+    stresses are not uniform (the error is measured and reported, far above mortar's)."""
+    out = solve_patch(patch_scene("node_to_segment"))
+    print("node to segment: stress deviation (slave, master) / p:", out["blocks"],
+          "pressure:", out["pressure"])
+    assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
+    assert out["slave"] == pytest.approx([0.0, -PRESSURE], abs=1e-12 * PRESSURE)
+    assert max(out["blocks"]) > 1e-6
+
+
+@pytest.mark.parametrize("change, key", [
+    (dict(obstacle={"shape": "body", "boundary": "nowhere"}), "obstacle.boundary"),
+    (dict(obstacle={"shape": "body", "boundary": "bottom"},
+          contact={"boundary": "slave", "stiffness": 100.0, "search_distance": 0.4}),
+     "contact.search_distance"),
+    (dict(contact={"boundary": "slave", "stiffness": 100.0, "g": 0.1}), "contact.g"),
+    (dict(contact={"boundary": "slave", "stiffness": 100.0, "g": 0.1,
+                   "mu": 0.2}), "contact.g"),
+])
+def test_interface_refused(change, key):
+    """An unknown master boundary, a slave node with no master within the search distance,
+    a law that needs multipliers: a SceneError naming the key."""
+    raw = dict(patch_scene(), **change)
+    scene = loader.resolve(raw)
+    with pytest.raises(SceneError) as err:
+        build(scene, geometry_module.build(scene, MPI.COMM_WORLD))
+    assert err.value.key == key
