@@ -147,6 +147,11 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
         raise SceneError("obstacle.shape = 'body' needs discretization.degree = 1 (the "
                          "interface pairs P1 nodes)", key="discretization.degree")
     contact, obstacle = scene["contact"], scene["obstacle"]
+    mu = contact["mu"]
+    if (isinstance(mu, str) or mu > 0) and contact["slip"] == "increment":
+        raise SceneError("contact.slip = 'increment' with obstacle.shape = 'body': the slip of "
+                         "a step relative to another body is not built; use contact.slip = "
+                         "'total'", key="contact.slip")
     slave_name, master_name = contact["boundary"], obstacle["boundary"]
     slave_name = slave_name if isinstance(slave_name, str) else slave_name[0]
     geometry.facets(slave_name, "contact.boundary")

@@ -506,12 +506,8 @@ def _obstacle(scene, Q, W, nodes, context, updates, geometry=None, V=None):
 
 
 def _body_terms(obstacle, contact_terms, multipliers):
-    """Keep the contact terms of F_u for the master's share (fem.body_contact): a normal
-    compliance without bound or friction, whose law needs no multiplier."""
-    if multipliers or contact_terms is None:
-        raise SceneError("obstacle.shape = 'body' takes a normal compliance (contact.stiffness "
-                         "> 0 or contact.p_nu) without a bound or friction: contact.g = inf, "
-                         "contact.mu = 0", key="contact.g")
+    """Keep the contact terms of F_u (None: none) for the master's share
+    (fem.body_contact)."""
     obstacle.contact_form = contact_terms
 
 

@@ -16,9 +16,11 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector, create_matrix
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from contactvisco.fem import compat
+from contactvisco.solver.condensed import NodalCondensation, eliminate
 from contactvisco.solver.newton import NewtonSolver, _weak, rigid_body_modes
 
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
@@ -178,3 +180,153 @@ def ufl_derivative(form, u):
     import ufl
     return ufl.algorithms.expand_derivatives(
         ufl.derivative(form, u, ufl.TrialFunction(u.function_space)))
+
+
+class InterfaceCondensation(NodalCondensation):
+    """The condensed Newton system (contactvisco.solver.condensed) of two bodies in contact
+    whose law has nodal multipliers (a bound g, friction).
+
+    In the unknowns w = S^-1 u, S = I + P0 (w_i = u_i - (Pi u)_i at the slave dofs, w = u
+    elsewhere; P0 is P without the rows and columns of prescribed components), the contact
+    terms act on the slave rows and columns alone, as for a rigid obstacle:
+
+        R_w = S^T F_el + c,        J_w = S^T J_el S + K_c,
+
+    so the node-wise elimination of the multipliers applies to the slave rows of J_w
+    unchanged. The system handed to Newton is that one written back in u,
+
+        F = S^-T R_w,red,          J = S^-T J_w,red S^-1 = T^T J_w,red T,   T = S^-1 = I - P0,
+
+    whose solution is du = S dw (P0 P0 = 0: slave and master dofs differ). The multipliers are
+    recovered from dw = T du.
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem; ``problem.contact.obstacle`` is a fem.body_contact.BodyContact.
+    """
+
+    def __init__(self, problem):
+        self.link = problem.contact.obstacle
+        V = problem.V
+        d = V.dofmap.index_map_bs
+        owned = V.dofmap.index_map.size_local * d
+        fixed = np.flatnonzero(problem.u_fixed.reshape(-1)[:owned] > 0)
+        start = V.dofmap.index_map.local_range[0] * d
+        self.P0 = self.link.P.duplicate(copy=True)
+        self.P0.zeroRowsColumns((fixed + start).astype(PETSc.IntType), diag=0.0)
+        self.T0 = transfer(self.P0)
+        contact = self.link.contact_form
+        self.F_c = None if contact is None else fem.form(contact)
+        self.J_c = None if contact is None else fem.form(ufl_derivative(contact, problem.u))
+        self.K_c = None if self.J_c is None else create_matrix(self.J_c)
+        self._patterned = False
+        super().__init__(problem)
+        self.c = compat.petsc_vector(problem.u).copy()
+        self._el, self._share = self.c.copy(), self.c.copy()
+        self._dw = self.c.copy()
+        self.J_red = self.A.PtAP(self.T0)
+
+    def _assemble_J(self):
+        """A = J_w = S^T (J_full - K_c) S + K_c, J_full the assembled J_el + K_c at D = P0 u."""
+        target = compat.petsc_vector(self.link.D)
+        self.P0.mult(compat.petsc_vector(self.problem.u), target)
+        target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+        full = create_matrix(self.J_uu) if not self._patterned else self._full
+        full.zeroEntries()
+        compat.assemble_matrix(full, self.J_uu, self.bcs, diagonal=1.0)
+        full.assemble()
+        S = self.T0.duplicate(copy=True)
+        S.scale(-1.0)
+        S.shift(2.0)                         # S = 2 I - T = I + P0
+        total = full.PtAP(S)
+        if self.K_c is not None:
+            self.K_c.zeroEntries()
+            compat.assemble_matrix(self.K_c, self.J_c, self.bcs, diagonal=0.0)
+            self.K_c.assemble()
+            moved = self.K_c.PtAP(S)
+            total.axpy(-1.0, moved, _DIFFERENT)
+            total.axpy(1.0, self.K_c, _DIFFERENT)
+            moved.destroy()
+        S.destroy()
+        if not self._patterned:
+            self.A.destroy()
+            self.A, self._full, self._patterned = total, full, True
+            return
+        total.copy(self.A, structure=_SAME)
+        total.destroy()
+
+    def residual(self, x, b):
+        """F = S^-T R_w,red at x (module description); the coupled residual's norm in w."""
+        target = compat.petsc_vector(self.link.D)
+        self.P0.mult(compat.petsc_vector(self.problem.u), target)
+        target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+        with b.localForm() as local:
+            local.set(0.0)
+        assemble_vector(b, self.F_u)
+        compat.apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
+        b.ghostUpdate(addv=_ADD, mode=_REVERSE)
+        compat.set_bc(b, self.bcs, x, -1.0)
+        with self.c.localForm() as local:
+            local.set(0.0)
+        if self.F_c is not None:
+            assemble_vector(self.c, self.F_c)
+            self.c.ghostUpdate(addv=_ADD, mode=_REVERSE)
+        b.copy(self._el)
+        self._el.axpy(-1.0, self.c)                  # F_el (slave rows are what P0^T reads)
+        self.P0.multTranspose(self._el, self._share)
+        b.axpy(1.0, self._share)                     # R_w = S^T F_el + c
+        G = np.zeros((len(self.own), self.m))
+        for a, (form, vec) in enumerate(zip(self.G, self.G_vecs)):
+            self._assemble_vector(vec, form)
+            G[:, self.offsets[a]:self.offsets[a + 1]] = self._node_values(vec, self.bs[a])
+        G *= self.free
+        comm = self.V.mesh.comm
+        self.full_norm = float(np.sqrt(b.norm() ** 2 + comm.allreduce(float(np.sum(G * G)),
+                                                                       MPI.SUM)))
+        B, C, D = self.local_blocks()
+        array = b.array.reshape(-1, self.d)
+        F = array[self.own].copy()
+        parts = eliminate(B, C, D, F, G, self.scale, self.d_scale)
+        array[self.own] = parts["F_red"]
+        self.parts = dict(parts, B=B, C=C, F=F, G=G)
+        self.P0.multTranspose(b, self._share)
+        b.axpy(-1.0, self._share)                    # S^-T R_w,red
+
+    def jacobian(self):
+        """J = T^T J_w,red T: J_w assembled, its slave rows saved and condensed, then
+        written back in u."""
+        super().jacobian()
+        self.A.PtAP(self.T0, result=self.J_red)
+
+    def update_multipliers(self, du):
+        """The multipliers' step for dw = T du (NodalCondensation.update_multipliers)."""
+        self.T0.mult(du, self._dw)
+        return super().update_multipliers(self._dw)
+
+    def contact_forces(self) -> PETSc.Vec:
+        """c, the slave's nodal contact forces at the current Functions (u's layout).
+
+        Returns
+        -------
+        petsc4py.PETSc.Vec
+            The assembled contact terms of F_u (non-zero at the slave dofs only).
+        """
+        with self.c.localForm() as local:
+            local.set(0.0)
+        if self.F_c is not None:
+            assemble_vector(self.c, self.F_c)
+            self.c.ghostUpdate(addv=_ADD, mode=_REVERSE)
+        return self.c
+
+    def master_share(self) -> PETSc.Vec:
+        """P0^T c: the slave's contact forces carried to the master's dofs; -P0^T c is what
+        the master receives.
+
+        Returns
+        -------
+        petsc4py.PETSc.Vec
+            P0^T c (u's layout).
+        """
+        self.P0.multTranspose(self.contact_forces(), self._share)
+        return self._share

@@ -60,8 +60,9 @@ def solve_patch(raw):
     deviation = np.abs(values - exact).max(axis=(1, 2)) / PRESSURE
     blocks = [comm.allreduce(float(deviation[side].max(initial=0.0)), MPI.MAX)
               for side in (y > 0, y < 0)]
-    c = snes.contact_forces().array.reshape(-1, 2)
-    share = snes.master_share().array.reshape(-1, 2)
+    system = getattr(snes, "system", snes)        # the condensed system, with multipliers
+    c = system.contact_forces().array.reshape(-1, 2).copy()
+    share = system.master_share().array.reshape(-1, 2)
     nodes = problem.contact.nodes
     own = nodes.nodes[nodes.owned]
     pressure = -c[own, 1] / nodes.weights[nodes.owned]
@@ -72,25 +73,38 @@ def solve_patch(raw):
                 iterations=iterations)
 
 
-def test_mortar_patch_test_is_passed():
+#: The interface laws: a normal compliance (no multiplier: fem.body_contact's own Newton
+#: system), the unilateral bound g = 0 (Signorini) and a compliance whose bound is reached
+#: (the condensed system with the multiplier lambda_nu), Signorini with Coulomb friction.
+LAWS = {
+    "compliance": {},
+    "signorini": {"stiffness": 0.0, "g": 0.0},
+    "bound reached": {"g": 5e-5},                # the compliance alone would give 1e-4
+    "coulomb": {"stiffness": 0.0, "g": 0.0, "mu": 0.3, "friction_law": "coulomb"},
+}
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_mortar_patch_test_is_passed(law):
     """Mortar: uniform stresses in both blocks and a uniform interface pressure to 1e-10 of p;
     the master receives the opposite of the slave's resultant (to 1e-12 of p times the
     interface's length), which equals the load."""
-    out = solve_patch(patch_scene("mortar"))
-    print("mortar: stress deviation (slave, master) / p:", out["blocks"],
-          "pressure:", out["pressure"])
+    out = solve_patch(patch_scene("mortar", **LAWS[law]))
+    print(f"mortar, {law}: stress deviation (slave, master) / p:", out["blocks"],
+          "pressure:", out["pressure"], "iterations:", out["iterations"])
     assert max(out["blocks"]) < 1e-10
     assert out["pressure"] < 1e-10
     assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
     assert out["slave"] == pytest.approx([0.0, -PRESSURE], abs=1e-12 * PRESSURE)
 
 
-def test_node_to_segment_balances_forces():
+@pytest.mark.parametrize("law", ["compliance", "signorini"])
+def test_node_to_segment_balances_forces(law):
     """Node to segment: the resultants balance to round-off (every row of Pi sums to 1); its
     stresses are not uniform (the error is measured and reported, far above mortar's)."""
-    out = solve_patch(patch_scene("node_to_segment"))
-    print("node to segment: stress deviation (slave, master) / p:", out["blocks"],
-          "pressure:", out["pressure"])
+    out = solve_patch(patch_scene("node_to_segment", **LAWS[law]))
+    print(f"node to segment, {law}: stress deviation (slave, master) / p:", out["blocks"],
+          "pressure:", out["pressure"], "iterations:", out["iterations"])
     assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
     assert out["slave"] == pytest.approx([0.0, -PRESSURE], abs=1e-12 * PRESSURE)
     assert max(out["blocks"]) > 1e-6
@@ -101,15 +115,72 @@ def test_node_to_segment_balances_forces():
     (dict(obstacle={"shape": "body", "boundary": "bottom"},
           contact={"boundary": "slave", "stiffness": 100.0, "search_distance": 0.4}),
      "contact.search_distance"),
-    (dict(contact={"boundary": "slave", "stiffness": 100.0, "g": 0.1}), "contact.g"),
-    (dict(contact={"boundary": "slave", "stiffness": 100.0, "g": 0.1,
-                   "mu": 0.2}), "contact.g"),
+    (dict(contact={"boundary": "slave", "stiffness": 100.0, "g": 0.1, "mu": 0.2,
+                   "slip": "increment"}), "contact.slip"),
 ])
 def test_interface_refused(change, key):
     """An unknown master boundary, a slave node with no master within the search distance,
-    a law that needs multipliers: a SceneError naming the key."""
+    friction on the slip of a step: a SceneError naming the key."""
     raw = dict(patch_scene(), **change)
     scene = loader.resolve(raw)
     with pytest.raises(SceneError) as err:
         build(scene, geometry_module.build(scene, MPI.COMM_WORLD))
     assert err.value.key == key
+
+
+def hertz_scene(pairing="mortar", h=0.01, R=1.0, a=0.1, materials=((1.0, 0.3), (2.0, 0.25))):
+    """A cylinder (radius R, [[body]] "cylinder") pressed onto a block ("block") of another
+    material (meshes/cylinder_on_block.py), Signorini contact between them, the load per unit
+    length P chosen for the Hertz half-width a: a^2 = 4 P R / (pi E*),
+    1/E* = sum_b (1 - nu_b^2) / E_b. Returns the raw scene and P."""
+    E_star = 1.0 / sum((1.0 - nu ** 2) / E for E, nu in materials)
+    P = a ** 2 * np.pi * E_star / (4.0 * R)
+    (E1, nu1), (E2, nu2) = materials
+    raw = {
+        "name": "cylinder_on_block",
+        "geometry": {"type": "gmsh", "script": "cylinder_on_block",
+                     "parameters": {"radius": R, "h_contact": h, "h_far": 0.2,
+                                    "refine": 0.15}},
+        "material": {"model": "plane_strain"},
+        "body": [{"name": "cylinder", "cells": "cylinder", "material": {"E": E1, "nu": nu1}},
+                 {"name": "block", "cells": "block", "material": {"E": E2, "nu": nu2}}],
+        "dirichlet": [{"boundary": "bottom", "components": "all"},
+                      {"boundary": "top", "components": [0]}],
+        "traction": [{"boundary": "top", "value": [0.0, -P / (2.0 * R)]}],
+        "contact": {"boundary": "contact", "stiffness": 0.0, "g": 0.0, "pairing": pairing,
+                    "augmentation": 1.0},
+        "obstacle": {"shape": "body", "boundary": "block_top"},
+        "time": {"T": 1.0, "steps": 1},
+        "solver": {"predictor": "none"},
+        "output": {"probes": []},
+    }
+    return raw, P
+
+
+@pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
+def test_hertz_cylinder_on_block(pairing):
+    """Two elastic bodies of different materials: the contact half-width is Hertz's within one
+    node spacing h (the first slave node past the edge carries no pressure), the peak
+    pressure 2 P / (pi a) within 1 %, and the slave's resultant the load."""
+    h, a = 0.01, 0.1
+    raw, P = hertz_scene(pairing, h=h, a=a)
+    comm = MPI.COMM_WORLD
+    scene = loader.resolve(raw)
+    problem = build(scene, geometry_module.build(scene, comm))
+    snes = create(problem, comm)
+    problem.time.stage(1.0)
+    iterations = snes.solve()
+    c = snes.system.contact_forces().array.reshape(-1, 2)
+    nodes = problem.contact.nodes
+    own = nodes.nodes[nodes.owned]
+    x = problem.V.tabulate_dof_coordinates()[own, 0]
+    pressure = -c[own, 1] / nodes.weights[nodes.owned]
+    touching = np.abs(x[pressure > 1e-10 * P])
+    half_width = comm.allreduce(float(touching.max(initial=0.0)), MPI.MAX)
+    peak = comm.allreduce(float(pressure.max(initial=0.0)), MPI.MAX)
+    resultant = comm.allreduce(c[own].sum(axis=0), MPI.SUM)
+    print(f"Hertz, {pairing}: half-width {half_width:.5f} (a = {a}), peak pressure "
+          f"{peak:.5g} (Hertz {2 * P / (np.pi * a):.5g}), Newton iterations {iterations}")
+    assert abs(half_width - a) < h
+    assert peak == pytest.approx(2.0 * P / (np.pi * a), rel=1e-2)
+    assert resultant == pytest.approx([0.0, -P], abs=1e-10 * P)
