@@ -213,8 +213,9 @@ class InterfaceCondensation(NodalCondensation):
         owned = V.dofmap.index_map.size_local * d
         fixed = np.flatnonzero(problem.u_fixed.reshape(-1)[:owned] > 0)
         start = V.dofmap.index_map.local_range[0] * d
+        self.fixed_global = (fixed + start).astype(PETSc.IntType)
         self.P0 = self.link.P.duplicate(copy=True)
-        self.P0.zeroRowsColumns((fixed + start).astype(PETSc.IntType), diag=0.0)
+        self.P0.zeroRowsColumns(self.fixed_global, diag=0.0)
         self.T0 = transfer(self.P0)
         contact = self.link.contact_form
         self.F_c = None if contact is None else fem.form(contact)
@@ -242,8 +243,11 @@ class InterfaceCondensation(NodalCondensation):
         total = full.PtAP(S)
         if self.K_c is not None:
             self.K_c.zeroEntries()
-            compat.assemble_matrix(self.K_c, self.J_c, self.bcs, diagonal=0.0)
+            compat.assemble_matrix(self.K_c, self.J_c, [], diagonal=0.0)
             self.K_c.assemble()
+            # as J_full's: no entry in the rows and columns of prescribed components (the
+            # pattern of K_c, from Gamma_C alone, has no diagonal for a Dirichlet row)
+            self.K_c.zeroRowsColumns(self.fixed_global, diag=0.0)
             moved = self.K_c.PtAP(S)
             total.axpy(-1.0, moved, _DIFFERENT)
             total.axpy(1.0, self.K_c, _DIFFERENT)
