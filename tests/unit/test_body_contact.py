@@ -184,3 +184,30 @@ def test_hertz_cylinder_on_block(pairing):
     assert abs(half_width - a) < h
     assert peak == pytest.approx(2.0 * P / (np.pi * a), rel=1e-2)
     assert resultant == pytest.approx([0.0, -P], abs=1e-10 * P)
+
+
+def test_creeping_cylinder_restarts_exactly(tmp_path_factory, monkeypatch):
+    """A creeping cylinder (its own exponential kernel, [[body]]) on an elastic block: a run
+    stopped after its checkpoint of step 3 and restarted reaches the uninterrupted run's
+    contact state (the checkpoint holds each body's history), and the cylinder has crept (its
+    contact zone grows under the constant load)."""
+    from helpers import run_stopped_after_checkpoint
+    from contactvisco.solver.time_loop import simulate
+    comm = MPI.COMM_WORLD
+    folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
+               for name in ("whole", "stopped")]
+    raw, P = hertz_scene(h=0.02)
+    raw["body"][0]["memory"] = {"kernel": "exponential", "alpha": [-0.6], "tau": [1.0]}
+    raw["traction"][0]["value"][1] = f"-{P / 2.0} * min(2 * t, 1)"
+    raw["time"] = {"T": 3.0, "steps": 6, "rule": "trapezoid"}
+    scene = loader.resolve(raw)
+    whole = simulate(scene, out=folders[0], comm=comm, progress=False, keep_tables=True)
+    run_stopped_after_checkpoint(monkeypatch, 3, lambda: simulate(
+        scene, out=folders[1], comm=comm, progress=False))
+    restarted = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True,
+                         restart=True)
+    a, b = whole.tables[-1], restarted.tables[-1]
+    assert np.max(np.abs(a["u_nu"] - b["u_nu"])) <= 1e-12 * np.max(np.abs(a["u_nu"]))
+    touching = [s["status_counts"] for s in whole.steps]
+    print("status counts per step:", touching)
+    assert touching[-1]["bound"] > touching[2]["bound"]      # the load is constant from t = 0.5
