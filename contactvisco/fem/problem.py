@@ -472,7 +472,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
         pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
                                                       ufl.TestFunction(W)) * dsc))
     if (scene.get("obstacle") or {}).get("shape") == "body":
-        _body_terms(obstacle, F_u, pairs)
+        obstacle.contact_form = F_u            # the master's share (fem.body_contact)
     if obstacle is not None and obstacle.controlled:
         obstacle.force_forms = obstacle_module.force_forms(
             obstacle, F_u, v, [u] + [f for f, _ in pairs], [F_u] + [r for _, r in pairs])
@@ -503,12 +503,6 @@ def _obstacle(scene, Q, W, nodes, context, updates, geometry=None, V=None):
     if table["displacement"] is not None and context.depends_on_time(table["displacement"]):
         updates.append(part.move_to)
     return part
-
-
-def _body_terms(obstacle, contact_terms, multipliers):
-    """Keep the contact terms of F_u (None: none) for the master's share
-    (fem.body_contact)."""
-    obstacle.contact_form = contact_terms
 
 
 def _relative_motion(u, u_previous, obstacle):

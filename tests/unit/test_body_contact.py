@@ -211,3 +211,39 @@ def test_creeping_cylinder_restarts_exactly(tmp_path_factory, monkeypatch):
     touching = [s["status_counts"] for s in whole.steps]
     print("status counts per step:", touching)
     assert touching[-1]["bound"] > touching[2]["bound"]      # the load is constant from t = 0.5
+
+
+@pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
+def test_block_slides_on_block(pairing):
+    """Coulomb friction on the tangential part of u_rel: the upper block, pressed by p and
+    dragged by its top (u_x = 0.2 t) over the lower one (clamped at its bottom), slides: every
+    pressed slave node carries |c_tau| = mu |c_nu| (to 1e-10), the slave's resultant is
+    (mu p, -p) per unit length, the friction opposing the motion, and the master receives
+    the opposite."""
+    mu = 0.3
+    raw = patch_scene(pairing, stiffness=0.0, g=0.0, mu=mu, friction_law="coulomb")
+    raw["dirichlet"] = [{"boundary": "bottom", "components": "all"},
+                        {"boundary": "top", "components": [0], "value": "0.2 * t"}]
+    comm = MPI.COMM_WORLD
+    scene = loader.resolve(raw)
+    problem = build(scene, geometry_module.build(scene, comm))
+    snes = create(problem, comm)
+    for t in (0.0, 0.5, 1.0):
+        problem.time.stage(t)
+        snes.solve()
+        problem.time.commit()
+    c = snes.system.contact_forces().array.reshape(-1, 2).copy()
+    share = snes.system.master_share().array.reshape(-1, 2)
+    nodes = problem.contact.nodes
+    own = nodes.nodes[nodes.owned]
+    pressed = np.abs(c[own, 1]) > 1e-12 * PRESSURE
+    ratio = np.abs(c[own, 0][pressed]) / np.abs(c[own, 1][pressed])
+    worst = comm.allreduce(float(np.abs(ratio - mu).max(initial=0.0)), MPI.MAX)
+    count = comm.allreduce(int(pressed.sum()), MPI.SUM)
+    slave = comm.allreduce(c.sum(axis=0), MPI.SUM)
+    master = comm.allreduce(-share.sum(axis=0), MPI.SUM)
+    print(f"sliding, {pairing}: {count} pressed slave nodes, largest ||c_tau|/|c_nu| - mu| "
+          f"{worst:.2e}, slave resultant {slave}")
+    assert count >= 10 and worst < 1e-10
+    assert slave == pytest.approx([mu * PRESSURE, -PRESSURE], abs=1e-10 * PRESSURE)
+    assert np.allclose(slave + master, 0.0, atol=1e-12 * PRESSURE)
