@@ -198,12 +198,17 @@ def colliding_cells(mesh, points: np.ndarray) -> list[int]:
 
 def model_to_mesh(model, comm, rank: int, gdim: int):
     """(mesh, facet tags) of the gmsh model held on `rank`."""
+    mesh, _, facet_tags = model_to_tagged_mesh(model, comm, rank, gdim)
+    return mesh, facet_tags
+
+
+def model_to_tagged_mesh(model, comm, rank: int, gdim: int):
+    """(mesh, cell tags, facet tags) of the gmsh model held on `rank`."""
     if hasattr(io, "gmsh") and hasattr(io.gmsh, "model_to_mesh"):
         data = io.gmsh.model_to_mesh(model, comm, rank, gdim=gdim)
-        return data.mesh, data.facet_tags
+        return data.mesh, data.cell_tags, data.facet_tags
     from dolfinx.io import gmshio
-    mesh, _, facet_tags = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
-    return mesh, facet_tags
+    return gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
 
 
 # ------------------------------------------------------------------ output

@@ -41,6 +41,8 @@ class Geometry:
     mesh: dmesh.Mesh
     facet_tags: dmesh.MeshTags
     names: dict[str, int]          # boundary name -> facet tag value
+    cell_tags: dmesh.MeshTags | None = None     # the mesh's cell tags (gmsh physical groups)
+    cell_names: dict | None = None              # cell tag name -> cell tag value
 
     def facets(self, name: str, where: str = "boundary") -> np.ndarray:
         """The local facets of a named boundary; a name that is unknown, has no facet, or
@@ -299,7 +301,7 @@ def _gmsh(geo, d: int, comm) -> Geometry:
     if error:
         raise SceneError(*error)
     source = "geometry.file" if geo["file"] is not None else "geometry.script"
-    names = None
+    names = cell_names = None
     if comm.rank == 0:
         names = _header_error(path)
     if comm.rank == 0 and names is None:
@@ -309,6 +311,8 @@ def _gmsh(geo, d: int, comm) -> Geometry:
             gmsh.merge(str(path))
             names = {gmsh.model.getPhysicalName(d - 1, tag): tag
                      for _, tag in gmsh.model.getPhysicalGroups(d - 1)}
+            cell_names = {gmsh.model.getPhysicalName(d, tag): tag
+                          for _, tag in gmsh.model.getPhysicalGroups(d)}
         except Exception as err:   # gmsh reports a bad file as a plain Exception
             names = f"geometry.file: cannot read mesh file {path}: {err}"
             gmsh.finalize()
@@ -322,11 +326,12 @@ def _gmsh(geo, d: int, comm) -> Geometry:
     names = comm.bcast(names, root=0)
     if isinstance(names, str):
         raise SceneError(names, key=source)
-    mesh, facet_tags = compat.model_to_mesh(gmsh.model, comm, 0, gdim=d)
+    cell_names = comm.bcast(cell_names if comm.rank == 0 else None, root=0)
+    mesh, cell_tags, facet_tags = compat.model_to_tagged_mesh(gmsh.model, comm, 0, gdim=d)
     if comm.rank == 0:
         gmsh.finalize()
     check_cells(mesh, f"{source} {path}" if geo["file"] is not None else source)
-    return Geometry(mesh, facet_tags, names)
+    return Geometry(mesh, facet_tags, names, cell_tags, cell_names)
 
 
 def _model_error(gmsh, path, d: int) -> str | None:

@@ -158,25 +158,27 @@ class TimeState:
             self.u_previous.x.array[:] = self.u.x.array
         if self.obstacle is not None:
             self.obstacle.prepare(self.committed)
-        memory = self.memory
-        if memory is None:
+        if self.memory is None:
             return
-        weights = memory.history.implicit(k)
-        for constant, part in memory.implicit_terms:
-            if isinstance(constant, fem.Function):      # a weight per point (reduced time)
-                constant.x.array[:] = weights[part]
-            else:
-                constant.value = weights[part]
-        memory.H.x.array[:] = memory.history.explicit(k)
+        for memory in getattr(self.memory, "parts", (self.memory,)):
+            weights = memory.history.implicit(k)
+            for constant, part in memory.implicit_terms:
+                if isinstance(constant, fem.Function):  # a weight per point (reduced time)
+                    constant.x.array[:] = weights[part]
+                else:
+                    constant.value = weights[part]
+            memory.H.x.array[:] = memory.history.explicit(k)
+        if isinstance(self.memory, BodyMemory):
+            self.memory.combine()
 
     def record(self, k: float | None):
         """Take eps of the current, converged u (reached by a step of size k; None at t_0)
         into the history."""
-        memory = self.memory
-        if memory is None:
+        if self.memory is None:
             return
-        memory.eps_function.interpolate(memory.eps_expression)
-        memory.history.commit(memory.eps_function.x.array, k)
+        for memory in getattr(self.memory, "parts", (self.memory,)):
+            memory.eps_function.interpolate(memory.eps_expression)
+            memory.history.commit(memory.eps_function.x.array, k)
 
 
 @dataclass
@@ -278,7 +280,10 @@ def build(scene: dict, geometry: Geometry) -> Problem:
 
     V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
-    sigma, constants, memory = _stress(scene, mesh, u, context, updates)
+    if scene.get("body"):
+        sigma, constants, memory = body_stress(scene, geometry, u, context, updates)
+    else:
+        sigma, constants, memory = _stress(scene, mesh, u, context, updates)
     constants["t"] = context.t
 
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
@@ -441,7 +446,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     if degree == 1 and not np.allclose(u.function_space.tabulate_dof_coordinates(),
                                        W.tabulate_dof_coordinates()):
         raise RuntimeError("displacement and multiplier node numberings differ")
-    obstacle = _obstacle(scene, Q, W, nodes, context, updates)
+    obstacle = _obstacle(scene, Q, W, nodes, context, updates, geometry, u.function_space)
     if obstacle is None:
         normal = _contact_normal(mesh, Q, W, dsc, nodes)
         gap_value, gap_function = _gap(contact["gap"], Q, context, updates)
@@ -468,6 +473,8 @@ def _contact(scene, geometry, u, v, ds, context, updates):
         F_u = tangential if F_u is None else F_u + tangential
         pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
                                                       ufl.TestFunction(W)) * dsc))
+    if (scene.get("obstacle") or {}).get("shape") == "body":
+        obstacle.contact_form = F_u            # the master's share (fem.body_contact)
     if obstacle is not None and obstacle.controlled:
         obstacle.force_forms = obstacle_module.force_forms(
             obstacle, F_u, v, [u] + [f for f, _ in pairs], [F_u] + [r for _, r in pairs])
@@ -482,13 +489,17 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     return part, F_u, pairs
 
 
-def _obstacle(scene, Q, W, nodes, context, updates):
+def _obstacle(scene, Q, W, nodes, context, updates, geometry=None, V=None):
     """The scene's rigid obstacle (contactvisco.fem.obstacle; None without one): its normal nu
     and gap h at the contact nodes, re-evaluated at each time when it moves. The contact
     nodes' normals become the obstacle's; no node is a corner (one normal per node)."""
     table = scene.get("obstacle")
     if table is None or table["shape"] == "none":
         return None
+    if table["shape"] == "body":
+        from contactvisco.fem import body_contact
+        return body_contact.build(scene, geometry, V, Q, W, nodes,
+                                  _length_scale(geometry.mesh))
     part = obstacle_module.build(scene, Q, W, nodes, context.t)
     nodes.corners = np.zeros(0, dtype=nodes.nodes.dtype)
     if table["displacement"] is not None and context.depends_on_time(table["displacement"]):
@@ -936,3 +947,162 @@ def _multiplier_bcs(nodes, lambda_nu, lambda_tau, fixed, d):
             bcs.append(fem.dirichletbc(zero, dofs, L.sub(comp)))
         free_masks.append(free)
     return bcs, free_masks
+
+
+# ------------------------------------------------------------------ bodies
+
+class BodyHistory:
+    """The histories of eq (19) of several bodies seen as one by checkpoints and reports:
+    state() holds each body's arrays under its key with the suffix _body<b>."""
+
+    def __init__(self, histories: list):
+        self.histories = histories
+        self.direct = any(getattr(h, "direct", False) for h in histories)
+        self.terms = [term for h in histories for term in getattr(h, "terms", [])]
+
+    def state(self) -> dict:
+        """Every body's history arrays (restore() takes them back)."""
+        return {f"{key}_body{b}": value for b, history in enumerate(self.histories)
+                for key, value in history.state().items()}
+
+    def restore(self, state: dict):
+        """Each body's arrays of state() back into its history."""
+        for b, history in enumerate(self.histories):
+            suffix = f"_body{b}"
+            history.restore({key[:-len(suffix)]: value for key, value in state.items()
+                             if key.endswith(suffix)})
+
+
+@dataclass
+class BodyMemory:
+    """The memory parts of the bodies that have one ([[body]] tables): each a MemoryPart on
+    the whole tensor space, of which the stress takes its body's cells only; H, the history
+    stress of the output, is the body's H_b on each body's cells (combine())."""
+    parts: list                                # MemoryPart of each body with memory
+    masks: list                                # per part: 1.0 on its body's tensor dofs
+    history: BodyHistory
+    H: fem.Function
+    tensor_space: fem.FunctionSpace
+
+    def combine(self):
+        """H = sum_b mask_b H_b."""
+        self.H.x.array[:] = sum(mask * part.H.x.array for mask, part in zip(self.masks,
+                                                                           self.parts))
+
+
+def body_cells(scene: dict, geometry: Geometry) -> list[np.ndarray]:
+    """The local cells (ghosts included) of each [[body]] table, checked: a cell tag name or
+    region that names no cell, or a cell in no body or in two, is a SceneError naming the key.
+
+    Parameters
+    ----------
+    scene : dict
+        The resolved scene, with its list ``body`` of [[body]] tables.
+    geometry : contactvisco.fem.geometry.Geometry
+        The mesh with its cell tags and cell tag names.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        Per body, the local cell indices c with tag(c) = the body's tag, or with r(x_c) > 0 for
+        a region r in x, x_c the cell's midpoint.
+    """
+    from contactvisco.scene.expressions import value_at
+    mesh = geometry.mesh
+    tdim, d = mesh.topology.dim, mesh.geometry.dim
+    cell_map = mesh.topology.index_map(tdim)
+    local = cell_map.size_local + cell_map.num_ghosts
+    names = geometry.cell_names or {}
+    midpoints = None
+    out = []
+    for b, body in enumerate(scene["body"]):
+        where, cells = f"body[{b}].cells", body["cells"]
+        if cells in names:
+            found = geometry.cell_tags.find(names[cells])
+        else:
+            try:
+                value_at(cells, where, d, [0.0] * d, 0.0)
+            except SceneError as err:
+                raise SceneError(
+                    f"{where} = {cells!r} is neither a cell tag of this mesh (it has "
+                    f"{', '.join(sorted(names)) or 'none'}) nor a region in x: {err}",
+                    key=where) from None
+            if midpoints is None:
+                nodes = compat.geometry_nodes(mesh)[:local]
+                midpoints = mesh.geometry.x[nodes][:, :, :d].mean(axis=1)
+            found = np.flatnonzero([value_at(cells, where, d, x, 0.0) > 0 for x in midpoints])
+        found = np.asarray(found, dtype=np.int32)
+        if mesh.comm.allreduce(found.size, MPI.SUM) == 0:
+            raise SceneError(f"{where} = {cells!r} holds no cell of the mesh", key=where)
+        out.append(found)
+    count = np.zeros(local, dtype=int)
+    for found in out:
+        count[found] += 1
+    owned = count[:cell_map.size_local]
+    for what, bad in (("no", owned == 0), ("two", owned > 1)):
+        if mesh.comm.allreduce(int(bad.sum()), MPI.SUM):
+            raise SceneError(f"body: some cells of the mesh lie in {what} [[body]]; every "
+                             "cell must lie in exactly one (body[i].cells)", key="body")
+    return out
+
+
+def _indicator(mesh, cells):
+    """The DG0 field 1 on `cells` (local indices), 0 elsewhere."""
+    chi = fem.Function(compat.scalar_space(mesh, "DG", 0))
+    dofs = compat.cell_dofs(chi.function_space.dofmap)[cells].ravel()
+    chi.x.array[dofs] = 1.0
+    return chi
+
+
+def _tensor_mask(space, cells):
+    """1.0 on the dofs (all components) of `cells` in a blocked DG space, 0 elsewhere."""
+    bs = space.dofmap.index_map_bs
+    mask = np.zeros_like(fem.Function(space).x.array)
+    nodes = compat.cell_dofs(space.dofmap)[cells].ravel()
+    mask[(nodes[:, None] * bs + np.arange(bs)).ravel()] = 1.0
+    return mask
+
+
+def body_stress(scene: dict, geometry: Geometry, u, context=None, updates=None):
+    """The stress of several bodies, each with its own A and memory kernel:
+    sigma = sum_b chi_b sigma_b(u), chi_b the DG0 indicator of body b's cells and sigma_b
+    eq (19) with the body's [material] and [memory] (_stress).
+
+    Parameters
+    ----------
+    scene : dict
+        The resolved scene with its [[body]] tables.
+    geometry : contactvisco.fem.geometry.Geometry
+        The mesh and its cell tags.
+    u : dolfinx.fem.Function
+        The displacement.
+    context, updates
+        The expressions' x and t, and the callables run at each new time.
+
+    Returns
+    -------
+    tuple
+        sigma (UFL), the Constants by name (``<body>.<name>``), and a BodyMemory (None if no
+        body has memory).
+    """
+    if scene.get("viscoelastic") is not None:
+        raise SceneError("viscoelastic: a scene with [[body]] tables gives each body its "
+                         "material and memory in its own tables; leave out [viscoelastic]",
+                         key="viscoelastic")
+    mesh = geometry.mesh
+    sigma, constants, parts, masks = 0, {}, [], []
+    for body, cells in zip(scene["body"], body_cells(scene, geometry)):
+        own = dict(scene, material=body["material"], memory=body["memory"])
+        sigma_b, constants_b, memory_b = _stress(own, mesh, u, context, updates)
+        sigma = sigma + _indicator(mesh, cells) * sigma_b
+        constants.update({f"{body['name']}.{name}": c for name, c in constants_b.items()})
+        if memory_b is not None:
+            parts.append(memory_b)
+            masks.append(_tensor_mask(memory_b.tensor_space, cells))
+    if not parts:
+        return sigma, constants, None
+    space = parts[0].tensor_space
+    memory = BodyMemory(parts=parts, masks=masks,
+                        history=BodyHistory([part.history for part in parts]),
+                        H=fem.Function(space, name="history_stress"), tensor_space=space)
+    return sigma, constants, memory

@@ -10,6 +10,7 @@ defaults), so no message is ever parsed to find a key.
 from __future__ import annotations
 
 import ast
+import copy
 import math
 import pathlib
 
@@ -381,6 +382,57 @@ class Memory(Table):
 
 
 
+class Body(Table):
+    """One [[body]] table: a part of the mesh (`cells`: a cell tag name of the mesh, or a
+    region, an expression in x that is > 0 at the midpoints of the body's cells) with its own
+    [material] and [memory] tables (the same keys; absent keys take the values of the scene's
+    [material] and [memory])."""
+
+    KEYS = {
+        "name": Key(None),
+        "cells": Key(None),
+        "material": Key({}),
+        "memory": Key({}),
+    }
+    REQUIRED = ("name", "cells")
+
+    def resolve(self, scene) -> None:
+        """material and memory as full Material and Memory tables: the keys the body gives,
+        the others those of the scene's [material] and [memory] (E and nu given: not the
+        scene's lambda and mu); an unknown key is a SceneError naming it."""
+        for name, table in (("material", Material), ("memory", Memory)):
+            given = self.get(name, {})
+            self.need(isinstance(given, dict), name,
+                      f"{self.key(name)} must be a table, got {given!r}")
+            unknown = sorted(set(given) - set(table.KEYS))
+            if unknown:
+                self.fail(name, f"{self.key(name)}.{unknown[0]}: unknown key; allowed: "
+                                f"{', '.join(table.KEYS)}")
+            values = dict(scene[name])
+            if name == "material" and ({"E", "nu"} & set(given)):
+                values["lambda"] = values["mu"] = None
+            values.update(copy.deepcopy(given))
+            self[name] = table(values, self.key(name), self.provenance)
+
+    def rules(self, scene):
+        self.need(plain_name(self["name"]), "name",
+                  f"{self.key('name')} must be a plain name, got {self['name']!r}")
+        cells = self["cells"]
+        self.need(isinstance(cells, str) and cells != "", "cells",
+                  f"{self.key('cells')} must be a cell tag name of the mesh or a region (an "
+                  f"expression in x, > 0 in the body), got {cells!r}")
+        material, memory = self["material"], self["memory"]
+        material.normalize()
+        material.validate(scene)
+        self.need(material["model"] == scene["material"]["model"], "material",
+                  f"{self.key('material')}.model = {material['model']!r}: every body has the "
+                  f"scene's model {scene['material']['model']!r}")
+        self.need(material["law"] == "linear", "material",
+                  f"{self.key('material')}.law = {material['law']!r}: a [[body]] takes the "
+                  "linear A only")
+        memory.validate(scene)
+
+
 class Dirichlet(Table):
     """One [[dirichlet]] table: u = value on the boundary, for all or the listed components."""
 
@@ -451,6 +503,10 @@ def nonnegative(x) -> bool:
     return finite(x) and x >= 0
 
 
+#: contact.pairing: the projection of a master body's boundary onto the slave nodes.
+PAIRINGS = ("mortar", "node_to_segment")
+
+
 class Contact(Table):
     """Normal compliance p_nu(s) = c_nu max(0, s) up to a layer g, then a rigid bound; friction
     bound mu p_nu (or mu times the total pressure); augmented-Lagrangian parameter r."""
@@ -470,6 +526,12 @@ class Contact(Table):
         # Prescribed functions (eq 3), expressions in s (and p_nu): check_contact_laws.
         "p_nu": Key(None),
         "p_tau": Key(None),
+        # Two deformable bodies ([obstacle] shape = "body"): how the slave nodes are paired
+        # with the master boundary (contactvisco.fem.interface), and how far a slave node may
+        # lie from it (None: a tenth of the mesh's extent).
+        "pairing": choice("mortar", *PAIRINGS),
+        "search_distance": Key(None, lambda x: x is None or (finite(x) and x > 0),
+                               "a finite number > 0"),
     }
 
     def normalize(self, material: dict) -> None:
@@ -650,7 +712,7 @@ def _check_samples(table, name, values, upper, t) -> None:
                f"infinite; use powers s**m with m >= 1 (e.g. 'c * s**1.5'), or regularize "
                f"near 0 (e.g. 'c * s / sqrt(s + delta)' for c * s**0.5)")
 #: obstacle.shape: the rigid obstacle's geometry ("none": the body's own normal and contact.gap).
-OBSTACLE_SHAPES = ("none", "plane", "cylinder", "sphere", "surface")
+OBSTACLE_SHAPES = ("none", "plane", "cylinder", "sphere", "surface", "body")
 
 
 def _vector(x, d) -> bool:
@@ -673,11 +735,13 @@ class Obstacle(Table):
         "displacement": Key(None),
         "force_components": Key([], lambda x: isinstance(x, list), "a list of components"),
         "force": Key([], lambda x: isinstance(x, list), "a list of expressions in t"),
+        # shape = "body": the master boundary, a facet tag name of the mesh.
+        "boundary": Key(None),
     }
 
     #: The keys each shape needs (axis: a cylinder in 3D).
     NEEDS = {"none": (), "plane": ("point", "normal"), "cylinder": ("centre", "radius"),
-             "sphere": ("centre", "radius"), "surface": ("distance",)}
+             "sphere": ("centre", "radius"), "surface": ("distance",), "body": ("boundary",)}
 
     def rules(self, scene):
         shape, d = self["shape"], scene.dimension
@@ -696,8 +760,8 @@ class Obstacle(Table):
         for name in needs:
             self.need(self[name] is not None, name,
                       f"obstacle.shape = '{shape}' needs obstacle.{name}")
-        extra = [k for k in ("point", "normal", "centre", "radius", "axis", "distance")
-                 if self[k] is not None and k not in needs]
+        extra = [k for k in ("point", "normal", "centre", "radius", "axis", "distance",
+                             "boundary") if self[k] is not None and k not in needs]
         self.need(not extra, extra[0] if extra else "shape",
                   f"obstacle.{extra[0] if extra else ''} has no meaning for obstacle.shape = "
                   f"'{shape}' (it takes {', '.join(needs)})")
@@ -722,6 +786,8 @@ class Obstacle(Table):
             self.need(not _uses_time(self["distance"]), "distance",
                       "obstacle.distance is the obstacle's shape in x; move it with "
                       "obstacle.displacement (expressions in t)")
+        if shape == "body":
+            self._body(scene)
         motion = self["displacement"]
         if motion is not None:
             self.need(isinstance(motion, list) and len(motion) == d, "displacement",
@@ -734,6 +800,25 @@ class Obstacle(Table):
                           "displacement", f"{where} = {value!r}: a rigid translation depends "
                                           "on t only, not on x")
         self._force(scene, d)
+
+    def _body(self, scene) -> None:
+        """shape = "body": the master boundary is a name other than the contact boundary; the
+        master body moves with the solution, so it has no prescribed motion or force."""
+        master, slave = self["boundary"], scene["contact"]["boundary"]
+        self.need(isinstance(master, str) and master != "", "boundary",
+                  f"obstacle.boundary must be a boundary name (the master body's), got "
+                  f"{master!r}")
+        slaves = [slave] if isinstance(slave, str) else list(slave)
+        self.need(master not in slaves, "boundary",
+                  f"obstacle.boundary = {master!r} is the contact boundary itself: the master "
+                  "boundary must be another body's boundary")
+        self.need(len(slaves) == 1, "boundary",
+                  "obstacle.shape = 'body' pairs one contact boundary (contact.boundary, the "
+                  f"slave) with obstacle.boundary, got contact.boundary = {slave!r}")
+        for name in ("displacement", "force_components"):
+            self.need(self[name] in (None, []), name,
+                      f"obstacle.{name} has no meaning for obstacle.shape = 'body': the master "
+                      "body moves with the solution")
 
     def _force(self, scene, d: int) -> None:
         """force_components: the components of d that are unknowns, their resultant contact
@@ -927,8 +1012,8 @@ TABLES = {
     "obstacle": Obstacle, "solver": Solver, "output": Output, "units": Units,
 }
 
-#: Lists of tables ([[dirichlet]], [[traction]]) and the class of their items.
-TABLE_LISTS = {"dirichlet": Dirichlet, "traction": Traction}
+#: Lists of tables ([[dirichlet]], [[traction]], [[body]]) and the class of their items.
+TABLE_LISTS = {"dirichlet": Dirichlet, "traction": Traction, "body": Body}
 
 
 def plain_name(x) -> bool:
@@ -957,6 +1042,7 @@ class Scene(Table):
         out["dirichlet"] = []
         out["body_force"] = BodyForce.defaults()
         out["traction"] = []
+        out["body"] = []
         out["contact"] = None
         out["viscoelastic"] = None          # absent: the material in the paper's form
         for name in ("obstacle", "time", "discretization", "solver", "output", "units"):
@@ -986,6 +1072,8 @@ class Scene(Table):
                              f"{items!r}")
             scene[name] = [table(item, f"{name}[{i}]", provenance)
                            for i, item in enumerate(items)]
+        for body in scene["body"]:
+            body.resolve(scene)
         return scene
 
     def validate(self, scene=None) -> None:
@@ -1006,6 +1094,17 @@ class Scene(Table):
         for item in (item for name in TABLE_LISTS for item in self[name]):
             item.validate(self)
         self._repeated_boundaries()
+        self._bodies()
+
+    def _bodies(self) -> None:
+        """[[body]] names differ; contact between two bodies ([obstacle] shape = "body")
+        needs them."""
+        seen = {}
+        for j, body in enumerate(self["body"]):
+            if body["name"] in seen:
+                body.fail("name", f"body[{seen[body['name']]}] and body[{j}] are both named "
+                                  f"{body['name']!r}; give each body its own name")
+            seen[body["name"]] = j
 
     def _repeated_boundaries(self) -> None:
         """A boundary in two [[traction]] tables would be loaded twice; in two [[dirichlet]]

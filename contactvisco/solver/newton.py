@@ -472,6 +472,15 @@ class BlockSNES(NewtonSolver):
 MAX_PLACEMENTS = 10
 
 
+def _condensation(problem):
+    """The condensed system of a problem: NodalCondensation, or for a contact boundary that
+    meets another body of the mesh its InterfaceCondensation."""
+    if hasattr(problem.contact.obstacle, "pairing"):
+        from contactvisco.solver.interface_newton import InterfaceCondensation
+        return InterfaceCondensation(problem)
+    return NodalCondensation(problem)
+
+
 class CondensedSNES(NewtonSolver):
     """SNES over u alone, the nodal multipliers eliminated node by node in every Newton step
     (contactvisco.solver.condensed); they are updated from each displacement step, as the coupled
@@ -483,7 +492,7 @@ class CondensedSNES(NewtonSolver):
 
     def __init__(self, problem, comm, scene_options=None, defaults=None, reuse=False):
         super().__init__(comm, [problem.u], scene_options, defaults, reuse)
-        self.system = NodalCondensation(problem)
+        self.system = _condensation(problem)
         u_vector = compat.petsc_vector(problem.u)
         self.b = u_vector.copy()
         self.x = u_vector.copy()
@@ -735,6 +744,15 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
                          f"condensed Newton system, not the {system} one (it needs nodal "
                          "contact multipliers: a finite contact.g or friction)",
                          key="obstacle.force_components")
+    if hasattr(obstacle, "pairing"):           # another body of the mesh (fem.body_contact)
+        if not multipliers:
+            from contactvisco.solver.interface_newton import InterfaceSNES
+            return InterfaceSNES(problem, comm, options, defaults, reuse=kind == "direct")
+        if system != "condensed":
+            raise SceneError("obstacle.shape = 'body' with contact multipliers is solved with "
+                             "the condensed Newton system (solver.linear_system = 'auto' or "
+                             "'condensed', nodal contact quadrature)",
+                             key="solver.linear_system")
     if system == "condensed":
         newton = CondensedSNES(problem, comm, options, defaults, reuse=kind == "direct")
     else:

@@ -1,0 +1,197 @@
+"""Contact of two deformable bodies of one mesh: the slave boundary (contact.boundary) against
+the master boundary of another body (obstacle.shape = "body", obstacle.boundary).
+
+The law of contactvisco.model.contact_law holds at each slave node i for the displacement
+relative to the master,
+
+    u_rel,i = u_i - sum_k Pi_ik u_k        (k: master nodes),
+
+with Pi the projection operator of contactvisco.fem.interface (mortar or node to segment),
+built once in the reference configuration (small sliding). The law sees the master as an
+obstacle whose displacement at the slave nodes is the P1 field D = Pi u, its direction nu_i
+and gap h_i fixed:
+
+    nu_i = -n_m(p_i),    h_i = n_m(p_i) . (x_i - sum_k Pi_ik x_k),
+
+n_m(p_i) the outward normal of the master facet of the closest point p_i of x_i
+(interface.project), so that s_i = (u_i - (Pi u)_i) . nu_i - h_i is the penetration. For node
+to segment h_i is the closest-point gap; for mortar it is the weighted gap (docs/interface.md).
+
+The master receives -Pi^T of the slave's nodal contact forces c: with T = I - P, P the matrix
+Pi (x) I_d on the dofs of u (slave rows, master columns), the residual and Jacobian are
+
+    F = F_el + T^T c(T u),        J = J_el + T^T K_c T,
+
+where K_c = dc/du_rel. The forms of the problem assemble F_el + c and J_el + K_c with D held
+fixed; the solver (contactvisco.solver.interface_newton) adds -P^T c and T^T K_c T - K_c.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from contactvisco.errors import SceneError
+from contactvisco.fem import compat, interface
+
+_INSERT, _FORWARD = PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD
+
+#: Without contact.search_distance, a slave node may lie this fraction of the mesh's extent
+#: away from the master boundary.
+SEARCH_FRACTION = 0.1
+
+
+@dataclass
+class BodyContact:
+    """The master body as the slave nodes' obstacle: nu (``normal``, W) and h (``gap``, Q)
+    fixed, D = Pi u (``D``, W) following u (follow()), P = Pi (x) I_d on u's dofs, the pairing
+    itself, and the contact terms of F_u (``contact_form``, UFL), set by the problem."""
+    normal: fem.Function
+    gap: fem.Function
+    D: fem.Function
+    P: PETSc.Mat
+    pairing: interface.Pairing
+    method: str
+    D_previous: fem.Function | None = None
+    contact_form: object | None = None
+    force_forms: dict | None = None
+
+    @property
+    def controlled(self) -> list:
+        """No force-controlled component: the master moves with the solution."""
+        return []
+
+    def displacement(self) -> np.ndarray:
+        """The zero vector: the master has no rigid displacement of its own."""
+        return np.zeros(self.D.function_space.mesh.geometry.dim)
+
+    def follow(self, u: fem.Function) -> None:
+        """D = P u, the master's displacement carried to the slave nodes (ghosts updated).
+
+        Parameters
+        ----------
+        u : dolfinx.fem.Function
+            The displacement (P1, the layout of D).
+        """
+        target = compat.petsc_vector(self.D)
+        self.P.mult(compat.petsc_vector(u), target)
+        target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+
+    def prepare(self, committed) -> None:
+        """Nothing to prepare between steps (the pairing is fixed)."""
+
+    def commit(self) -> None:
+        """Nothing to commit (the pairing is fixed)."""
+
+    def move_to(self) -> None:
+        """Nothing follows the time."""
+
+
+def search_distance(scene: dict, length_scale: float) -> float:
+    """contact.search_distance, or SEARCH_FRACTION times the mesh's extent.
+
+    Parameters
+    ----------
+    scene : dict
+        The resolved scene.
+    length_scale : float
+        The largest extent of the mesh's bounding box.
+
+    Returns
+    -------
+    float
+        The largest distance of a slave node from the master boundary.
+    """
+    given = scene["contact"]["search_distance"]
+    return float(given) if given is not None else SEARCH_FRACTION * length_scale
+
+
+def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyContact:
+    """The pairing of the contact boundary (slave) with obstacle.boundary (master), and the
+    fields nu, h and D at the slave nodes (module description).
+
+    Parameters
+    ----------
+    scene : dict
+        The resolved scene (contact.pairing, contact.search_distance, obstacle.boundary).
+    geometry : contactvisco.fem.geometry.Geometry
+        The mesh and its boundary names.
+    V : dolfinx.fem.FunctionSpace
+        The displacement's space (P1).
+    Q, W : dolfinx.fem.FunctionSpace
+        The scalar and vector P1 spaces of the contact fields.
+    nodes : contactvisco.fem.problem.ContactNodes
+        The slave nodes; their normals become nu.
+    length_scale : float
+        The mesh's extent (the default search distance).
+
+    Returns
+    -------
+    BodyContact
+        nu, h, D and P = Pi (x) I_d, Pi_ik = N_k(p_i) (node to segment) or (D^-1 M)_ik
+        (mortar).
+
+    Raises
+    ------
+    SceneError
+        A slave node farther than the search distance from the master boundary (naming
+        contact.search_distance), or a boundary name the mesh does not have.
+    """
+    mesh = geometry.mesh
+    comm = mesh.comm
+    d = mesh.geometry.dim
+    if compat.element_degree(V) != 1:
+        raise SceneError("obstacle.shape = 'body' needs discretization.degree = 1 (the "
+                         "interface pairs P1 nodes)", key="discretization.degree")
+    contact, obstacle = scene["contact"], scene["obstacle"]
+    mu = contact["mu"]
+    if (isinstance(mu, str) or mu > 0) and contact["slip"] == "increment":
+        raise SceneError("contact.slip = 'increment' with obstacle.shape = 'body': the slip of "
+                         "a step relative to another body is not built; use contact.slip = "
+                         "'total'", key="contact.slip")
+    slave_name, master_name = contact["boundary"], obstacle["boundary"]
+    slave_name = slave_name if isinstance(slave_name, str) else slave_name[0]
+    geometry.facets(slave_name, "contact.boundary")
+    geometry.facets(master_name, "obstacle.boundary")
+    reach = search_distance(scene, length_scale)
+    slave = interface.slave_side(V, geometry.facet_tags, geometry.names[slave_name])
+    master = interface.boundary_surface(V, geometry.facet_tags, geometry.names[master_name],
+                                        "obstacle.boundary")
+    found = interface.project(slave.coordinates, master, reach)
+    method = contact["pairing"]
+    pairing = interface.pair(slave, master, method, reach)
+    far = sorted(set(slave.nodes[found.missing].tolist()) | set(pairing.unpaired))
+    first = None
+    if far:
+        j = int(np.flatnonzero(slave.nodes == far[0])[0])
+        first = ", ".join(f"{c:.6g}" for c in slave.coordinates[j])
+    where = [w for w in comm.allgather(first) if w is not None]
+    count = comm.allreduce(len(far), MPI.SUM)
+    if count:
+        raise SceneError(f"contact.search_distance: {count} slave node(s) of "
+                         f"'{slave_name}' have no master facet of '{master_name}' within "
+                         f"{reach:g} (contact.pairing = '{method}'), the first at "
+                         f"({where[0]}); raise contact.search_distance or check the "
+                         "boundaries", key="contact.search_distance")
+    # nu = -n_m and the gap h = n_m . (x_i - (Pi x)_i) at the owned slave nodes.
+    where_x = {int(k): x for k, x in zip(master.nodes.ravel(),
+                                         master.coordinates.reshape(-1, d))}
+    carried = pairing.apply(where_x)
+    start = V.dofmap.index_map.local_range[0]
+    local = slave.nodes - start
+    normal, gap = fem.Function(W), fem.Function(Q)
+    n_m = found.normal
+    projected = np.array([carried[int(i)] for i in slave.nodes]).reshape(-1, d)
+    normal.x.array.reshape(-1, d)[local] = -n_m
+    gap.x.array[local] = np.einsum("ng,ng->n", n_m, slave.coordinates - projected)
+    for f in (normal, gap):
+        compat.petsc_vector(f).ghostUpdate(addv=_INSERT, mode=_FORWARD)
+    nodes.normals = normal.x.array.reshape(-1, d)[nodes.nodes].copy()
+    nodes.corners = np.zeros(0, dtype=nodes.nodes.dtype)
+    sizes = interface.index_sizes(V)
+    P = pairing.matrix(comm, sizes, sizes, d)
+    return BodyContact(normal=normal, gap=gap, D=fem.Function(W), P=P, pairing=pairing,
+                       method=method)

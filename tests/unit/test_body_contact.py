@@ -1,0 +1,249 @@
+"""Two deformable bodies in contact (obstacle.shape = "body"): the patch test of two blocks
+with non-matching interface nodes (meshes/two_blocks.py: 13 slave against 10 master segments).
+
+The upper (slave) block is pressed by a uniform pressure p on its top onto the lower (master)
+block, held at its bottom (y), both blocks' sides held in x, frictionless normal compliance at
+the interface: the exact solution has u_x = 0, uniform stresses sigma_yy = -p,
+sigma_xx = -p nu / (1 - nu), sigma_xy = 0 in both blocks, and a uniform interface pressure p
+(the compliance's uniform penetration p / c_nu). The mortar pairing reproduces it to round-off;
+node to segment does not (its error is measured, not bounded).
+"""
+import numpy as np
+import pytest
+from dolfinx import fem
+from mpi4py import MPI
+
+from contactvisco.errors import SceneError
+from contactvisco.fem import geometry as geometry_module
+from contactvisco.fem.problem import build
+from contactvisco.scene import loader
+from contactvisco.solver.newton import create
+
+PRESSURE, NU = 0.01, 0.3
+
+
+def patch_scene(pairing="mortar", **contact) -> dict:
+    return {
+        "name": "patch",
+        "geometry": {"type": "gmsh", "script": "two_blocks",
+                     "parameters": {"h_slave": 0.077, "h_master": 0.1}},
+        "material": {"model": "plane_strain", "E": 1.0, "nu": NU},
+        "dirichlet": [{"boundary": "bottom", "components": [1]},
+                      {"boundary": "master_sides", "components": [0]},
+                      {"boundary": "slave_sides", "components": [0]}],
+        "traction": [{"boundary": "top", "value": [0.0, -PRESSURE]}],
+        "contact": {"boundary": "slave", "stiffness": 100.0, "pairing": pairing, **contact},
+        "obstacle": {"shape": "body", "boundary": "master"},
+        "time": {"T": 1.0, "steps": 1},
+        "solver": {"petsc_options": {"snes_rtol": 1e-14, "snes_atol": 1e-15}},
+        "output": {"probes": []},
+    }
+
+
+def solve_patch(raw):
+    """The converged patch: per block (slave, master) the largest deviation of the stress
+    from the exact one over p, the interface pressure's deviation over p, and the resultants
+    of the slave's contact forces and of what the master receives."""
+    comm = MPI.COMM_WORLD
+    scene = loader.resolve(raw)
+    geometry = geometry_module.build(scene, comm)
+    problem = build(scene, geometry)
+    snes = create(problem, comm)
+    problem.time.stage(1.0)
+    iterations = snes.solve()
+    sigma = fem.Function(problem.tensor_space)
+    sigma.interpolate(problem.sigma_expression)
+    owned = problem.tensor_space.dofmap.index_map.size_local
+    values = sigma.x.array.reshape(-1, 2, 2)[:owned]
+    y = problem.tensor_space.tabulate_dof_coordinates()[:owned, 1]
+    exact = np.array([[-PRESSURE * NU / (1 - NU), 0.0], [0.0, -PRESSURE]])
+    deviation = np.abs(values - exact).max(axis=(1, 2)) / PRESSURE
+    blocks = [comm.allreduce(float(deviation[side].max(initial=0.0)), MPI.MAX)
+              for side in (y > 0, y < 0)]
+    system = getattr(snes, "system", snes)        # the condensed system, with multipliers
+    c = system.contact_forces().array.reshape(-1, 2).copy()
+    share = system.master_share().array.reshape(-1, 2)
+    nodes = problem.contact.nodes
+    own = nodes.nodes[nodes.owned]
+    pressure = -c[own, 1] / nodes.weights[nodes.owned]
+    spread = comm.allreduce(float(np.abs(pressure / PRESSURE - 1).max(initial=0.0)), MPI.MAX)
+    slave = comm.allreduce(c.sum(axis=0), MPI.SUM)
+    master = comm.allreduce(-share.sum(axis=0), MPI.SUM)
+    return dict(blocks=blocks, pressure=spread, slave=slave, master=master,
+                iterations=iterations)
+
+
+#: The interface laws: a normal compliance (no multiplier: fem.body_contact's own Newton
+#: system), the unilateral bound g = 0 (Signorini) and a compliance whose bound is reached
+#: (the condensed system with the multiplier lambda_nu), Signorini with Coulomb friction.
+LAWS = {
+    "compliance": {},
+    "signorini": {"stiffness": 0.0, "g": 0.0},
+    "bound reached": {"g": 5e-5},                # the compliance alone would give 1e-4
+    "coulomb": {"stiffness": 0.0, "g": 0.0, "mu": 0.3, "friction_law": "coulomb"},
+}
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_mortar_patch_test_is_passed(law):
+    """Mortar: uniform stresses in both blocks and a uniform interface pressure to 1e-10 of p;
+    the master receives the opposite of the slave's resultant (to 1e-12 of p times the
+    interface's length), which equals the load."""
+    out = solve_patch(patch_scene("mortar", **LAWS[law]))
+    print(f"mortar, {law}: stress deviation (slave, master) / p:", out["blocks"],
+          "pressure:", out["pressure"], "iterations:", out["iterations"])
+    assert max(out["blocks"]) < 1e-10
+    assert out["pressure"] < 1e-10
+    assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
+    assert out["slave"] == pytest.approx([0.0, -PRESSURE], abs=1e-12 * PRESSURE)
+
+
+@pytest.mark.parametrize("law", ["compliance", "signorini"])
+def test_node_to_segment_balances_forces(law):
+    """Node to segment: the resultants balance to round-off (every row of Pi sums to 1); its
+    stresses are not uniform (the error is measured and reported, far above mortar's)."""
+    out = solve_patch(patch_scene("node_to_segment", **LAWS[law]))
+    print(f"node to segment, {law}: stress deviation (slave, master) / p:", out["blocks"],
+          "pressure:", out["pressure"], "iterations:", out["iterations"])
+    assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
+    assert out["slave"] == pytest.approx([0.0, -PRESSURE], abs=1e-12 * PRESSURE)
+    assert max(out["blocks"]) > 1e-6
+
+
+@pytest.mark.parametrize("change, key", [
+    (dict(obstacle={"shape": "body", "boundary": "nowhere"}), "obstacle.boundary"),
+    (dict(obstacle={"shape": "body", "boundary": "bottom"},
+          contact={"boundary": "slave", "stiffness": 100.0, "search_distance": 0.4}),
+     "contact.search_distance"),
+    (dict(contact={"boundary": "slave", "stiffness": 100.0, "g": 0.1, "mu": 0.2,
+                   "slip": "increment"}), "contact.slip"),
+])
+def test_interface_refused(change, key):
+    """An unknown master boundary, a slave node with no master within the search distance,
+    friction on the slip of a step: a SceneError naming the key."""
+    raw = dict(patch_scene(), **change)
+    scene = loader.resolve(raw)
+    with pytest.raises(SceneError) as err:
+        build(scene, geometry_module.build(scene, MPI.COMM_WORLD))
+    assert err.value.key == key
+
+
+def hertz_scene(pairing="mortar", h=0.01, R=1.0, a=0.1, materials=((1.0, 0.3), (2.0, 0.25))):
+    """A cylinder (radius R, [[body]] "cylinder") pressed onto a block ("block") of another
+    material (meshes/cylinder_on_block.py), Signorini contact between them, the load per unit
+    length P chosen for the Hertz half-width a: a^2 = 4 P R / (pi E*),
+    1/E* = sum_b (1 - nu_b^2) / E_b. Returns the raw scene and P."""
+    E_star = 1.0 / sum((1.0 - nu ** 2) / E for E, nu in materials)
+    P = a ** 2 * np.pi * E_star / (4.0 * R)
+    (E1, nu1), (E2, nu2) = materials
+    raw = {
+        "name": "cylinder_on_block",
+        "geometry": {"type": "gmsh", "script": "cylinder_on_block",
+                     "parameters": {"radius": R, "h_contact": h, "h_far": 0.2,
+                                    "refine": 0.15}},
+        "material": {"model": "plane_strain"},
+        "body": [{"name": "cylinder", "cells": "cylinder", "material": {"E": E1, "nu": nu1}},
+                 {"name": "block", "cells": "block", "material": {"E": E2, "nu": nu2}}],
+        "dirichlet": [{"boundary": "bottom", "components": "all"},
+                      {"boundary": "top", "components": [0]}],
+        "traction": [{"boundary": "top", "value": [0.0, -P / (2.0 * R)]}],
+        "contact": {"boundary": "contact", "stiffness": 0.0, "g": 0.0, "pairing": pairing,
+                    "augmentation": 1.0},
+        "obstacle": {"shape": "body", "boundary": "block_top"},
+        "time": {"T": 1.0, "steps": 1},
+        "solver": {"predictor": "none"},
+        "output": {"probes": []},
+    }
+    return raw, P
+
+
+@pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
+def test_hertz_cylinder_on_block(pairing):
+    """Two elastic bodies of different materials: the contact half-width is Hertz's within one
+    node spacing h (the first slave node past the edge carries no pressure), the peak
+    pressure 2 P / (pi a) within 1 %, and the slave's resultant the load."""
+    h, a = 0.01, 0.1
+    raw, P = hertz_scene(pairing, h=h, a=a)
+    comm = MPI.COMM_WORLD
+    scene = loader.resolve(raw)
+    problem = build(scene, geometry_module.build(scene, comm))
+    snes = create(problem, comm)
+    problem.time.stage(1.0)
+    iterations = snes.solve()
+    c = snes.system.contact_forces().array.reshape(-1, 2)
+    nodes = problem.contact.nodes
+    own = nodes.nodes[nodes.owned]
+    x = problem.V.tabulate_dof_coordinates()[own, 0]
+    pressure = -c[own, 1] / nodes.weights[nodes.owned]
+    touching = np.abs(x[pressure > 1e-10 * P])
+    half_width = comm.allreduce(float(touching.max(initial=0.0)), MPI.MAX)
+    peak = comm.allreduce(float(pressure.max(initial=0.0)), MPI.MAX)
+    resultant = comm.allreduce(c[own].sum(axis=0), MPI.SUM)
+    print(f"Hertz, {pairing}: half-width {half_width:.5f} (a = {a}), peak pressure "
+          f"{peak:.5g} (Hertz {2 * P / (np.pi * a):.5g}), Newton iterations {iterations}")
+    assert abs(half_width - a) < h
+    assert peak == pytest.approx(2.0 * P / (np.pi * a), rel=1e-2)
+    assert resultant == pytest.approx([0.0, -P], abs=1e-10 * P)
+
+
+def test_creeping_cylinder_restarts_exactly(tmp_path_factory, monkeypatch):
+    """A creeping cylinder (its own exponential kernel, [[body]]) on an elastic block: a run
+    stopped after its checkpoint of step 3 and restarted reaches the uninterrupted run's
+    contact state (the checkpoint holds each body's history), and the cylinder has crept (its
+    contact zone grows under the constant load)."""
+    from helpers import run_stopped_after_checkpoint
+    from contactvisco.solver.time_loop import simulate
+    comm = MPI.COMM_WORLD
+    folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
+               for name in ("whole", "stopped")]
+    raw, P = hertz_scene(h=0.02)
+    raw["body"][0]["memory"] = {"kernel": "exponential", "alpha": [-0.6], "tau": [1.0]}
+    raw["traction"][0]["value"][1] = f"-{P / 2.0} * min(2 * t, 1)"
+    raw["time"] = {"T": 3.0, "steps": 6, "rule": "trapezoid"}
+    scene = loader.resolve(raw)
+    whole = simulate(scene, out=folders[0], comm=comm, progress=False, keep_tables=True)
+    run_stopped_after_checkpoint(monkeypatch, 3, lambda: simulate(
+        scene, out=folders[1], comm=comm, progress=False))
+    restarted = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True,
+                         restart=True)
+    a, b = whole.tables[-1], restarted.tables[-1]
+    assert np.max(np.abs(a["u_nu"] - b["u_nu"])) <= 1e-12 * np.max(np.abs(a["u_nu"]))
+    touching = [s["status_counts"] for s in whole.steps]
+    print("status counts per step:", touching)
+    assert touching[-1]["bound"] > touching[2]["bound"]      # the load is constant from t = 0.5
+
+
+@pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
+def test_block_slides_on_block(pairing):
+    """Coulomb friction on the tangential part of u_rel: the upper block, pressed by p and
+    dragged by its top (u_x = 0.2 t) over the lower one (clamped at its bottom), slides: every
+    pressed slave node carries |c_tau| = mu |c_nu| (to 1e-10), the slave's resultant is
+    (mu p, -p) per unit length, the friction opposing the motion, and the master receives
+    the opposite."""
+    mu = 0.3
+    raw = patch_scene(pairing, stiffness=0.0, g=0.0, mu=mu, friction_law="coulomb")
+    raw["dirichlet"] = [{"boundary": "bottom", "components": "all"},
+                        {"boundary": "top", "components": [0], "value": "0.2 * t"}]
+    comm = MPI.COMM_WORLD
+    scene = loader.resolve(raw)
+    problem = build(scene, geometry_module.build(scene, comm))
+    snes = create(problem, comm)
+    for t in (0.0, 0.5, 1.0):
+        problem.time.stage(t)
+        snes.solve()
+        problem.time.commit()
+    c = snes.system.contact_forces().array.reshape(-1, 2).copy()
+    share = snes.system.master_share().array.reshape(-1, 2)
+    nodes = problem.contact.nodes
+    own = nodes.nodes[nodes.owned]
+    pressed = np.abs(c[own, 1]) > 1e-12 * PRESSURE
+    ratio = np.abs(c[own, 0][pressed]) / np.abs(c[own, 1][pressed])
+    worst = comm.allreduce(float(np.abs(ratio - mu).max(initial=0.0)), MPI.MAX)
+    count = comm.allreduce(int(pressed.sum()), MPI.SUM)
+    slave = comm.allreduce(c.sum(axis=0), MPI.SUM)
+    master = comm.allreduce(-share.sum(axis=0), MPI.SUM)
+    print(f"sliding, {pairing}: {count} pressed slave nodes, largest ||c_tau|/|c_nu| - mu| "
+          f"{worst:.2e}, slave resultant {slave}")
+    assert count >= 10 and worst < 1e-10
+    assert slave == pytest.approx([mu * PRESSURE, -PRESSURE], abs=1e-10 * PRESSURE)
+    assert np.allclose(slave + master, 0.0, atol=1e-12 * PRESSURE)
