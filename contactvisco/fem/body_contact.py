@@ -58,6 +58,7 @@ class BodyContact:
     D_previous: fem.Function | None = None
     contact_form: object | None = None
     force_forms: dict | None = None
+    rigid: bool = False                # no position of its own: D follows u
 
     @property
     def controlled(self) -> list:

@@ -126,6 +126,7 @@ class ObstaclePart:
     _gap_expression: fem.Expression
     committed: np.ndarray | None = None    # d at the last committed state
     force_forms: dict | None = None        # force_forms() (force control only)
+    rigid: bool = True                     # a position d of its own, kept in checkpoints
 
     @property
     def dim(self) -> int:

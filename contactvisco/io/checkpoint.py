@@ -120,7 +120,7 @@ def _fields(problem):
         out += [(f"history_{key}", problem.tensor_space, value)
                 for key, value in problem.memory.history.state().items()]
     obstacle = problem.contact and problem.contact.obstacle
-    if obstacle is not None:
+    if obstacle is not None and obstacle.rigid:      # a master body has no position of its own
         out += [(name, None, value) for name, value in obstacle_state(obstacle).items()]
     return out
 
@@ -422,7 +422,7 @@ def restore_obstacle(problem, meta: dict, first) -> None:
         The arrays of the checkpoint's first part (the obstacle's are the same in every part).
     """
     obstacle = problem.contact and problem.contact.obstacle
-    if obstacle is None:
+    if obstacle is None or not obstacle.rigid:
         return
     names = ("obstacle_displacement", "obstacle_reference")
     if not all(name in meta["fields"] for name in names):

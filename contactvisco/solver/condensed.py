@@ -330,12 +330,22 @@ class NodalCondensation:
     def residual(self, x, b):
         """The condensed residual at x (u's vector, ghosts updated) into b; also stores the
         node blocks for the Jacobian and the full residual norm of the coupled problem."""
+        self.assemble_u_residual(x, b)
+        self.condense_residual(b)
+
+    def assemble_u_residual(self, x, b):
+        """b = F_u(x) with the Dirichlet rows set to x - g (lifting applied)."""
         with b.localForm() as local:
             local.set(0.0)
         assemble_vector(b, self.F_u)
         compat.apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
         b.ghostUpdate(addv=_ADD, mode=_REVERSE)
         compat.set_bc(b, self.bcs, x, -1.0)
+
+    def condense_residual(self, b):
+        """Eliminate the multipliers' residual G node by node from the u residual b (in
+        place): the owned contact rows of b become F_red; the blocks are kept for the
+        Jacobian, and the coupled residual's norm in `full_norm`."""
         G = np.zeros((len(self.own), self.m))
         for a, (form, vec) in enumerate(zip(self.G, self.G_vecs)):
             self._assemble_vector(vec, form)

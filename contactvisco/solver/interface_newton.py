@@ -16,11 +16,10 @@ from __future__ import annotations
 import numpy as np
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector, create_matrix
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from contactvisco.fem import compat
-from contactvisco.solver.condensed import NodalCondensation, eliminate
+from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.solver.newton import NewtonSolver, _weak, rigid_body_modes
 
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
@@ -265,12 +264,7 @@ class InterfaceCondensation(NodalCondensation):
         target = compat.petsc_vector(self.link.D)
         self.P0.mult(compat.petsc_vector(self.problem.u), target)
         target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
-        with b.localForm() as local:
-            local.set(0.0)
-        assemble_vector(b, self.F_u)
-        compat.apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
-        b.ghostUpdate(addv=_ADD, mode=_REVERSE)
-        compat.set_bc(b, self.bcs, x, -1.0)
+        self.assemble_u_residual(x, b)
         with self.c.localForm() as local:
             local.set(0.0)
         if self.F_c is not None:
@@ -280,20 +274,7 @@ class InterfaceCondensation(NodalCondensation):
         self._el.axpy(-1.0, self.c)                  # F_el (slave rows are what P0^T reads)
         self.P0.multTranspose(self._el, self._share)
         b.axpy(1.0, self._share)                     # R_w = S^T F_el + c
-        G = np.zeros((len(self.own), self.m))
-        for a, (form, vec) in enumerate(zip(self.G, self.G_vecs)):
-            self._assemble_vector(vec, form)
-            G[:, self.offsets[a]:self.offsets[a + 1]] = self._node_values(vec, self.bs[a])
-        G *= self.free
-        comm = self.V.mesh.comm
-        self.full_norm = float(np.sqrt(b.norm() ** 2 + comm.allreduce(float(np.sum(G * G)),
-                                                                       MPI.SUM)))
-        B, C, D = self.local_blocks()
-        array = b.array.reshape(-1, self.d)
-        F = array[self.own].copy()
-        parts = eliminate(B, C, D, F, G, self.scale, self.d_scale)
-        array[self.own] = parts["F_red"]
-        self.parts = dict(parts, B=B, C=C, F=F, G=G)
+        self.condense_residual(b)
         self.P0.multTranspose(b, self._share)
         b.axpy(-1.0, self._share)                    # S^-T R_w,red
 
