@@ -279,7 +279,9 @@ def _rule_stability(scene, report, b: float) -> str:
     smallest stiffness of a step A + w P per mode, > 0; the exponential rule of relaxing terms
     nothing (the step's stiffness >= the long-term modulus)."""
     if scene["time"]["rule"] == "paper":
+        body = report.get("stability_body")
         return (f"b = k R(0) (1 + nu) / E = {b:.3g}"
+                + (f" (body {body!r}, the largest of the bodies)" if body else "")
                 + (" (unstable: the run will warn)" if report["unstable"] else ""))
     if report["unconditionally_stable"]:
         return ("unconditionally stable (each exponential integrated exactly: the step's "
