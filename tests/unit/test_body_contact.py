@@ -313,3 +313,43 @@ def test_stiff_layer_tends_to_the_rigid_plane():
     assert np.all(errors[0] < 0.05)
     ratios = errors[:-1] / errors[1:]
     assert np.all((ratios > 95.0) & (ratios < 105.0)), ratios
+
+
+@pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
+@pytest.mark.parametrize("pull", [0.002, 0.004])
+def test_cattaneo_mindlin_between_identical_materials(pairing, pull):
+    """Cattaneo-Mindlin between two bodies of one material (Dundurs' beta = 0: pressing
+    makes no tangential traction, so the rigid-plane solution holds with
+    1/E* = 2 (1 - nu^2) / E): the cylinder on the block (E = 1, nu = 0.3), Coulomb friction
+    mu = 0.3, its top clamped and moved down by 0.017 (t = 1/2, the normal force P), then
+    sideways by `pull` (t = 1, the tangential force Q < mu P). The contact half-width is
+    Hertz's a = sqrt(4 P R / (pi E*)) and the stick zone's c = a sqrt(1 - Q/(mu P))
+    (studies.coulomb) within one node spacing h = 0.01, at Q/(mu P) = 0.24 and 0.48
+    (measured: |c_h - c| = 0.03 h and 0.06 h mortar, 0.03 h and 0.41 h node to segment),
+    the stick zone centred to a node spacing (each of its ends is placed to h/2)."""
+    from contactvisco.studies.coulomb import _zone_half_width
+    from contactvisco.solver.time_loop import simulate
+    h, mu, nu, w = 0.01, 0.3, 0.3, 0.017
+    raw, _ = hertz_scene(pairing, h=h, a=0.1, materials=((1.0, nu), (1.0, nu)))
+    raw["traction"] = []
+    raw["dirichlet"][1] = {"boundary": "top", "components": "all",
+                           "value": [f"{pull} * max(2 * t - 1, 0)", f"{-w} * min(2 * t, 1)"]}
+    raw["contact"].update(mu=mu, friction_law="coulomb")
+    raw["time"] = {"T": 1.0, "steps": 2}
+    result = simulate(loader.resolve(raw), comm=MPI.COMM_WORLD, progress=False,
+                      keep_tables=True)
+    table = result.tables[-1]
+    order = np.argsort(table["x"][:, 0])
+    x, weight = table["x"][order, 0], table["weight"][order]
+    P = float(np.sum(weight * table["reaction_nu"][order]))
+    Q = abs(float(np.sum(weight * table["reaction_tau"][order])))
+    E_star = 1.0 / (2.0 * (1.0 - nu ** 2))
+    a = np.sqrt(4.0 * P / (np.pi * E_star))
+    c = a * np.sqrt(1.0 - Q / (mu * P))
+    touching = table["status"][order] == 2
+    a_h, _ = _zone_half_width(x, touching)
+    c_h, centre = _zone_half_width(x, touching & (table["friction"][order] == 1))
+    print(f"{pairing}, pull {pull}: Q/(mu P) = {Q / (mu * P):.3f}, a = {a:.4f} (computed "
+          f"{a_h:.4f}), c = {c:.4f} (computed {c_h:.4f}, centre {centre:.4f})")
+    assert 0.2 < Q / (mu * P) < 0.6
+    assert abs(a_h - a) < h and abs(c_h - c) < h and abs(centre) < 1.5 * h
