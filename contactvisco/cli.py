@@ -308,6 +308,9 @@ def versions() -> str:
     from mpi4py import MPI
     from petsc4py import PETSc
 
+    import pathlib
+
+    import contactvisco
     from contactvisco import __version__
     from contactvisco.fem import compat
     petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
@@ -318,7 +321,7 @@ def versions() -> str:
         import gmsh as gmsh_module
         gmsh = getattr(gmsh_module, "__version__", "unknown")
     return "\n".join([
-        f"contactvisco {__version__}",
+        f"contactvisco {__version__} (from {pathlib.Path(contactvisco.__file__).parent})",
         f"DOLFINx {dolfinx.__version__} (Python {sys.version.split()[0]})",
         f"PETSc {petsc} (hypre: {'yes' if compat.has_hypre() else 'no'}, MUMPS: "
         f"{'yes' if PETSc.Sys.hasExternalPackage('mumps') else 'no'})",

@@ -12,7 +12,7 @@ from contactvisco import api
 from contactvisco.errors import SceneError
 from contactvisco.io import checkpoint
 from contactvisco.scene import loader
-from helpers import run_cli
+from helpers import ROOT, run_cli
 
 pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts its own processes; run on one rank")
@@ -89,6 +89,15 @@ def body_values(scene) -> list:
     return [(b["name"], b["cells"], b["material"]["E"], b["material"]["nu"],
              b["memory"]["kernel"], b["memory"]["alpha"], b["memory"]["tau"])
             for b in scene["body"]]
+
+
+def test_version_names_the_package_run():
+    """`--version` says where the package it runs was imported from: a run that reads a
+    scene key this checkout knows ([[body]]) with an older installed copy would refuse it as
+    an unknown key; the line shows which copy answered."""
+    proc = run_cli("--version")
+    assert proc.returncode == 0, proc.stderr
+    assert f"(from {ROOT / 'contactvisco'})" in proc.stdout.splitlines()[0]
 
 
 def test_show_writes_back_the_same_bodies(scene_file, tmp_path):
