@@ -279,7 +279,9 @@ def _rule_stability(scene, report, b: float) -> str:
     smallest stiffness of a step A + w P per mode, > 0; the exponential rule of relaxing terms
     nothing (the step's stiffness >= the long-term modulus)."""
     if scene["time"]["rule"] == "paper":
+        body = report.get("stability_body")
         return (f"b = k R(0) (1 + nu) / E = {b:.3g}"
+                + (f" (body {body!r}, the largest of the bodies)" if body else "")
                 + (" (unstable: the run will warn)" if report["unstable"] else ""))
     if report["unconditionally_stable"]:
         return ("unconditionally stable (each exponential integrated exactly: the step's "
@@ -306,6 +308,9 @@ def versions() -> str:
     from mpi4py import MPI
     from petsc4py import PETSc
 
+    import pathlib
+
+    import contactvisco
     from contactvisco import __version__
     from contactvisco.fem import compat
     petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
@@ -316,7 +321,7 @@ def versions() -> str:
         import gmsh as gmsh_module
         gmsh = getattr(gmsh_module, "__version__", "unknown")
     return "\n".join([
-        f"contactvisco {__version__}",
+        f"contactvisco {__version__} (from {pathlib.Path(contactvisco.__file__).parent})",
         f"DOLFINx {dolfinx.__version__} (Python {sys.version.split()[0]})",
         f"PETSc {petsc} (hypre: {'yes' if compat.has_hypre() else 'no'}, MUMPS: "
         f"{'yes' if PETSc.Sys.hasExternalPackage('mumps') else 'no'})",

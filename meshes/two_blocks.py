@@ -9,17 +9,23 @@ same places to the last digit.
 
 Boundaries: "slave" (the slave block's bottom), "master" (the master block's top), "top"
 (the slave block's top), "bottom" (the master block's bottom), "slave_sides" and
-"master_sides" (each block's left and right). Bodies: "slave_body", "master_body".
+"master_sides" (each block's left and right; with split_sides = 1 "slave_left",
+"slave_right", "master_left" and "master_right" instead). Bodies: "slave_body", "master_body".
 """
 
 
-def build(gmsh, length=1.0, height=0.5, h_slave=0.077, h_master=0.1):
+def build(gmsh, length=1.0, height=0.5, h_slave=0.077, h_master=0.1, depth=None,
+          split_sides=0):
+    """The two blocks; `depth` is the master block's height (default: `height`); with
+    split_sides = 1 each block's sides are two boundaries, <name>_left and <name>_right,
+    instead of <name>_sides."""
+    depth = height if depth is None else depth
     # Points at the same place stay two points: each block owns its interface nodes.
     gmsh.option.setNumber("Geometry.AutoCoherence", 0)
     geo = gmsh.model.geo
     groups, interfaces = {}, []
     for name, y0, y1, h in (("slave", 0.0, height, h_slave),
-                            ("master", -height, 0.0, h_master)):
+                            ("master", -depth, 0.0, h_master)):
         corners = [geo.addPoint(x, y, 0.0, h) for x, y in
                    ((0, y0), (length, y0), (length, y1), (0, y1))]
         bottom, right, top, left = (geo.addLine(corners[i], corners[(i + 1) % 4])
@@ -33,7 +39,10 @@ def build(gmsh, length=1.0, height=0.5, h_slave=0.077, h_master=0.1):
         interfaces.append((interface, cells))
         groups[name] = [interface]
         groups["top" if name == "slave" else "bottom"] = [outer]
-        groups[f"{name}_sides"] = [left, right]
+        if split_sides:
+            groups[f"{name}_left"], groups[f"{name}_right"] = [left], [right]
+        else:
+            groups[f"{name}_sides"] = [left, right]
         groups[f"{name}_body"] = surface
     geo.synchronize()
     for name, tags in groups.items():

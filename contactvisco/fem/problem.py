@@ -983,6 +983,7 @@ class BodyMemory:
     history: BodyHistory
     H: fem.Function
     tensor_space: fem.FunctionSpace
+    bodies: list | None = None                 # per part: its [[body]] table
 
     def combine(self):
         """H = sum_b mask_b H_b."""
@@ -1090,7 +1091,7 @@ def body_stress(scene: dict, geometry: Geometry, u, context=None, updates=None):
                          "material and memory in its own tables; leave out [viscoelastic]",
                          key="viscoelastic")
     mesh = geometry.mesh
-    sigma, constants, parts, masks = 0, {}, [], []
+    sigma, constants, parts, masks, owners = 0, {}, [], [], []
     for body, cells in zip(scene["body"], body_cells(scene, geometry)):
         own = dict(scene, material=body["material"], memory=body["memory"])
         sigma_b, constants_b, memory_b = _stress(own, mesh, u, context, updates)
@@ -1099,10 +1100,12 @@ def body_stress(scene: dict, geometry: Geometry, u, context=None, updates=None):
         if memory_b is not None:
             parts.append(memory_b)
             masks.append(_tensor_mask(memory_b.tensor_space, cells))
+            owners.append(body)
     if not parts:
         return sigma, constants, None
     space = parts[0].tensor_space
     memory = BodyMemory(parts=parts, masks=masks,
                         history=BodyHistory([part.history for part in parts]),
-                        H=fem.Function(space, name="history_stress"), tensor_space=space)
+                        H=fem.Function(space, name="history_stress"), tensor_space=space,
+                        bodies=owners)
     return sigma, constants, memory

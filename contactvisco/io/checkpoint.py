@@ -69,9 +69,29 @@ def scene_values(scene: dict) -> dict:
     return json.loads(json.dumps(flat))         # tuples as lists, as read back from JSON
 
 
+def _items_flat(values: dict) -> dict:
+    """{"table.key": value} with the lists of tables ([[body]], [[dirichlet]]) written out
+    item by item ("body.0.material.E"), so that a difference names the key inside an item."""
+    flat = {}
+
+    def walk(prefix, value):
+        if isinstance(value, dict) and value:
+            for key, item in value.items():
+                walk(f"{prefix}.{key}", item)
+        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            for j, item in enumerate(value):
+                walk(f"{prefix}.{j}", item)
+        else:
+            flat[prefix] = value
+    for key, value in values.items():
+        walk(key, value)
+    return flat
+
+
 def scene_difference(saved: dict, scene: dict) -> list[str]:
-    """The keys whose values differ, 'key: saved -> now'."""
-    now = scene_values(scene)
+    """The keys whose values differ, 'key: saved -> now' (inside the items of a list of
+    tables: body.0.material.E)."""
+    saved, now = _items_flat(saved), _items_flat(scene_values(scene))
     return [f"{key}: {saved.get(key, '(absent)')!r} -> {now.get(key, '(absent)')!r}"
             for key in sorted(set(saved) | set(now)) if saved.get(key) != now.get(key)]
 
@@ -138,8 +158,12 @@ def obstacle_state(obstacle) -> dict:
     Returns
     -------
     dict
-        name -> numpy.ndarray: d and d_ref, the state ``restore_obstacle`` puts back.
+        name -> numpy.ndarray: d and d_ref, the state ``restore_obstacle`` puts back;
+        empty for another body of the mesh as the obstacle (obstacle.shape = "body"), whose
+        displacement D = Pi u follows from the restored unknowns.
     """
+    if getattr(obstacle, "reference", None) is None:
+        return {}
     return {"obstacle_displacement": obstacle.displacement(),
             "obstacle_reference": np.asarray(obstacle.reference.value, float).copy()}
 
@@ -423,6 +447,9 @@ def restore_obstacle(problem, meta: dict, first) -> None:
     """
     obstacle = problem.contact and problem.contact.obstacle
     if obstacle is None or not obstacle.rigid:
+        return
+    if getattr(obstacle, "reference", None) is None:      # the master body: D = Pi u
+        obstacle.follow(problem.u)
         return
     names = ("obstacle_displacement", "obstacle_reference")
     if not all(name in meta["fields"] for name in names):

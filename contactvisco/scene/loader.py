@@ -17,7 +17,7 @@ import sys
 import tomllib
 
 from contactvisco.scene.table import Provenance, finite, is_mesh_size
-from contactvisco.scene.tables import TABLE_LISTS, Contact, Scene
+from contactvisco.scene.tables import TABLE_LISTS, TABLES, Contact, Scene
 from contactvisco.scene import viscoelastic_table
 from contactvisco.errors import SceneError
 
@@ -118,6 +118,8 @@ def _apply_set(scene: dict, path: list[str], value, source: str = "--set") -> No
                              f"({node!r}), not a table with keys")
         if i == len(path) - 1:
             break
+        if isinstance(node, dict) and key not in node and _item_table(path[:i + 1]):
+            node[key] = {}                     # a [[body]] item's [material] or [memory]
         if isinstance(node, dict) and key not in node:
             raise SceneError(f"{source}: no scene key '{dotted}'")
         if node[key] is None and key == "contact":
@@ -134,7 +136,8 @@ def _apply_set(scene: dict, path: list[str], value, source: str = "--set") -> No
         return
     free_form = tuple(path[:-1]) in (("geometry", "parameters"), ("solver", "petsc_options"),
                                      *(("viscoelastic", f) for f in ("shear", "bulk", "young")))
-    allowed = ITEM_KEYS.get(path[0], ()) if len(path) == 3 else list(node)
+    allowed = ITEM_KEYS.get(path[0], ()) if len(path) == 3 else \
+        tuple(_item_table(path[:-1]) or node)
     if last not in node and last not in allowed and not free_form:
         hint = difflib.get_close_matches(last, list(allowed), n=1)
         suggestion = f" (did you mean '{hint[0]}'?)" if hint else ""
@@ -149,6 +152,16 @@ def _apply_set(scene: dict, path: list[str], value, source: str = "--set") -> No
                              f"a table {{...}}, got {value!r}")
         value = _merge(table, value, f"{'.'.join(path)}.")
     node[last] = value
+
+
+def _item_table(path: list) -> dict | None:
+    """The declared keys of a table inside an item of a list of tables (body.0.material:
+    the keys of [material]), or None for any other path."""
+    if len(path) == 3 and path[0] in TABLE_LISTS and path[1].isdigit():
+        default = TABLE_LISTS[path[0]].KEYS.get(path[2])
+        if default is not None and isinstance(default.default, dict) and path[2] in TABLES:
+            return TABLES[path[2]].KEYS
+    return None
 
 
 def resolve(raw: dict, overrides: list[str] = (), provenance: Provenance | None = None) -> Scene:

@@ -866,20 +866,29 @@ class Time(Table):
     }
 
     def rules(self, scene):
-        from contactvisco.model.stability import amplifies, stability_number, steps_for_stability
         steps = self["steps"]
         self.need(steps <= MAX_STEPS, "steps",
                   f"time.steps = {steps} is more than {MAX_STEPS} steps (the memory of eq 19 "
                   "sums over every earlier step and each step writes its records): take fewer, "
                   "larger steps (time.rule = 'trapezoid' is second order)")
-        b = stability_number(scene)
+        if not scene.get("body"):       # bodies: once their tables are checked (Scene)
+            self.stable(scene)
+        self._exponential_rule(scene)
+
+    def stable(self, scene) -> None:
+        """The paper's rule only where it is stable (model.stability: b < 1, b of the worst
+        [[body]] when the scene has some), unless time.allow_unstable."""
+        from contactvisco.model.stability import amplifies, steps_for_stability, worst_body
+        steps = self["steps"]
+        b, body = worst_body(scene)
+        where = "" if body is None else f" in body {body!r} (its material and memory)"
         self.need(self["rule"] != "paper" or not amplifies(b, steps) or self["allow_unstable"],
                   "steps",
-                  f"time.steps = {steps}: the paper's time rule is unstable here (b = "
-                  f"k R(0) (1 + nu) / E = {b:.3g} >= 1, the solution grows without bound); use "
-                  f"time.steps > {steps_for_stability(steps, b)}, time.rule = 'trapezoid' or "
-                  "'exponential', or set time.allow_unstable = true to run it anyway")
-        self._exponential_rule(scene)
+                  f"time.steps = {steps}: the paper's time rule (time.rule = 'paper') is "
+                  f"unstable here{where} (b = k R(0) (1 + nu) / E = {b:.3g} >= 1, the solution "
+                  f"grows without bound); use time.steps > {steps_for_stability(steps, b)}, "
+                  "time.rule = 'trapezoid' or 'exponential', or set time.allow_unstable = "
+                  "true to run it anyway")
 
     def _exponential_rule(self, scene) -> None:
         """time.rule = 'exponential' integrates each exponential of the kernel exactly: a
@@ -1095,6 +1104,8 @@ class Scene(Table):
             item.validate(self)
         self._repeated_boundaries()
         self._bodies()
+        if self["body"]:
+            self["time"].stable(self)
 
     def _bodies(self) -> None:
         """[[body]] names differ; contact between two bodies ([obstacle] shape = "body")

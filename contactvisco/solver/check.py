@@ -14,7 +14,7 @@ from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.problem import build
 from contactvisco.model.material import lame_constants
 from contactvisco.model.memory import History
-from contactvisco.model.stability import amplifies, stability_number
+from contactvisco.model.stability import amplifies, worst_body
 from contactvisco.solver import newton
 from contactvisco.solver.time_loop import FieldSchedule
 
@@ -134,6 +134,8 @@ def unconditionally_stable(scene: dict, history) -> bool:
     with a kernel whose terms all relax (finite tau_i; a Prony history, the power kernel's sum
     of exponentials), where A + sum_i alpha_i w1_i >= the long-term modulus for every k
     (model/memory.py: alpha_i w1_i = -G_i (1 - phi1(k/tau_i)))."""
+    if hasattr(history, "histories"):                   # [[body]] tables: every body's
+        return all(unconditionally_stable(scene, h) for h in history.histories)
     inner = getattr(history, "history", history)       # a reduced-time history wraps it
     return (scene["time"]["rule"] == "exponential" and type(inner) is History
             and all(tau < float("inf") for _, tau, _ in inner.terms))
@@ -165,11 +167,23 @@ def implicit_stiffness(scene: dict, problem, comm=MPI.COMM_WORLD) -> dict[str, f
         (smallest stiffness, the elastic stiffness 2 mu or d lambda + 2 mu); empty for the
         paper's rule or without memory.
     """
-    import numpy as np
     memory = problem.memory
     if memory is None or scene["time"]["rule"] == "paper":
         return {}
-    history = memory.history
+    if getattr(memory, "bodies", None):            # [[body]] tables: the least of the bodies
+        out = {}
+        for body, part in zip(memory.bodies, memory.parts):
+            own = dict(scene, material=body["material"], memory=body["memory"])
+            for mode, value in _stiffness(own, problem, part.history, comm).items():
+                if mode not in out or value[0] < out[mode][0]:
+                    out[mode] = value
+        return out
+    return _stiffness(scene, problem, memory.history, comm)
+
+
+def _stiffness(scene: dict, problem, history, comm) -> dict[str, tuple[float, float]]:
+    """implicit_stiffness of one material and history."""
+    import numpy as np
     steps, k = scene["time"]["steps"], scene["time"]["T"] / scene["time"]["steps"]
     if getattr(history, "staged", False) is False:            # isothermal: numbers
         samples = [history.implicit(k)]
@@ -217,7 +231,8 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     -------
     dict
         ``cells``, ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
-        ``linear_system``, ``linear_solver``, ``stability_number`` and ``unstable`` (the
+        ``linear_system``, ``linear_solver``, ``stability_number`` (b, the worst [[body]]'s
+        with bodies), ``stability_body`` (that body's name, or None) and ``unstable`` (the
         paper's rule at b >= 1), ``implicit_stiffness`` (the trapezoid and exponential rules:
         :func:`implicit_stiffness`) and ``unconditionally_stable`` (:func:`unconditionally_stable`),
         ``history_bytes`` (all ranks, at the last step) and ``output_bytes`` (an estimate for
@@ -244,14 +259,14 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     counts = problem.count_unknowns()
     tensor = _global_dofs(problem.tensor_space)
     history = problem.memory.history if problem.memory is not None else None
-    b = stability_number(scene)
+    b, body = worst_body(scene)
     steps = scene["time"]["steps"]
     return {
         "cells": mesh.topology.index_map(tdim).size_global,
         "vertices": mesh.topology.index_map(0).size_global,
         "unknowns": counts, "contact_nodes": problem.count_contact_nodes(),
         "linear_system": system, "linear_solver": solver,
-        "stability_number": b,
+        "stability_number": b, "stability_body": body,
         "unstable": scene["time"]["rule"] == "paper" and amplifies(b, steps),
         "implicit_stiffness": implicit_stiffness(scene, problem, comm),
         "unconditionally_stable": unconditionally_stable(scene, history),

@@ -10,7 +10,7 @@ import math
 import sys
 import weakref
 
-from contactvisco.model.stability import stability_number
+from contactvisco.model.stability import worst_body
 from contactvisco.scene.viscoelastic_table import describe
 
 #: The memory note of a kernel whose history has no recursion (and no note of its own).
@@ -86,11 +86,12 @@ def memory_note(problem) -> str | None:
 
 def time_rule_warning(scene) -> str | None:
     """The warning of the paper's time rule at k R(0) (1 + nu) / E >= 1, else None."""
-    b = stability_number(scene)
+    b, body = worst_body(scene)
     if scene["time"]["rule"] != "paper" or b < 1.0:
         return None
     steps = scene["time"]["steps"]
-    return (f"warning: the paper's time rule is unstable here: k R(0) (1 + nu) / E "
+    where = "" if body is None else f" in body {body!r}"
+    return (f"warning: the paper's time rule is unstable here{where}: k R(0) (1 + nu) / E "
             f"= {b:.3g} >= 1; use more steps (time.steps > {math.ceil(steps * b)}) "
             "or time.rule = 'trapezoid'")
 

@@ -154,3 +154,40 @@ def test_no_body_is_one_body():
     _, strains = layer_strains(raw)
     assert loader.resolve(raw)["body"] == []
     assert strains[-1] == pytest.approx([-PRESSURE / 4.0] * 2, rel=1e-10)
+
+
+def test_paper_rule_stability_takes_the_worst_body():
+    """The paper's rule is stable while b = k |R(0)| (1 + nu) / E < 1 in every body: the
+    scene's own [memory] is none (b = 0 there), the upper body's kernel gives
+    b = k 1.5 / 1, the lower body's b = k 0.5 / 0.5 = k; at k = 1 (4 steps of T = 4) the
+    upper body's b = 1.5 refuses the scene naming time.steps, the rule and that body; at
+    k = 0.5 it is accepted with b = 0.75, and check() reports it with the body's name (and,
+    for the trapezoid rule, the least stiff body's step stiffness)."""
+    from contactvisco.model.stability import stability_number
+    from contactvisco.solver.check import check
+    upper = {"memory": {"kernel": "exponential", "alpha": [-1.5], "tau": [1.0]}}
+    lower = {"material": {"E": 0.5}, "memory": {"kernel": "exponential", "alpha": [-0.5],
+                                                 "tau": [2.0]}}
+    raw = bilayer(lower, upper, T=4.0, steps=4)
+    raw["time"]["rule"] = "paper"
+    with pytest.raises(SceneError) as err:
+        loader.resolve(raw)
+    assert err.value.key == "time.steps"
+    assert "time.rule = 'paper'" in str(err.value) and "body 'upper'" in str(err.value)
+    assert "= 1.5 >= 1" in str(err.value)
+    raw["time"]["steps"] = 8
+    scene = loader.resolve(raw)
+    assert stability_number(scene) == pytest.approx(0.75, rel=1e-14)
+    report = check(scene, comm=MPI.COMM_WORLD)
+    assert report["stability_number"] == pytest.approx(0.75, rel=1e-14)
+    assert report["stability_body"] == "upper" and not report["unstable"]
+    # The trapezoid rule: the step's stiffness 2 mu + k/2 R(0) of the least stiff body, the
+    # lower one (0.5 - 0.25 * 0.5; the upper one has 1 - 0.25 * 1.5).
+    raw["time"]["rule"] = "trapezoid"
+    report = check(loader.resolve(raw), comm=MPI.COMM_WORLD)
+    least, elastic = report["implicit_stiffness"]["deviatoric"]
+    assert (least, elastic) == pytest.approx((0.375, 0.5), rel=1e-12)
+    raw["time"]["rule"] = "paper"
+    raw["body"][0]["memory"] = {"kernel": "exponential", "alpha": [-4.0], "tau": [1.0]}
+    with pytest.raises(SceneError, match="body 'lower'.* = 4 >= 1"):   # 0.5 * 4 / 0.5
+        loader.resolve(raw)

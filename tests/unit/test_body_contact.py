@@ -247,3 +247,109 @@ def test_block_slides_on_block(pairing):
     assert count >= 10 and worst < 1e-10
     assert slave == pytest.approx([mu * PRESSURE, -PRESSURE], abs=1e-10 * PRESSURE)
     assert np.allclose(slave + master, 0.0, atol=1e-12 * PRESSURE)
+
+
+def rigid_limit_scene(E_layer=None) -> dict:
+    """The paper's body (unit square, plane stress, E = 100, nu = 0.3, clamped on the left,
+    u_x = 0 on the right, f0 = (0, -10), fN = (0, -20) on its top; normal compliance 100 with
+    the bound g = 0.05, friction mu = 0.2; no memory) on the layer (0, 1) x (-0.5, 0), clamped
+    at its bottom, of modulus E_layer (meshes/two_blocks.py: non-matching interface nodes,
+    16 against 12 segments); E_layer None: the rigid plane y = 0 instead, the layer clamped
+    all round and out of the contact."""
+    raw = {
+        "name": "rigid_limit",
+        "geometry": {"type": "gmsh", "script": "two_blocks",
+                     "parameters": {"height": 1.0, "depth": 0.5, "h_slave": 1 / 16,
+                                    "h_master": 1 / 12, "split_sides": 1}},
+        "material": {"model": "plane_stress", "E": 100.0, "nu": 0.3},
+        "dirichlet": [{"boundary": "slave_left", "components": "all"},
+                      {"boundary": "slave_right", "components": [0]},
+                      {"boundary": "bottom", "components": "all"}],
+        "body_force": {"value": [0.0, "conditional(x[1] > 0, -10.0, 0.0)"]},
+        "traction": [{"boundary": "top", "value": [0.0, -20.0]}],
+        "body": [{"name": "square", "cells": "slave_body"},
+                 {"name": "layer", "cells": "master_body",
+                  "material": {"E": E_layer or 100.0}}],
+        "contact": {"boundary": "slave", "stiffness": 100.0, "g": 0.05, "mu": 0.2},
+        "obstacle": {"shape": "body", "boundary": "master"},
+        "time": {"T": 1.0, "steps": 1},
+        "output": {"probes": []},
+    }
+    if E_layer is None:
+        raw["obstacle"] = {"shape": "plane", "point": [0.0, 0.0], "normal": [0.0, 1.0]}
+        raw["dirichlet"] += [{"boundary": side, "components": "all"}
+                             for side in ("master_left", "master_right")]
+    return raw
+
+
+def test_stiff_layer_tends_to_the_rigid_plane():
+    """The rigid limit: the layer's displacement at the interface is of order E1/E2 of the
+    body's, so the contact state on a layer of modulus E2 differs from the one on the rigid
+    plane by O(E1/E2). Measured (relative to the rigid answer's largest value) at E2 = 1e4,
+    1e6, 1e8: u_nu 1.0e-3, 1.0e-5, 1.0e-7; u_tau 1.8e-2, 1.8e-4, 1.8e-6; the normal and
+    tangential reactions 4e-3 and 1e-3 falling alike, the zones (separated 1, compliance 4,
+    bound 12) the same: each difference falls by 100 (to 5 %) per two decades of E2."""
+    from contactvisco.solver.time_loop import simulate
+    comm = MPI.COMM_WORLD
+    KEYS = ("u_nu", "u_tau", "reaction_nu", "reaction_tau")
+
+    def final(raw):
+        result = simulate(loader.resolve(raw), comm=comm, progress=False, keep_tables=True)
+        table = result.tables[-1]
+        order = np.lexsort((table["x"][:, 1], table["x"][:, 0]))
+        return {key: np.asarray(table[key])[order] for key in KEYS}, \
+            result.steps[-1]["status_counts"]
+
+    rigid, zones = final(rigid_limit_scene())
+    errors = []
+    for E2 in (1e4, 1e6, 1e8):
+        table, counts = final(rigid_limit_scene(E2))
+        assert counts == zones
+        errors.append([np.abs(table[k] - rigid[k]).max() / np.abs(rigid[k]).max()
+                       for k in KEYS])
+    errors = np.array(errors)
+    print("relative differences (rows E2 = 1e4, 1e6, 1e8; columns", KEYS, "):\n", errors)
+    assert zones["bound"] > 0 and zones["compliance"] > 0
+    assert np.all(errors[0] < 0.05)
+    ratios = errors[:-1] / errors[1:]
+    assert np.all((ratios > 95.0) & (ratios < 105.0)), ratios
+
+
+@pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
+@pytest.mark.parametrize("pull", [0.002, 0.004])
+def test_cattaneo_mindlin_between_identical_materials(pairing, pull):
+    """Cattaneo-Mindlin between two bodies of one material (Dundurs' beta = 0: pressing
+    makes no tangential traction, so the rigid-plane solution holds with
+    1/E* = 2 (1 - nu^2) / E): the cylinder on the block (E = 1, nu = 0.3), Coulomb friction
+    mu = 0.3, its top clamped and moved down by 0.017 (t = 1/2, the normal force P), then
+    sideways by `pull` (t = 1, the tangential force Q < mu P). The contact half-width is
+    Hertz's a = sqrt(4 P R / (pi E*)) and the stick zone's c = a sqrt(1 - Q/(mu P))
+    (studies.coulomb) within one node spacing h = 0.01, at Q/(mu P) = 0.24 and 0.48
+    (measured: |c_h - c| = 0.03 h and 0.06 h mortar, 0.03 h and 0.41 h node to segment),
+    the stick zone centred to a node spacing (each of its ends is placed to h/2)."""
+    from contactvisco.studies.coulomb import _zone_half_width
+    from contactvisco.solver.time_loop import simulate
+    h, mu, nu, w = 0.01, 0.3, 0.3, 0.017
+    raw, _ = hertz_scene(pairing, h=h, a=0.1, materials=((1.0, nu), (1.0, nu)))
+    raw["traction"] = []
+    raw["dirichlet"][1] = {"boundary": "top", "components": "all",
+                           "value": [f"{pull} * max(2 * t - 1, 0)", f"{-w} * min(2 * t, 1)"]}
+    raw["contact"].update(mu=mu, friction_law="coulomb")
+    raw["time"] = {"T": 1.0, "steps": 2}
+    result = simulate(loader.resolve(raw), comm=MPI.COMM_WORLD, progress=False,
+                      keep_tables=True)
+    table = result.tables[-1]
+    order = np.argsort(table["x"][:, 0])
+    x, weight = table["x"][order, 0], table["weight"][order]
+    P = float(np.sum(weight * table["reaction_nu"][order]))
+    Q = abs(float(np.sum(weight * table["reaction_tau"][order])))
+    E_star = 1.0 / (2.0 * (1.0 - nu ** 2))
+    a = np.sqrt(4.0 * P / (np.pi * E_star))
+    c = a * np.sqrt(1.0 - Q / (mu * P))
+    touching = table["status"][order] == 2
+    a_h, _ = _zone_half_width(x, touching)
+    c_h, centre = _zone_half_width(x, touching & (table["friction"][order] == 1))
+    print(f"{pairing}, pull {pull}: Q/(mu P) = {Q / (mu * P):.3f}, a = {a:.4f} (computed "
+          f"{a_h:.4f}), c = {c:.4f} (computed {c_h:.4f}, centre {centre:.4f})")
+    assert 0.2 < Q / (mu * P) < 0.6
+    assert abs(a_h - a) < h and abs(c_h - c) < h and abs(centre) < 1.5 * h
