@@ -140,7 +140,7 @@ def _fields(problem):
         out += [(f"history_{key}", problem.tensor_space, value)
                 for key, value in problem.memory.history.state().items()]
     obstacle = problem.contact and problem.contact.obstacle
-    if obstacle is not None and obstacle.rigid:      # a master body has no position of its own
+    if obstacle is not None:
         out += [(name, None, value) for name, value in obstacle_state(obstacle).items()]
     return out
 
@@ -162,7 +162,7 @@ def obstacle_state(obstacle) -> dict:
         empty for another body of the mesh as the obstacle (obstacle.shape = "body"), whose
         displacement D = Pi u follows from the restored unknowns.
     """
-    if getattr(obstacle, "reference", None) is None:
+    if not obstacle.rigid:
         return {}
     return {"obstacle_displacement": obstacle.displacement(),
             "obstacle_reference": np.asarray(obstacle.reference.value, float).copy()}
@@ -446,9 +446,9 @@ def restore_obstacle(problem, meta: dict, first) -> None:
         The arrays of the checkpoint's first part (the obstacle's are the same in every part).
     """
     obstacle = problem.contact and problem.contact.obstacle
-    if obstacle is None or not obstacle.rigid:
+    if obstacle is None:
         return
-    if getattr(obstacle, "reference", None) is None:      # the master body: D = Pi u
+    if not obstacle.rigid:                                # the master body: D = Pi u
         obstacle.follow(problem.u)
         return
     names = ("obstacle_displacement", "obstacle_reference")
