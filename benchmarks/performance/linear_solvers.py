@@ -169,8 +169,9 @@ def main():
         configs = ITERATIVE if has_hypre else ITERATIVE_GAMG
         linear_solver = "iterative"
     if args.only:
-        configs = {name: opts for name, opts in configs.items()
-                   if any(word in name for word in args.only)}
+        exact = set(args.only) & set(configs)       # a whole name selects itself alone
+        configs = {name: opts for name, opts in configs.items() if name in exact or any(
+            word in name for word in set(args.only) - exact)}
     rows = []
     for n in args.sizes:
         load_before = load_average()
@@ -210,7 +211,7 @@ def main():
                 analysis_ms=per("MatLUFactorSym")[0], analyses=per("MatLUFactorSym")[1],
                 factor_ms=per("MatLUFactorNum")[0], factors=per("MatLUFactorNum")[1],
                 solve_ms=per("MatSolve")[0], solves=per("MatSolve")[1],
-                pcsetup_ms=per("PCSetUp")[0], pcapply_ms=per("PCApply")[0],
+                pcsetup_ms=per("PCSetUp")[0], pcsetups=per("PCSetUp")[1], pcapply_ms=per("PCApply")[0],
                 krylov_mean=float(np.mean(krylov)) if krylov else float("nan"),
                 krylov_max=max(krylov) if krylov else 0,
                 deviation=dev, same_iterations=out["iterations"] == reference["iterations"],
@@ -223,7 +224,7 @@ def main():
             f"_{args.tag}" if args.tag else "")
         if args.part == "direct":
             header = ("| cells | configuration | Newton s (/ default) | analyses: count, ms each | "
-                      "factorizations: count, ms each | solves: count, ms each | "
+                      "factorizations: count, ms each | PC set-up ms each | solves: count, ms each | "
                       "Newton iterations per step | same iterations and states | "
                       "deviation | load before / after |")
             line = _direct_line
@@ -237,9 +238,10 @@ def main():
 
 def _direct_line(r):
     if "failed" in r:
-        return f"| {r['cells']} | {r['config']} | not run: {r['failed']} | | | | | | | |"
+        return f"| {r['cells']} | {r['config']} | not run: {r['failed']} |" + " |" * 8
     return (f"| {r['cells']} | {r['config']} | {r['newton_s']:.2f} ({r['ratio']:.2f}) | "
             f"{r['analyses']}, {r['analysis_ms']:.1f} | {r['factors']}, {r['factor_ms']:.1f} | "
+            f"{r['pcsetup_ms']:.1f} | "
             f"{r['solves']}, {r['solve_ms']:.2f} | " + " ".join(map(str, r["iterations"]))
             + f" | {'yes' if r['same_iterations'] and r['same_states'] else 'NO'} | "
             f"{r['deviation']:.1e} | {r['load']} |")
