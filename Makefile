@@ -29,7 +29,7 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 
 .PHONY: install demo test test-serial test-parallel test-fast benchmark benchmark-newton benchmark-peer \
         benchmark-scaling benchmark-startup \
-        benchmark-reliability clean apt-packages compare-stacks figures notebook docs
+        benchmark-reliability benchmark-linear clean apt-packages compare-stacks figures notebook docs
 
 install: $(VENV)/.installed
 
@@ -107,6 +107,16 @@ benchmark-newton: install
 benchmark-peer: install
 	@$(PY) -c 'import getfem' 2>/dev/null || { echo "benchmark-peer needs GetFEM's Python interface: apt-get install -y python3-getfem (as root; the Debian route's $(VENV) sees it through its system site packages)" >&2; exit 1; }
 	$(PY) $(BENCH)/performance/peer.py
+
+# The paper scene's linear solves: time per analysis, factorization and solve of each direct
+# solver and ordering PETSc has (32^2 to 128^2, 1 rank), Krylov iterations and Newton time of
+# BoomerAMG variants (or GAMG's) at 128^2 on 1 and 2 ranks (about 15 minutes): docs/scaling.md.
+benchmark-linear: install
+	$(PY) $(BENCH)/performance/linear_solvers.py --sizes 32 64 && \
+	  $(PY) $(BENCH)/performance/linear_solvers.py --sizes 128 --tag 128 \
+	    --only "MUMPS (default)" METIS AMD nd UMFPACK && \
+	  $(PY) $(BENCH)/performance/linear_solvers.py --part iterative --sizes 128 --rounds 1 && \
+	  $(MPIRUN) $(PY) $(BENCH)/performance/linear_solvers.py --part iterative --sizes 128 --rounds 1
 
 # Where the wall time of `contactvisco run paper` goes, the whole process (interpreter start,
 # imports, set-up, steps, per-step output, figures, exit): median of 3 runs after a warm-up,
