@@ -55,23 +55,27 @@ def test_constant_temperature_is_scaled_time(memory, theta):
     assert np.abs(hot - iso).max() > 1e-2 * np.abs(iso).max()
 
 
-def ramp_stress(terms, theta_of, T, steps, R0):
-    """The memory stress at T of the strain eps(t) = sin(t) E0 at one point, trapezoid rule in
-    reduced time (ReducedTimeHistory): H_explicit + dxi/2 R(0) eps_N."""
+def drive_sine(history, theta_of, T, steps):
+    """The memory stress at T of the strain eps(t) = sin(t) E0 at one point, stepped through
+    `history` in reduced time: H_explicit + w(dxi) eps_N per step (w the last step's implicit
+    weight, none for the paper's rule); also the reduced time reached."""
     E0 = np.array([0.01, 0.004, 0.004, -0.002])
     k = T / steps
-    history = ReducedTimeHistory(History(terms, k, "trapezoid", 2), 4)
     inverse = lambda t: 10.0 ** -ve.log10_shift(WLF, np.array([theta_of(t)]))
     history.stage(inverse(0.0))
     history.commit(0.0 * E0, None)
     for n in range(1, steps + 1):
         t = n * k
         history.stage(inverse(t))
-        H = history.explicit(k)
-        weight = history.implicit(k)["full"]
-        out = H + weight * math.sin(t) * E0
+        out = history.explicit(k) + history.implicit(k).get("full", 0.0) * math.sin(t) * E0
         history.commit(math.sin(t) * E0, k)
     return out, history.reduced_time[0]
+
+
+def ramp_stress(terms, theta_of, T, steps, R0):
+    """drive_sine for a Prony kernel, trapezoid rule in reduced time (ReducedTimeHistory)."""
+    return drive_sine(ReducedTimeHistory(History(terms, T / steps, "trapezoid", 2), 4),
+                      theta_of, T, steps)
 
 
 def test_power_kernel_temperature_ramp_order():
@@ -91,21 +95,11 @@ def test_power_kernel_temperature_ramp_order():
 
 
 def fractional_ramp_stress(fit, theta_of, T, steps, rule):
-    """The memory stress at T of eps(t) = sin(t) E0 at one point for the fractional kernel
-    alpha t^-0.5 / Gamma(0.5), alpha = -3, in reduced time (ReducedFractionalHistory):
-    H_explicit + w(dxi) eps_N, w the last step's implicit weight (none for the paper's rule)."""
-    E0 = np.array([0.01, 0.004, 0.004, -0.002])
-    k = T / steps
-    history = ReducedFractionalHistory(FractionalHistory(-3.0, 0.5, fit, rule, "full", 2, k), 4)
-    inverse = lambda t: 10.0 ** -ve.log10_shift(WLF, np.array([theta_of(t)]))
-    history.stage(inverse(0.0))
-    history.commit(0.0 * E0, None)
-    for n in range(1, steps + 1):
-        t = n * k
-        history.stage(inverse(t))
-        out = history.explicit(k) + history.implicit(k).get("full", 0.0) * math.sin(t) * E0
-        history.commit(math.sin(t) * E0, k)
-    return out, history.reduced_time[0]
+    """drive_sine for the fractional kernel alpha t^-0.5 / Gamma(0.5), alpha = -3, in reduced
+    time (ReducedFractionalHistory): its last step integrated exactly over dxi."""
+    history = ReducedFractionalHistory(
+        FractionalHistory(-3.0, 0.5, fit, rule, "full", 2, T / steps), 4)
+    return drive_sine(history, theta_of, T, steps)
 
 
 @pytest.mark.parametrize("rule, order", [("trapezoid", 2.0), ("paper", 1.5)])
