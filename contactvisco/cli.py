@@ -163,9 +163,10 @@ def main(argv=None):
                   flush=True)
         return 128 + signum
     finally:
-        parallel.restore_signals(previous)
         if argv is None:                  # the command is the process: it ends here
             _before_exit()
+        else:
+            parallel.restore_signals(previous)
 
 
 def _before_exit():
@@ -173,8 +174,14 @@ def _before_exit():
     the interpreter's shutdown then frees them by their reference counts, without the full
     collections that trace every object of DOLFINx, UFL, PETSc and matplotlib (about a second
     of a `run` with figures on this machine, `benchmarks/performance/startup.py`). The run's
-    files are closed by then (its writer, lock and figures close theirs before returning)."""
+    files are closed by then (its writer, lock and figures close theirs before returning).
+
+    The exit status is decided here, so SIGINT and SIGTERM are ignored from now on: the
+    interpreter's shutdown puts the default handlers back, and a signal in its last
+    milliseconds would otherwise turn a finished command into one killed by that signal."""
     import gc
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
     gc.freeze()
 
 
