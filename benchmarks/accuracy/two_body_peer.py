@@ -1,7 +1,7 @@
 """Two viscoelastic bodies in frictional contact, solved by contactvisco and by an independent
 solver of the same discrete problem, node by node (run by hand:
-python benchmarks/accuracy/two_body_peer.py; about half a minute; tested by
-tests/integration/test_two_body_peer.py).
+python benchmarks/accuracy/two_body_peer.py, about a minute, writes
+results/two_body_peer.{json,md}; tested by tests/integration/test_two_body_peer.py).
 
 The scene (`scene()`): the paper's body (0, 1) x (0, 1) (Ouafik 2024, sec. 4: plane stress,
 E = 100, nu = 0.3, clamped at x = 0, u_x = 0 at x = 1, f0 = (0, -10), fN = (0, -20) on its
@@ -68,6 +68,7 @@ roller's node at x = 1, at the bound, whose friction the layer feels in "relativ
 from __future__ import annotations
 
 import math
+import pathlib
 import sys
 
 import numpy as np
@@ -588,20 +589,40 @@ def main():
     from mpi4py import MPI
     if MPI.COMM_WORLD.size != 1:
         sys.exit("two_body_peer.py runs on one rank (the peer is serial)")
-    finals = {}
-    for pairing in ("mortar", "node_to_segment"):
-        for rule in ("paper", "exponential"):
-            out = compare(scene(pairing, rule))
-            finals[pairing, rule] = out["states"][-1]
-            print(f"{pairing:16s} {rule:12s} " + " ".join(
-                f"{k} {v:.1e}" for k, v in out["worst"].items())
-                + f"  Newton {out['iterations']}, peer "
-                f"{[s['iterations'] for s in out['states']]}", flush=True)
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # common.py
+    from common import write_results
+    rows, finals = [], {}
+    cases = [(p, r, "constant") for p in ("mortar", "node_to_segment")
+             for r in ("paper", "exponential")]
+    cases += [("mortar", r, "exponential") for r in ("paper", "exponential")]
+    for prescribed in ("held", "relative"):
+        for pairing, rule, kind in cases:
+            if prescribed == "relative" and kind != "constant":
+                continue
+            kernels = KERNELS[kind]
+            out = compare(scene(pairing, rule, kernels=kernels), prescribed)
+            finals[pairing, rule, kind, prescribed] = out["states"][-1]
+            rows.append(dict(pairing=pairing, rule=rule, kernels=kind, prescribed=prescribed,
+                             worst=out["worst"], newton=out["iterations"],
+                             peer_newton=[s["iterations"] for s in out["states"]]))
+    lines = ["| peer's convention | pairing | rule | kernels | u_nu | normal reaction | "
+             "tangential reaction | master's interface displacement |", "|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['prescribed']} | {r['pairing']} | {r['rule']} | {r['kernels']} | "
+              + " | ".join(f"{r['worst'][k]:.1e}" for k in ("u_nu", "reaction_nu", "sigma_tau",
+                                                              "master")) + " |" for r in rows]
     for rule in ("paper", "exponential"):
-        a, b = finals["mortar", rule], finals["node_to_segment", rule]
-        print(f"{rule}: pairings differ in the normal reaction by "
-              f"{np.abs(a['reaction_nu'] - b['reaction_nu']).max() / np.abs(a['reaction_nu']).max():.3f}"
-              " of its largest value")
+        a = finals["mortar", rule, "constant", "held"]
+        b = finals["node_to_segment", rule, "constant", "held"]
+        difference = np.abs(a["reaction_nu"] - b["reaction_nu"]).max() / \
+            np.abs(a["reaction_nu"]).max()
+        lines.append(f"\n{rule} rule: mortar and node to segment differ at T by "
+                     f"{difference:.3f} of the largest normal reaction")
+    write_results("two_body_peer", rows, lines)
+
+
+#: The kernels of the runs of main(): (alpha, tau) of the body and of the layer.
+KERNELS = {"constant": ((100.0, math.inf), (50.0, math.inf)),
+           "exponential": ((100.0, 0.3), (-20.0, 0.1))}
 
 
 if __name__ == "__main__":
