@@ -54,8 +54,8 @@ apart) and the scene's numbers:
 At a slave node whose component is prescribed (the clamp at x = 0, the roller u_x = 0 at
 x = 1) two conventions are written (`prescribed`):
 
-- "held" (what contactvisco's condensed Newton system solves: fem.body_contact and
-  solver.interface_newton, whose P0 is P without the rows of prescribed components): that
+- "held" (what contactvisco's condensed Newton system solves: solver.interface_newton's
+  InterfaceCondensation, whose D is P_s u, P without the rows of prescribed components): that
   component of u_rel is the slave's own prescribed value, its multiplier is held at 0, and
   the master receives nothing from it;
 - "relative": u_rel = u_slave - Pi u_master at every component of every slave node and the
