@@ -199,6 +199,12 @@ class InterfaceCondensation(NodalCondensation):
     whose solution is du = S dw (P0 P0 = 0: slave and master dofs differ). The multipliers are
     recovered from dw = T du.
 
+    The master's displacement at the slave nodes is D = P_s u, P_s being P without the rows of
+    prescribed slave components (those components keep u_rel = u, the slave's prescribed
+    value: docs/interface.md) but with all its columns: a prescribed displacement of a master
+    node moves the master under the slave nodes. Its increment is P0 du, du being zero at
+    prescribed components.
+
     Parameters
     ----------
     problem : contactvisco.fem.problem.Problem
@@ -215,6 +221,8 @@ class InterfaceCondensation(NodalCondensation):
         self.fixed_global = (fixed + start).astype(PETSc.IntType)
         self.P0 = self.link.P.duplicate(copy=True)
         self.P0.zeroRowsColumns(self.fixed_global, diag=0.0)
+        self.P_s = self.link.P.duplicate(copy=True)
+        self.P_s.zeroRows(self.fixed_global, diag=0.0)
         self.T0 = transfer(self.P0)
         contact = self.link.contact_form
         self.F_c = None if contact is None else fem.form(contact)
@@ -227,11 +235,15 @@ class InterfaceCondensation(NodalCondensation):
         self._dw = self.c.copy()
         self.J_red = self.A.PtAP(self.T0)
 
-    def _assemble_J(self):
-        """A = J_w = S^T (J_full - K_c) S + K_c, J_full the assembled J_el + K_c at D = P0 u."""
+    def follow(self):
+        """D = P_s u: the master's displacement at the slave nodes (class description)."""
         target = compat.petsc_vector(self.link.D)
-        self.P0.mult(compat.petsc_vector(self.problem.u), target)
+        self.P_s.mult(compat.petsc_vector(self.problem.u), target)
         target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+
+    def _assemble_J(self):
+        """A = J_w = S^T (J_full - K_c) S + K_c, J_full the assembled J_el + K_c at D = P_s u."""
+        self.follow()
         full = create_matrix(self.J_uu) if not self._patterned else self._full
         full.zeroEntries()
         compat.assemble_matrix(full, self.J_uu, self.bcs, diagonal=1.0)
@@ -261,9 +273,7 @@ class InterfaceCondensation(NodalCondensation):
 
     def residual(self, x, b):
         """F = S^-T R_w,red at x (module description); the coupled residual's norm in w."""
-        target = compat.petsc_vector(self.link.D)
-        self.P0.mult(compat.petsc_vector(self.problem.u), target)
-        target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+        self.follow()
         self.assemble_u_residual(x, b)
         with self.c.localForm() as local:
             local.set(0.0)
