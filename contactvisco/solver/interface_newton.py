@@ -86,6 +86,7 @@ class InterfaceSNES(NewtonSolver):
         self.c = compat.form_vector(self.F_c)
         u_vector = compat.petsc_vector(u)
         self.b, self.x, self.share = u_vector.copy(), u_vector.copy(), u_vector.copy()
+        self._moved = u_vector.copy()
         d = problem.V.dofmap.index_map_bs
         owned = problem.V.dofmap.index_map.size_local * d
         fixed = np.flatnonzero(problem.u_fixed.reshape(-1)[:owned] > 0)
@@ -101,7 +102,7 @@ class InterfaceSNES(NewtonSolver):
         self._finish_setup()
 
     def destroy(self):
-        for name in ("A_fe", "K_c", "c", "share", "T"):
+        for name in ("A_fe", "K_c", "c", "share", "T", "_moved"):
             obj = self.__dict__.get(name)
             if obj is not None:
                 obj.destroy()
@@ -119,6 +120,32 @@ class InterfaceSNES(NewtonSolver):
         b.ghostUpdate(addv=_ADD, mode=_REVERSE)
         compat.set_bc(b, self.bcs, x, -1.0)
         b.axpy(-1.0, self.master_share())
+        self._lift_correction(b)
+
+    def _lift_correction(self, b):
+        """b += C (g - x) on the free rows, C = T^T K_c T - K_c the master's share of the
+        Jacobian (the lifting of its columns of prescribed components, which the Jacobian
+        zeroes): with x off its prescribed values g (a held slave node moved to a new value),
+        the first Newton step is then the exact linear one, as the forms' own lifting makes
+        it for J_el + K_c. Nothing is done while x holds its prescribed values."""
+        moved = self._moved
+        moved.set(0.0)
+        moved.array[self.fixed_local] = -b.array[self.fixed_local]     # g - x
+        if moved.norm(PETSc.NormType.NORM_INFINITY) == 0.0:
+            return
+        self.K_c.zeroEntries()
+        compat.assemble_matrix(self.K_c, self.J_c, [], diagonal=0.0)
+        self.K_c.assemble()
+        relative, force = self.K_c.createVecs()
+        self.T.mult(moved, relative)                  # T v
+        self.K_c.mult(relative, force)                # K_c T v
+        self.T.multTranspose(force, self.share)       # T^T K_c T v
+        self.K_c.mult(moved, force)
+        self.share.axpy(-1.0, force)                  # - K_c v
+        self.share.array[self.fixed_local] = 0.0
+        b.axpy(1.0, self.share)
+        for vec in (relative, force):
+            vec.destroy()
 
     def master_share(self) -> PETSc.Vec:
         """P^T c at the current D: the slave's contact forces carried to the master's dofs
