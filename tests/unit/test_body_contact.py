@@ -405,3 +405,50 @@ def test_held_slave_nodes_node_to_segment(E_master):
     assert out["iterations"] == 1
     assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
     assert max(out["blocks"]) > 1e-6
+
+
+def dragged_scene() -> dict:
+    """The block dragged on the block (test_block_slides_on_block) far: its top moved by
+    0.04 per unit time over 4 steps, Signorini with Coulomb friction (mu = 0.3), so that the
+    slave nodes slide past half a master segment (h_master = 0.1: the limit 0.05)."""
+    raw = patch_scene("mortar", stiffness=0.0, g=0.0, mu=0.3, friction_law="coulomb")
+    raw["dirichlet"] = [{"boundary": "bottom", "components": "all"},
+                        {"boundary": "top", "components": [0], "value": "0.04 * t"}]
+    raw["time"] = {"T": 4.0, "steps": 4}
+    raw["solver"] = {"predictor": "none"}
+    return raw
+
+
+def test_sliding_past_the_pairing_stops_the_run(tmp_path_factory):
+    """A slave node that slides past half its master facet stops the run with SlidingLimit
+    (a NewtonFailure: exit 3), naming its position, its slip and the limit; the steps before
+    are kept (steps.jsonl, and the checkpoint of the last of them). The command line ends
+    with exit 3 and the same words."""
+    from helpers import read_steps, run_cli
+    from contactvisco import SlidingLimit, solve
+    from contactvisco.api import scene_toml
+    comm = MPI.COMM_WORLD
+    out = comm.bcast(str(tmp_path_factory.mktemp("dragged")) if comm.rank == 0 else None)
+    scene = loader.resolve(dragged_scene())
+    with pytest.raises(SlidingLimit) as caught:
+        solve(scene, out, comm=comm, progress=False)
+    err = caught.value
+    print("stopped:", err)
+    assert err.slip > err.limit == pytest.approx(0.05, rel=1e-9)
+    assert err.position[1] == pytest.approx(0.0, abs=1e-12)
+    assert f"{err.limit:.4g}" in str(err) and f"{err.slip:.4g}" in str(err)
+    steps = read_steps(out)
+    assert 1 <= len(steps) and steps[-1]["t"] < err.t
+    import json
+    import pathlib
+    meta = json.loads((pathlib.Path(out) / "checkpoint" / "meta.json").read_text())
+    assert meta["t"] == steps[-1]["t"] and meta["count"] == len(steps)
+    if comm.size > 1:
+        return
+    path = tmp_path_factory.mktemp("cli") / "dragged.toml"
+    path.write_text(scene_toml(scene))
+    done = run_cli("run", path, "--out", path.parent / "out", "--quiet")
+    print(done.stderr)
+    assert done.returncode == 3
+    assert "small-sliding limit" in done.stderr and f"{err.slip:.4g}" in done.stderr
+    assert len(read_steps(path.parent / "out")) == len(steps)
