@@ -588,7 +588,11 @@ class CondensedSNES(NewtonSolver):
         self._error = None
         self._residuals_since_jacobian = 0
         try:
-            return super().solve()
+            iterations = super().solve()
+            finish = getattr(self.system, "finish", None)
+            if finish is not None:           # Functions that SNES's slots do not hold
+                finish()
+            return iterations
         except (NewtonFailure, SceneError, PETSc.Error):
             if self._error is not None:
                 raise self._error from None

@@ -286,9 +286,14 @@ def test_stiff_layer_tends_to_the_rigid_plane():
     """The rigid limit: the layer's displacement at the interface is of order E1/E2 of the
     body's, so the contact state on a layer of modulus E2 differs from the one on the rigid
     plane by O(E1/E2). Measured (relative to the rigid answer's largest value) at E2 = 1e4,
-    1e6, 1e8: u_nu 1.0e-3, 1.0e-5, 1.0e-7; u_tau 1.8e-2, 1.8e-4, 1.8e-6; the normal and
+    1e6, 1e8: u_nu 1.7e-3, 1.7e-5, 1.7e-7; u_tau 1.7e-2, 1.8e-4, 1.8e-6; the normal and
     tangential reactions 4e-3 and 1e-3 falling alike, the zones (separated 1, compliance 4,
-    bound 12) the same: each difference falls by 100 (to 5 %) per two decades of E2."""
+    bound 12) the same: each difference falls by 100 (to 5 %) per two decades of E2.
+
+    The slave's interface corners are held in x (the body's sides): on the rigid plane, held
+    too, their friction goes to the support alone; on the layer, whose surface is free, the
+    layer receives it (a held slave node keeps its coupling). The tangential reaction of
+    those two nodes is therefore left out of the comparison."""
     from contactvisco.solver.time_loop import simulate
     comm = MPI.COMM_WORLD
     KEYS = ("u_nu", "u_tau", "reaction_nu", "reaction_tau")
@@ -297,8 +302,11 @@ def test_stiff_layer_tends_to_the_rigid_plane():
         result = simulate(loader.resolve(raw), comm=comm, progress=False, keep_tables=True)
         table = result.tables[-1]
         order = np.lexsort((table["x"][:, 1], table["x"][:, 0]))
-        return {key: np.asarray(table[key])[order] for key in KEYS}, \
-            result.steps[-1]["status_counts"]
+        values = {key: np.asarray(table[key])[order] for key in KEYS}
+        x = np.asarray(table["x"])[order, 0]
+        inner = (x > 1e-12) & (x < 1.0 - 1e-12)
+        values["reaction_tau"] = values["reaction_tau"][inner]
+        return values, result.steps[-1]["status_counts"]
 
     rigid, zones = final(rigid_limit_scene())
     errors = []
@@ -377,31 +385,46 @@ def held_patch_scene(pairing="mortar", E_master=1.0, **contact) -> dict:
     return raw
 
 
+#: The laws of the patch test with held slave nodes: those of LAWS and a compliance whose
+#: bound is not reached (linear, but solved with the multiplier lambda_nu: the condensed
+#: system; the held corners start 4e-3 inside the master, within the bound); the linear
+#: ones must converge in one Newton iteration.
+HELD_LAWS = dict(LAWS, **{"bound not reached": {"g": 1e-2}})
+LINEAR = ("compliance", "bound not reached")
+
+
 @pytest.mark.parametrize("E_master", [1.0, 10.0])
-def test_held_slave_nodes_keep_their_coupling(E_master):
+@pytest.mark.parametrize("law", HELD_LAWS)
+def test_held_slave_nodes_keep_their_coupling(law, E_master):
     """Slave nodes held by a support (both components of the slave's sides, its interface
     corners among them, held at their exact values) still act on u_rel = u_i - (Pi u)_i: the
     master receives -Pi^T c of every slave node, the held components' share of c going to
-    the support. Mortar passes the patch test to 1e-12 of p, for a master of the slave's
-    modulus and one 10 times stiffer, and Newton's first step is exact for the linear
-    compliance (1 iteration, from u = 0 off the held values)."""
-    out = solve_patch(held_patch_scene("mortar", E_master))
-    print(f"held slave sides, mortar, E2 = {E_master}: stress deviation (slave, master) / p:",
-          out["blocks"], "pressure:", out["pressure"], "iterations:", out["iterations"])
+    the support (where the corner's condition is active, the held corner pins the master
+    there). Mortar passes the patch test to 1e-12 of p, for a master of the slave's modulus
+    and one 10 times stiffer, and Newton's first step is exact for the linear laws (1
+    iteration from u = 0, off the held values), with the displacement-only system
+    (compliance) and the condensed one (bound not reached). Measured: at most 3e-14; with
+    the multipliers of held slave components left out, 61 % in the master."""
+    out = solve_patch(held_patch_scene("mortar", E_master, **HELD_LAWS[law]))
+    print(f"held slave sides, mortar, {law}, E2 = {E_master}: stress deviation (slave, "
+          "master) / p:", out["blocks"], "pressure:", out["pressure"], "iterations:",
+          out["iterations"])
     assert max(out["blocks"]) < 1e-12
     assert out["pressure"] < 1e-12
-    assert out["iterations"] == 1
+    if law in LINEAR:
+        assert out["iterations"] == 1
     assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
 
 
 @pytest.mark.parametrize("E_master", [1.0, 10.0])
-def test_held_slave_nodes_node_to_segment(E_master):
+@pytest.mark.parametrize("law", LINEAR)
+def test_held_slave_nodes_node_to_segment(law, E_master):
     """Node to segment with held slave sides: the resultants balance (every row of Pi sums to
     1), Newton's first step is exact (1 iteration); the stresses miss the uniform ones by
     several per cent (measured and reported)."""
-    out = solve_patch(held_patch_scene("node_to_segment", E_master))
-    print(f"held slave sides, node to segment, E2 = {E_master}: stress deviation (slave, "
-          "master) / p:", out["blocks"], "pressure:", out["pressure"])
+    out = solve_patch(held_patch_scene("node_to_segment", E_master, **HELD_LAWS[law]))
+    print(f"held slave sides, node to segment, {law}, E2 = {E_master}: stress deviation "
+          "(slave, master) / p:", out["blocks"], "pressure:", out["pressure"])
     assert out["iterations"] == 1
     assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
     assert max(out["blocks"]) > 1e-6
