@@ -368,6 +368,7 @@ class InterfaceCondensation(NodalCondensation):
         """F = S^-T R_w,red at x (class description); the coupled residual's norm in w."""
         self._evaluation_point()
         self._u.copy(self._x)                            # x with u = g where prescribed
+        self._x.ghostUpdate(addv=_INSERT, mode=_FORWARD)  # (the lifting reads the ghosts)
         self.assemble_u_residual(self._x, b)
         with self.c.localForm() as local:
             local.set(0.0)
