@@ -210,6 +210,11 @@ def ufl_derivative(form, u):
         ufl.derivative(form, u, ufl.TrialFunction(u.function_space)))
 
 
+#: Entries of Pi below this couple no master component (InterfaceCondensation: a multiplier
+#: whose slave components and coupled master components are all prescribed is left out).
+COUPLING = 1e-12
+
+
 class InterfaceCondensation(NodalCondensation):
     """The condensed Newton system (contactvisco.solver.condensed) of two bodies in contact
     whose law has nodal multipliers (a bound g, friction).
@@ -304,7 +309,10 @@ class InterfaceCondensation(NodalCondensation):
         marks.array[self.fixed_local] = 0.0
         pairing = self.link.pairing
         sizes = interface.index_sizes(self.V)
-        spread = dataclasses.replace(pairing, values=np.abs(pairing.values)).matrix(
+        # an entry of Pi below COUPLING is round-off of an exact zero (a mortar row at a
+        # corner: the dual basis is orthogonal to the master's function that vanishes there)
+        weights = np.where(np.abs(pairing.values) > COUPLING, np.abs(pairing.values), 0.0)
+        spread = dataclasses.replace(pairing, values=weights).matrix(
             self.V.mesh.comm, sizes, sizes, d)
         reached = marks.copy()
         spread.mult(marks, reached)                      # > 0: a free master component

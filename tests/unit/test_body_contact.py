@@ -475,3 +475,14 @@ def test_sliding_past_the_pairing_stops_the_run(tmp_path_factory):
     assert done.returncode == 3
     assert "small-sliding limit" in done.stderr and f"{err.slip:.4g}" in done.stderr
     assert len(read_steps(path.parent / "out")) == len(steps)
+
+
+def test_facet_sizes():
+    """The small-sliding limit of a facet: half a segment's length, half a triangle's
+    smallest height (2 A over its longest edge): 1.5 for a segment of length 3; for the
+    triangle (0, 0, 0), (2, 0, 0), (0, 1, 0) of area 1 and longest edge sqrt(5), 1/sqrt(5)."""
+    from contactvisco.fem.body_contact import facet_sizes
+    segment = np.array([[[1.0, 1.0], [1.0, 4.0]]])
+    triangle = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    assert facet_sizes(segment) == pytest.approx([1.5], rel=1e-15)
+    assert facet_sizes(triangle) == pytest.approx([1.0 / np.sqrt(5.0)], rel=1e-15)
