@@ -282,7 +282,8 @@ class SlidingLimit(NewtonFailure):
     position : tuple of float
         The slave node's reference coordinates.
     slip, limit : float
-        |u_rel,tau| at the node and half its master facet's size.
+        The tangential displacement relative to the master at the node, and half its
+        master facet's size.
     t : float
         The time of the step that went past the limit (not recorded).
     """
