@@ -55,6 +55,7 @@ _PUBLIC = {
     "load_scene": "api", "solve": "api", "read_results": "api", "builtin_scenes": "api",
     "pyvista_grid": "api", "check": "api", "scene_toml": "api",
     "Result": "solver.time_loop", "SceneError": "errors", "NewtonFailure": "solver.newton",
+    "SlidingLimit": "solver.newton",
     "hertz": "studies.verification", "cattaneo_mindlin": "studies.coulomb",
     "cattaneo_traction": "studies.coulomb", "cattaneo_obstacle_scene": "studies.coulomb",
     "creep_indentation": "studies.indentation", "elastic_indentation": "studies.indentation",

@@ -59,6 +59,50 @@ class BodyContact:
     contact_form: object | None = None
     force_forms: dict | None = None
     rigid: bool = False                # no position of its own: D follows u
+    slide_nodes: np.ndarray | None = None      # owned slave nodes (local P1 numbers)
+    slide_points: np.ndarray | None = None     # their reference coordinates
+    slide_limits: np.ndarray | None = None     # half their master facet's size
+
+    def sliding(self, u: fem.Function) -> tuple | None:
+        """The slave node whose tangential displacement relative to the master goes furthest
+        past the small-sliding limit of its pairing, if one does (collective).
+
+        The pairing is made once in the reference configuration; it holds while each slave
+        node stays on its master facet, which is checked as
+
+            |u_rel,tau,i| <= l_i,    u_rel,tau = u_rel - (u_rel . nu) nu,
+            u_rel,i = u_i - (Pi u)_i,
+
+        l_i half the length (2D) or half the smallest height (3D) of the master facet of
+        x_i's closest point.
+
+        Parameters
+        ----------
+        u : dolfinx.fem.Function
+            The displacement (P1, D's layout).
+
+        Returns
+        -------
+        tuple or None
+            (position x_i, slip |u_rel,tau,i|, limit l_i) of the node of the largest ratio
+            slip / limit above 1 over every rank, or None when every node is within.
+        """
+        self.follow(u)
+        d = self.D.function_space.mesh.geometry.dim
+        nodes = self.slide_nodes
+        worst = (0.0, None)
+        if nodes is not None and nodes.size:
+            rel = (u.x.array.reshape(-1, d)[nodes] - self.D.x.array.reshape(-1, d)[nodes])
+            nu = self.normal.x.array.reshape(-1, d)[nodes]
+            tangential = rel - np.einsum("nd,nd->n", rel, nu)[:, None] * nu
+            slip = np.linalg.norm(tangential, axis=1)
+            ratio = slip / self.slide_limits
+            j = int(np.argmax(ratio))
+            worst = (float(ratio[j]), (tuple(float(c) for c in self.slide_points[j]),
+                                       float(slip[j]), float(self.slide_limits[j])))
+        comm = self.D.function_space.mesh.comm
+        ratio, where = max(comm.allgather(worst), key=lambda item: item[0])
+        return where if ratio > 1.0 else None
 
     @property
     def controlled(self) -> list:
@@ -195,4 +239,28 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     sizes = interface.index_sizes(V)
     P = pairing.matrix(comm, sizes, sizes, d)
     return BodyContact(normal=normal, gap=gap, D=fem.Function(W), P=P, pairing=pairing,
-                       method=method)
+                       method=method, slide_nodes=local, slide_points=slave.coordinates,
+                       slide_limits=facet_sizes(master.coordinates)[found.facet])
+
+
+def facet_sizes(coordinates: np.ndarray) -> np.ndarray:
+    """The small-sliding limit of each master facet: half a segment's length (2D), half a
+    triangle's smallest height (3D).
+
+    Parameters
+    ----------
+    coordinates : numpy.ndarray
+        (facets, d, gdim) the facets' vertices (interface.Surface.coordinates).
+
+    Returns
+    -------
+    numpy.ndarray
+        (facets,) l = |b - a| / 2 for a segment (a, b); l = A / max_k |e_k| for a triangle
+        of area A and edges e_k (half of its smallest height 2 A / max_k |e_k|).
+    """
+    if coordinates.shape[1] == 2:
+        return 0.5 * np.linalg.norm(coordinates[:, 1] - coordinates[:, 0], axis=1)
+    a, b, c = coordinates[:, 0], coordinates[:, 1], coordinates[:, 2]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    longest = np.max([np.linalg.norm(e, axis=1) for e in (b - a, c - b, a - c)], axis=0)
+    return area / longest

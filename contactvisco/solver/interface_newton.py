@@ -13,12 +13,14 @@ first assembly and kept.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector, create_matrix
 from petsc4py import PETSc
 
-from contactvisco.fem import compat
+from contactvisco.fem import compat, interface
 from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.solver.newton import NewtonSolver, _weak, rigid_body_modes
 
@@ -86,6 +88,7 @@ class InterfaceSNES(NewtonSolver):
         self.c = compat.form_vector(self.F_c)
         u_vector = compat.petsc_vector(u)
         self.b, self.x, self.share = u_vector.copy(), u_vector.copy(), u_vector.copy()
+        self._moved = u_vector.copy()
         d = problem.V.dofmap.index_map_bs
         owned = problem.V.dofmap.index_map.size_local * d
         fixed = np.flatnonzero(problem.u_fixed.reshape(-1)[:owned] > 0)
@@ -101,7 +104,7 @@ class InterfaceSNES(NewtonSolver):
         self._finish_setup()
 
     def destroy(self):
-        for name in ("A_fe", "K_c", "c", "share", "T"):
+        for name in ("A_fe", "K_c", "c", "share", "T", "_moved"):
             obj = self.__dict__.get(name)
             if obj is not None:
                 obj.destroy()
@@ -119,6 +122,32 @@ class InterfaceSNES(NewtonSolver):
         b.ghostUpdate(addv=_ADD, mode=_REVERSE)
         compat.set_bc(b, self.bcs, x, -1.0)
         b.axpy(-1.0, self.master_share())
+        self._lift_correction(b)
+
+    def _lift_correction(self, b):
+        """b += C (g - x) on the free rows, C = T^T K_c T - K_c the master's share of the
+        Jacobian (the lifting of its columns of prescribed components, which the Jacobian
+        zeroes): with x off its prescribed values g (a held slave node moved to a new value),
+        the first Newton step is then the exact linear one, as the forms' own lifting makes
+        it for J_el + K_c. Nothing is done while x holds its prescribed values."""
+        moved = self._moved
+        moved.set(0.0)
+        moved.array[self.fixed_local] = -b.array[self.fixed_local]     # g - x
+        if moved.norm(PETSc.NormType.NORM_INFINITY) == 0.0:
+            return
+        self.K_c.zeroEntries()
+        compat.assemble_matrix(self.K_c, self.J_c, [], diagonal=0.0)
+        self.K_c.assemble()
+        relative, force = self.K_c.createVecs()
+        self.T.mult(moved, relative)                  # T v
+        self.K_c.mult(relative, force)                # K_c T v
+        self.T.multTranspose(force, self.share)       # T^T K_c T v
+        self.K_c.mult(moved, force)
+        self.share.axpy(-1.0, force)                  # - K_c v
+        self.share.array[self.fixed_local] = 0.0
+        b.axpy(1.0, self.share)
+        for vec in (relative, force):
+            vec.destroy()
 
     def master_share(self) -> PETSc.Vec:
         """P^T c at the current D: the slave's contact forces carried to the master's dofs
@@ -181,29 +210,44 @@ def ufl_derivative(form, u):
         ufl.derivative(form, u, ufl.TrialFunction(u.function_space)))
 
 
+#: Entries of Pi below this couple no master component (InterfaceCondensation: a multiplier
+#: whose slave components and coupled master components are all prescribed is left out).
+COUPLING = 1e-12
+
+
 class InterfaceCondensation(NodalCondensation):
     """The condensed Newton system (contactvisco.solver.condensed) of two bodies in contact
     whose law has nodal multipliers (a bound g, friction).
 
-    In the unknowns w = S^-1 u, S = I + P0 (w_i = u_i - (Pi u)_i at the slave dofs, w = u
-    elsewhere; P0 is P without the rows and columns of prescribed components), the contact
-    terms act on the slave rows and columns alone, as for a rigid obstacle:
+    In the unknowns w = S^-1 u, S = I + P (w_i = u_i - (Pi u)_i at the slave dofs, w = u
+    elsewhere), the contact terms act on the slave rows and columns alone, as for a rigid
+    obstacle:
 
-        R_w = S^T F_el + c,        J_w = S^T J_el S + K_c,
+        R_w = S^T F' + c,          J_w = S^T J' S + K_c,
 
     so the node-wise elimination of the multipliers applies to the slave rows of J_w
     unchanged. The system handed to Newton is that one written back in u,
 
-        F = S^-T R_w,red,          J = S^-T J_w,red S^-1 = T^T J_w,red T,   T = S^-1 = I - P0,
+        F = S^-T R_w,red,          J = S^-T J_w,red S^-1 = T^T J_w,red T,   T = S^-1 = I - P,
 
-    whose solution is du = S dw (P0 P0 = 0: slave and master dofs differ). The multipliers are
-    recovered from dw = T du.
+    (P P = 0: slave and master dofs differ); the multipliers are recovered from dw = T du.
 
-    The master's displacement at the slave nodes is D = P_s u, P_s being P without the rows of
-    prescribed slave components (those components keep u_rel = u, the slave's prescribed
-    value: docs/interface.md) but with all its columns: a prescribed displacement of a master
-    node moves the master under the slave nodes. Its increment is P0 du, du being zero at
-    prescribed components.
+    Prescribed components. The residual and matrices are evaluated with u = g on every
+    prescribed component, and the rows of prescribed components away from the contact nodes
+    are x - g, their columns zero, as usual. A prescribed component u_ih of a slave contact
+    node keeps its coupling: its contact force acts on w_i = u_i - (Pi u)_i whatever holds
+    u_i, the master receives -Pi^T c, and the slave's share goes to the support. The
+    support's force is then an unknown of its own, z_ih = x_ih - g_ih (SNES's value in the
+    slot of u_ih, which stays g_ih in the Functions): F'_ih = z_ih in place of the elastic
+    row, so that R_w,ih = z_ih + c_ih, and the column of the slot in J is dF/dz,
+
+        (P_i e_h at the rows of node i,   Pi_ik (I - P_i) e_h at the rows of master node k),
+
+    P_i the node's projection of the elimination (the identity where no condition of the
+    node is active). Where the node's condition is active in a held direction, this is the
+    master's constraint (the held node pins the master's surface) with its reaction. A
+    multiplier is left out (held at zero) only where both sides are held: the slave
+    components it acts on and every master component of the row of Pi.
 
     Parameters
     ----------
@@ -218,52 +262,109 @@ class InterfaceCondensation(NodalCondensation):
         owned = V.dofmap.index_map.size_local * d
         fixed = np.flatnonzero(problem.u_fixed.reshape(-1)[:owned] > 0)
         start = V.dofmap.index_map.local_range[0] * d
+        self.fixed_local = fixed
         self.fixed_global = (fixed + start).astype(PETSc.IntType)
-        self.P0 = self.link.P.duplicate(copy=True)
-        self.P0.zeroRowsColumns(self.fixed_global, diag=0.0)
-        self.P_s = self.link.P.duplicate(copy=True)
-        self.P_s.zeroRows(self.fixed_global, diag=0.0)
-        self.T0 = transfer(self.P0)
+        nodes = problem.contact.nodes
+        own = nodes.nodes[nodes.owned]
+        at_node = np.zeros(owned // d, dtype=bool)
+        at_node[own] = True
+        held = at_node[fixed // d]
+        self.z_local = fixed[held]                       # held slave contact components
+        self.z_global = self.fixed_global[held]
+        self.plain_local = fixed[~held]                  # every other prescribed component
+        self.plain_global = self.fixed_global[~held]
+        self.P = self.link.P
+        self.T = transfer(self.P)
+        S = self.T.duplicate(copy=True)
+        S.scale(-1.0)
+        S.shift(2.0)                                     # S = 2 I - T = I + P
+        self.S = S
         contact = self.link.contact_form
         self.F_c = None if contact is None else fem.form(contact)
         self.J_c = None if contact is None else fem.form(ufl_derivative(contact, problem.u))
         self.K_c = None if self.J_c is None else create_matrix(self.J_c)
         self._patterned = False
+        self._u = compat.petsc_vector(problem.u)
         super().__init__(problem)
-        self.c = compat.petsc_vector(problem.u).copy()
+        self.fixed_u = np.zeros_like(self.fixed_u)       # held slave rows carry z and lambda
+        self.free = self._free_multipliers(problem)
+        self.c = self._u.copy()
         self._el, self._share = self.c.copy(), self.c.copy()
-        self._dw = self.c.copy()
-        self.J_red = self.A.PtAP(self.T0)
+        self._dw, self._x = self.c.copy(), self.c.copy()
+        self._columns_kept = self.c.copy()
+        with self._columns_kept.localForm() as local:
+            local.set(1.0)
+        self._columns_kept.array[self.z_local] = 0.0
+        self.J_red = self.A.PtAP(self.T)
+        self.J_red.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
+        self._write_back()
 
-    def follow(self):
-        """D = P_s u: the master's displacement at the slave nodes (class description)."""
-        target = compat.petsc_vector(self.link.D)
-        self.P_s.mult(compat.petsc_vector(self.problem.u), target)
-        target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+    def _free_multipliers(self, problem):
+        """The multiplier components kept: all but those whose slave components (u_nu: the
+        components nu involves; u_tau: its own) and every master component they couple to
+        through Pi are prescribed."""
+        d = self.d
+        marks = self._u.copy()
+        marks.set(1.0)
+        marks.array[self.fixed_local] = 0.0
+        pairing = self.link.pairing
+        sizes = interface.index_sizes(self.V)
+        # an entry of Pi below COUPLING is round-off of an exact zero (a mortar row at a
+        # corner: the dual basis is orthogonal to the master's function that vanishes there)
+        weights = np.where(np.abs(pairing.values) > COUPLING, np.abs(pairing.values), 0.0)
+        spread = dataclasses.replace(pairing, values=weights).matrix(
+            self.V.mesh.comm, sizes, sizes, d)
+        reached = marks.copy()
+        spread.mult(marks, reached)                      # > 0: a free master component
+        spread.destroy()
+        master_free = reached.array.reshape(-1, d)[self.own] > 0
+        slave_free = self.problem.u_fixed[self.own] == 0
+        loose = master_free | slave_free                 # (n, d): one side at least is free
+        marks.destroy()
+        reached.destroy()
+        involved = np.abs(self.problem.contact.nodes.normals[
+            self.problem.contact.nodes.owned]) > 1e-8
+        masks = []
+        for a, field in enumerate(self.fields):
+            if self.bs[a] == 1:                          # lambda_nu
+                masks.append(np.any(involved & loose, axis=1)[:, None])
+            else:                                        # lambda_tau, per component
+                masks.append(loose)
+        return np.concatenate(masks, axis=1)
+
+    def _evaluation_point(self):
+        """u = g on every prescribed component (ghosts updated) and D = P u."""
+        compat.set_bc(self._u, self.bcs, None, 1.0)
+        self._u.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+        self.link.follow(self.problem.u)
 
     def _assemble_J(self):
-        """A = J_w = S^T (J_full - K_c) S + K_c, J_full the assembled J_el + K_c at D = P_s u."""
-        self.follow()
+        """A = J_w = S^T (J_full - K_c0) S + K_c: J_full the assembled J_el + K_c at D = P u
+        with Dirichlet rows and columns (and zero rows at the held slave components, whose
+        row is z), K_c0 the contact part it holds (no prescribed row or column)."""
+        self._evaluation_point()
         full = create_matrix(self.J_uu) if not self._patterned else self._full
         full.zeroEntries()
         compat.assemble_matrix(full, self.J_uu, self.bcs, diagonal=1.0)
         full.assemble()
-        S = self.T0.duplicate(copy=True)
-        S.scale(-1.0)
-        S.shift(2.0)                         # S = 2 I - T = I + P0
-        total = full.PtAP(S)
+        diagonal = full.getDiagonal()                    # collective: on every rank
+        diagonal.array[self.z_local] = 0.0
+        full.setDiagonal(diagonal)
+        diagonal.destroy()
+        total = full.PtAP(self.S)
         if self.K_c is not None:
             self.K_c.zeroEntries()
             compat.assemble_matrix(self.K_c, self.J_c, [], diagonal=0.0)
             self.K_c.assemble()
+            inside = self.K_c.duplicate(copy=True)
             # as J_full's: no entry in the rows and columns of prescribed components (the
             # pattern of K_c, from Gamma_C alone, has no diagonal for a Dirichlet row)
-            self.K_c.zeroRowsColumns(self.fixed_global, diag=0.0)
-            moved = self.K_c.PtAP(S)
+            inside.zeroRowsColumns(self.fixed_global, diag=0.0)
+            moved = inside.PtAP(self.S)
             total.axpy(-1.0, moved, _DIFFERENT)
             total.axpy(1.0, self.K_c, _DIFFERENT)
             moved.destroy()
-        S.destroy()
+            inside.destroy()
         if not self._patterned:
             self.A.destroy()
             self.A, self._full, self._patterned = total, full, True
@@ -272,31 +373,86 @@ class InterfaceCondensation(NodalCondensation):
         total.destroy()
 
     def residual(self, x, b):
-        """F = S^-T R_w,red at x (module description); the coupled residual's norm in w."""
-        self.follow()
-        self.assemble_u_residual(x, b)
+        """F = S^-T R_w,red at x (class description); the coupled residual's norm in w."""
+        self._evaluation_point()
+        self._u.copy(self._x)                            # x with u = g where prescribed
+        self._x.ghostUpdate(addv=_INSERT, mode=_FORWARD)  # (the lifting reads the ghosts)
+        self.assemble_u_residual(self._x, b)
         with self.c.localForm() as local:
             local.set(0.0)
         if self.F_c is not None:
             assemble_vector(self.c, self.F_c)
             self.c.ghostUpdate(addv=_ADD, mode=_REVERSE)
         b.copy(self._el)
-        self._el.axpy(-1.0, self.c)                  # F_el (slave rows are what P0^T reads)
-        self.P0.multTranspose(self._el, self._share)
-        b.axpy(1.0, self._share)                     # R_w = S^T F_el + c
+        self._el.axpy(-1.0, self.c)                      # F_el
+        self._el.array[self.plain_local] = 0.0
+        given = x.getArray(readonly=True)
+        self._el.array[self.z_local] = given[self.z_local] - self._x.array[self.z_local]
+        self.P.multTranspose(self._el, self._share)
+        self._el.axpy(1.0, self._share)
+        self._el.axpy(1.0, self.c)
+        self._el.copy(b)                                 # R_w = S^T F' + c
+        b.array[self.plain_local] = given[self.plain_local] - self._x.array[self.plain_local]
         self.condense_residual(b)
-        self.P0.multTranspose(b, self._share)
-        b.axpy(-1.0, self._share)                    # S^-T R_w,red
+        self.P.multTranspose(b, self._share)
+        b.axpy(-1.0, self._share)                        # S^-T R_w,red
+        b.array[self.plain_local] = given[self.plain_local] - self._x.array[self.plain_local]
 
     def jacobian(self):
-        """J = T^T J_w,red T: J_w assembled, its slave rows saved and condensed, then
-        written back in u."""
+        """J = T^T J_w,red T: J_w assembled, its slave rows saved and condensed, written
+        back in u; then the columns of z and the Dirichlet rows and columns."""
         super().jacobian()
-        self.A.PtAP(self.T0, result=self.J_red)
+        self.A.PtAP(self.T, result=self.J_red)
+        self._write_back()
+
+    def _write_back(self):
+        """In J_red: the columns of the held slave components become dF/dz (class
+        description), the other prescribed rows and columns the identity's."""
+        J, d = self.J_red, self.d
+        J.diagonalScale(None, self._columns_kept)
+        if self.parts is None:                           # the pattern's first assembly
+            diagonal = J.getDiagonal()
+            diagonal.array[self.z_local] = 1.0
+            J.setDiagonal(diagonal, addv=_INSERT)
+            diagonal.destroy()
+        elif self.z_local.size:
+            node_of = {int(n): j for j, n in enumerate(self.own)}
+            projection = self.parts["P"]
+            first = self.V.dofmap.index_map.local_range[0]
+            pairing = self.link.pairing
+            for dof in self.z_local:
+                node, h = divmod(int(dof), d)
+                j = node_of[node]
+                column = int(self.z_global[np.flatnonzero(self.z_local == dof)[0]])
+                own_rows = ((first + node) * d + np.arange(d)).astype(PETSc.IntType)
+                J.setValues(own_rows, [column], projection[j][:, h].reshape(d, 1),
+                            addv=_ADD)
+                rest = np.eye(d)[:, h] - projection[j][:, h]
+                if not np.any(rest):
+                    continue
+                for k, value in zip(pairing.cols[pairing.rows == first + node],
+                                    pairing.values[pairing.rows == first + node]):
+                    rows = (int(k) * d + np.arange(d)).astype(PETSc.IntType)
+                    J.setValues(rows, [column], (value * rest).reshape(d, 1), addv=_ADD)
+        J.assemble()
+        J.zeroRowsColumns(self.plain_global, diag=1.0)
 
     def update_multipliers(self, du):
-        """The multipliers' step for dw = T du (NodalCondensation.update_multipliers)."""
-        self.T0.mult(du, self._dw)
+        """The multipliers' step for dw = T du (NodalCondensation.update_multipliers), du
+        without its prescribed components (the linearization was at u = g there); the step
+        dz of a held slave component joins that component's row."""
+        du.copy(self._dw)
+        step = self._dw.array
+        dz = step[self.z_local].copy()
+        step[self.z_local] = 0.0
+        step[self.plain_local] = 0.0
+        self._dw.copy(self._x)
+        self.T.mult(self._x, self._dw)
+        if self.z_local.size:
+            node_of = {int(n): j for j, n in enumerate(self.own)}
+            for dof, value in zip(self.z_local, dz):
+                node, h = divmod(int(dof), self.d)
+                self.parts["F"][node_of[node], h] += value
         return super().update_multipliers(self._dw)
 
     def contact_forces(self) -> PETSc.Vec:
@@ -315,13 +471,18 @@ class InterfaceCondensation(NodalCondensation):
         return self.c
 
     def master_share(self) -> PETSc.Vec:
-        """P0^T c: the slave's contact forces carried to the master's dofs; -P0^T c is what
+        """P^T c: the slave's contact forces carried to the master's dofs; -P^T c is what
         the master receives.
 
         Returns
         -------
         petsc4py.PETSc.Vec
-            P0^T c (u's layout).
+            P^T c (u's layout).
         """
-        self.P0.multTranspose(self.contact_forces(), self._share)
+        self.P.multTranspose(self.contact_forces(), self._share)
         return self._share
+
+    def finish(self):
+        """After a solve: u = g on every prescribed component (SNES's slots of the held
+        slave components hold z), D = P u."""
+        self._evaluation_point()

@@ -268,6 +268,31 @@ class NewtonFailure(RuntimeError):
         self.residuals = residuals
 
 
+class SlidingLimit(NewtonFailure):
+    """A run stopped because a slave node of two bodies in contact (obstacle.shape = "body")
+    slid past the small-sliding limit of its pairing, made once in the reference
+    configuration: its tangential displacement relative to the master exceeds half its
+    master facet (fem.body_contact.BodyContact.sliding). A NewtonFailure, so that the
+    command line ends with exit 3; the steps completed before are kept.
+
+    Parameters
+    ----------
+    message : str
+        The node's position, its slip, the limit and the time.
+    position : tuple of float
+        The slave node's reference coordinates.
+    slip, limit : float
+        The tangential displacement relative to the master at the node, and half its
+        master facet's size.
+    t : float
+        The time of the step that went past the limit (not recorded).
+    """
+
+    def __init__(self, message, position, slip, limit, t):
+        super().__init__(message, 0, [])
+        self.position, self.slip, self.limit, self.t = position, slip, limit, t
+
+
 def residual_summary(residuals) -> str:
     """The residual history in a few words: its first and last norms and its length (the
     whole history is NewtonFailure.residuals)."""
@@ -564,7 +589,11 @@ class CondensedSNES(NewtonSolver):
         self._error = None
         self._residuals_since_jacobian = 0
         try:
-            return super().solve()
+            iterations = super().solve()
+            finish = getattr(self.system, "finish", None)
+            if finish is not None:           # Functions that SNES's slots do not hold
+                finish()
+            return iterations
         except (NewtonFailure, SceneError, PETSc.Error):
             if self._error is not None:
                 raise self._error from None

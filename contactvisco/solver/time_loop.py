@@ -27,7 +27,7 @@ from contactvisco.io import checkpoint, output, parallel
 from contactvisco.io.lock import FolderLock
 from contactvisco.solver import diagnosis, predictor, report
 from contactvisco.solver import newton as solver_module
-from contactvisco.solver.newton import NewtonFailure
+from contactvisco.solver.newton import NewtonFailure, SlidingLimit
 
 
 @dataclass
@@ -184,6 +184,7 @@ class Run:
             try:
                 for state in advance(problem, snes, n * k, scene["solver"]["max_cuts"],
                                      self.say, predict=self.predictor):
+                    check_sliding(problem, state.t, count)
                     table = contact_state.contact_table(problem, comm)
                     record = self._record(count, state, table)
                     self.tangent_warned = report.tangent_warning(
@@ -252,6 +253,38 @@ class Run:
             writer.finish(final)
         self.say(report.closing_line(final, t_end))
         return final
+
+
+def check_sliding(problem, t: float, completed: int) -> None:
+    """Stop the run when a slave node of two bodies in contact has slid past its pairing's
+    small-sliding limit (fem.body_contact.BodyContact.sliding); collective.
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem at the converged state of time t.
+    t : float
+        The state's time.
+    completed : int
+        The steps recorded before it (kept in the output folder).
+
+    Raises
+    ------
+    SlidingLimit
+        |u_rel,tau,i| > l_i at some slave node i (a NewtonFailure: exit 3).
+    """
+    obstacle = problem.contact and problem.contact.obstacle
+    sliding = getattr(obstacle, "sliding", None)
+    found = sliding(problem.u) if sliding is not None else None
+    if found is None:
+        return
+    position, slip, limit = found
+    where = ", ".join(f"{c:.6g}" for c in position)
+    raise SlidingLimit(
+        f"at t = {t:g} the slave node at ({where}) has slid {slip:.4g} along the master, "
+        f"past the small-sliding limit {limit:.4g} (half its master facet, "
+        "obstacle.shape = 'body' pairs the boundaries once in the reference configuration); "
+        f"stopped, the {completed} step(s) before are kept", position, slip, limit, t)
 
 
 def thermal_record(problem, comm) -> dict:

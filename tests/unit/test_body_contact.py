@@ -286,9 +286,14 @@ def test_stiff_layer_tends_to_the_rigid_plane():
     """The rigid limit: the layer's displacement at the interface is of order E1/E2 of the
     body's, so the contact state on a layer of modulus E2 differs from the one on the rigid
     plane by O(E1/E2). Measured (relative to the rigid answer's largest value) at E2 = 1e4,
-    1e6, 1e8: u_nu 1.0e-3, 1.0e-5, 1.0e-7; u_tau 1.8e-2, 1.8e-4, 1.8e-6; the normal and
+    1e6, 1e8: u_nu 1.7e-3, 1.7e-5, 1.7e-7; u_tau 1.7e-2, 1.8e-4, 1.8e-6; the normal and
     tangential reactions 4e-3 and 1e-3 falling alike, the zones (separated 1, compliance 4,
-    bound 12) the same: each difference falls by 100 (to 5 %) per two decades of E2."""
+    bound 12) the same: each difference falls by 100 (to 5 %) per two decades of E2.
+
+    The slave's interface corners are held in x (the body's sides): on the rigid plane, held
+    too, their friction goes to the support alone; on the layer, whose surface is free, the
+    layer receives it (a held slave node keeps its coupling). The tangential reaction of
+    those two nodes is therefore left out of the comparison."""
     from contactvisco.solver.time_loop import simulate
     comm = MPI.COMM_WORLD
     KEYS = ("u_nu", "u_tau", "reaction_nu", "reaction_tau")
@@ -297,8 +302,11 @@ def test_stiff_layer_tends_to_the_rigid_plane():
         result = simulate(loader.resolve(raw), comm=comm, progress=False, keep_tables=True)
         table = result.tables[-1]
         order = np.lexsort((table["x"][:, 1], table["x"][:, 0]))
-        return {key: np.asarray(table[key])[order] for key in KEYS}, \
-            result.steps[-1]["status_counts"]
+        values = {key: np.asarray(table[key])[order] for key in KEYS}
+        x = np.asarray(table["x"])[order, 0]
+        inner = (x > 1e-12) & (x < 1.0 - 1e-12)
+        values["reaction_tau"] = values["reaction_tau"][inner]
+        return values, result.steps[-1]["status_counts"]
 
     rigid, zones = final(rigid_limit_scene())
     errors = []
@@ -361,7 +369,7 @@ def test_prescribed_master_displacement_moves_the_master_under_the_slave(pairing
     displacement (0, -a), the slave's sides held in x, a pressure on its top: translating the
     master rigidly by a moves the slave with it and leaves the contact state as it was, with
     the normal compliance alone (Newton on u, D = P u) and with a bound that is never reached
-    (the condensed system with its multipliers, D = P_s u). Before the condensed system
+    (the condensed system with its multipliers, D = P u with u = g on prescribed components). Before the condensed system
     carried the prescribed master displacements to the slave nodes, its corners saw a master
     that had not moved (pressures 0.037 against 0.025)."""
     from contactvisco.solver.time_loop import simulate
@@ -387,3 +395,128 @@ def test_prescribed_master_displacement_moves_the_master_under_the_slave(pairing
         print(f"{pairing}, shift {shift}, law {law}: u_nu, reaction_nu differ by {worst}")
         assert max(worst) < 1e-8
     assert reference[1].max() > 2 * reference[1].min() > 0     # not the uniform patch state
+
+
+def held_patch_scene(pairing="mortar", E_master=1.0, **contact) -> dict:
+    """The patch test with both components of the slave block's sides held at the exact
+    solution's values (the interface corners of the slave are then held slave nodes), the
+    master of modulus E_master: plane strain with u_x = 0 gives eps_yy = -p k / E,
+    k = (1 + nu)(1 - 2 nu)/(1 - nu), so u_y = eps_m (y + 1/2) in the master and
+    u_y = eps_m / 2 - s + eps_s y in the slave, s = p / c_nu the compliance's penetration."""
+    raw = patch_scene(pairing, **contact)
+    k = (1 + NU) * (1 - 2 * NU) / (1 - NU)
+    slave, master = -PRESSURE * k, -PRESSURE * k / E_master
+    stiffness = raw["contact"]["stiffness"]
+    bound = raw["contact"].get("g")
+    s = PRESSURE / stiffness if stiffness else 0.0
+    s = min(s, bound) if bound is not None else s
+    raw["dirichlet"][2] = {"boundary": "slave_sides", "components": "all",
+                           "value": [0.0, f"{master * 0.5 - s!r} + {slave!r} * x[1]"]}
+    if E_master != 1.0:
+        raw["body"] = [{"name": "upper", "cells": "slave_body"},
+                       {"name": "lower", "cells": "master_body",
+                        "material": {"E": E_master}}]
+    return raw
+
+
+#: The laws of the patch test with held slave nodes: those of LAWS and a compliance whose
+#: bound is not reached (linear, but solved with the multiplier lambda_nu: the condensed
+#: system; the held corners start 4e-3 inside the master, within the bound); the linear
+#: ones must converge in one Newton iteration.
+HELD_LAWS = dict(LAWS, **{"bound not reached": {"g": 1e-2}})
+LINEAR = ("compliance", "bound not reached")
+
+
+@pytest.mark.parametrize("E_master", [1.0, 10.0])
+@pytest.mark.parametrize("law", HELD_LAWS)
+def test_held_slave_nodes_keep_their_coupling(law, E_master):
+    """Slave nodes held by a support (both components of the slave's sides, its interface
+    corners among them, held at their exact values) still act on u_rel = u_i - (Pi u)_i: the
+    master receives -Pi^T c of every slave node, the held components' share of c going to
+    the support (where the corner's condition is active, the held corner pins the master
+    there). Mortar passes the patch test to 1e-12 of p, for a master of the slave's modulus
+    and one 10 times stiffer, and Newton's first step is exact for the linear laws (1
+    iteration from u = 0, off the held values), with the displacement-only system
+    (compliance) and the condensed one (bound not reached). Measured: at most 3e-14; with
+    the multipliers of held slave components left out, 61 % in the master."""
+    out = solve_patch(held_patch_scene("mortar", E_master, **HELD_LAWS[law]))
+    print(f"held slave sides, mortar, {law}, E2 = {E_master}: stress deviation (slave, "
+          "master) / p:", out["blocks"], "pressure:", out["pressure"], "iterations:",
+          out["iterations"])
+    assert max(out["blocks"]) < 1e-12
+    assert out["pressure"] < 1e-12
+    if law in LINEAR:
+        assert out["iterations"] == 1
+    assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
+
+
+@pytest.mark.parametrize("E_master", [1.0, 10.0])
+@pytest.mark.parametrize("law", LINEAR)
+def test_held_slave_nodes_node_to_segment(law, E_master):
+    """Node to segment with held slave sides: the resultants balance (every row of Pi sums to
+    1), Newton's first step is exact (1 iteration); the stresses miss the uniform ones by
+    several per cent (measured and reported)."""
+    out = solve_patch(held_patch_scene("node_to_segment", E_master, **HELD_LAWS[law]))
+    print(f"held slave sides, node to segment, {law}, E2 = {E_master}: stress deviation "
+          "(slave, master) / p:", out["blocks"], "pressure:", out["pressure"])
+    assert out["iterations"] == 1
+    assert np.allclose(out["slave"] + out["master"], 0.0, atol=1e-12 * PRESSURE)
+    assert max(out["blocks"]) > 1e-6
+
+
+def dragged_scene() -> dict:
+    """The block dragged on the block (test_block_slides_on_block) far: its top moved by
+    0.04 per unit time over 4 steps, Signorini with Coulomb friction (mu = 0.3), so that the
+    slave nodes slide past half a master segment (h_master = 0.1: the limit 0.05)."""
+    raw = patch_scene("mortar", stiffness=0.0, g=0.0, mu=0.3, friction_law="coulomb")
+    raw["dirichlet"] = [{"boundary": "bottom", "components": "all"},
+                        {"boundary": "top", "components": [0], "value": "0.04 * t"}]
+    raw["time"] = {"T": 4.0, "steps": 4}
+    raw["solver"] = {"predictor": "none"}
+    return raw
+
+
+def test_sliding_past_the_pairing_stops_the_run(tmp_path_factory):
+    """A slave node that slides past half its master facet stops the run with SlidingLimit
+    (a NewtonFailure: exit 3), naming its position, its slip and the limit; the steps before
+    are kept (steps.jsonl, and the checkpoint of the last of them). The command line ends
+    with exit 3 and the same words."""
+    from helpers import read_steps, run_cli
+    from contactvisco import SlidingLimit, solve
+    from contactvisco.api import scene_toml
+    comm = MPI.COMM_WORLD
+    out = comm.bcast(str(tmp_path_factory.mktemp("dragged")) if comm.rank == 0 else None)
+    scene = loader.resolve(dragged_scene())
+    with pytest.raises(SlidingLimit) as caught:
+        solve(scene, out, comm=comm, progress=False)
+    err = caught.value
+    print("stopped:", err)
+    assert err.slip > err.limit == pytest.approx(0.05, rel=1e-9)
+    assert err.position[1] == pytest.approx(0.0, abs=1e-12)
+    assert f"{err.limit:.4g}" in str(err) and f"{err.slip:.4g}" in str(err)
+    steps = read_steps(out)
+    assert 1 <= len(steps) and steps[-1]["t"] < err.t
+    import json
+    import pathlib
+    meta = json.loads((pathlib.Path(out) / "checkpoint" / "meta.json").read_text())
+    assert meta["t"] == steps[-1]["t"] and meta["count"] == len(steps)
+    if comm.size > 1:
+        return
+    path = tmp_path_factory.mktemp("cli") / "dragged.toml"
+    path.write_text(scene_toml(scene))
+    done = run_cli("run", path, "--out", path.parent / "out", "--quiet")
+    print(done.stderr)
+    assert done.returncode == 3
+    assert "small-sliding limit" in done.stderr and f"{err.slip:.4g}" in done.stderr
+    assert len(read_steps(path.parent / "out")) == len(steps)
+
+
+def test_facet_sizes():
+    """The small-sliding limit of a facet: half a segment's length, half a triangle's
+    smallest height (2 A over its longest edge): 1.5 for a segment of length 3; for the
+    triangle (0, 0, 0), (2, 0, 0), (0, 1, 0) of area 1 and longest edge sqrt(5), 1/sqrt(5)."""
+    from contactvisco.fem.body_contact import facet_sizes
+    segment = np.array([[[1.0, 1.0], [1.0, 4.0]]])
+    triangle = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    assert facet_sizes(segment) == pytest.approx([1.5], rel=1e-15)
+    assert facet_sizes(triangle) == pytest.approx([1.0 / np.sqrt(5.0)], rel=1e-15)
