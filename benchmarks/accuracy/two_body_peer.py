@@ -54,16 +54,17 @@ apart) and the scene's numbers:
 At a slave node whose component is prescribed (the clamp at x = 0, the roller u_x = 0 at
 x = 1) two conventions are written (`prescribed`):
 
-- "held" (what contactvisco's condensed Newton system solves: solver.interface_newton's
-  InterfaceCondensation, whose D is P_s u, P without the rows of prescribed components): that
-  component of u_rel is the slave's own prescribed value, its multiplier is held at 0, and
-  the master receives nothing from it;
-- "relative": u_rel = u_slave - Pi u_master at every component of every slave node and the
-  master receives -Pi^T f of every one (the slave's prescribed rows take their part as a
-  support reaction).
+- "relative" (what contactvisco solves, docs/interface.md "Held slave nodes"):
+  u_rel = u_slave - Pi u_master at every component of every slave node and the master
+  receives -Pi^T f of every one (the slave's prescribed rows take their part as a support
+  reaction);
+- "held" (a former rule, kept to measure what it changes): that component of u_rel is the
+  slave's own prescribed value, its multiplier is held at 0, and the master receives nothing
+  from it.
 
 They differ only where a prescribed slave component carries contact force: here the
-roller's node at x = 1, at the bound, whose friction the layer feels in "relative" only.
+roller's node at x = 1, at the bound, whose friction the layer feels in "relative" only,
+and the clamped corner.
 """
 from __future__ import annotations
 
@@ -128,8 +129,10 @@ def scene(pairing: str = "mortar", rule: str = "paper", steps: int = 10,
         "traction": [{"boundary": "top", "value": [0.0, -20.0]}],
         "body": [{"name": "body", "cells": "slave_body", "memory": memory(*kernels[0])},
                  {"name": "layer", "cells": "master_body", "memory": memory(*kernels[1])}],
+        # Both solvers keep the reference pairing (the body slides up to 0.057 along the
+        # layer, past half of a master segment, 0.023): the same discrete problem.
         "contact": {"boundary": "slave", "stiffness": 100.0, "g": 0.05, "mu": 0.2,
-                    "pairing": pairing},
+                    "pairing": pairing, "sliding_limit": math.inf},
         "obstacle": {"shape": "body", "boundary": "master"},
         "time": {"T": 1.0, "steps": steps, "rule": rule},
         "solver": {"petsc_options": {"snes_rtol": 1e-12, "snes_atol": 1e-13}},
@@ -544,7 +547,7 @@ def contactvisco_run(raw):
     return built[0], result, displacements
 
 
-def compare(raw, prescribed="held"):
+def compare(raw, prescribed="relative"):
     """Both solvers on the scene: per quantity the largest difference over states and nodes
     relative to contactvisco's largest value, and what the test asserts about the state.
 
@@ -595,9 +598,9 @@ def main():
     cases = [(p, r, "constant") for p in ("mortar", "node_to_segment")
              for r in ("paper", "exponential")]
     cases += [("mortar", r, "exponential") for r in ("paper", "exponential")]
-    for prescribed in ("held", "relative"):
+    for prescribed in ("relative", "held"):
         for pairing, rule, kind in cases:
-            if prescribed == "relative" and kind != "constant":
+            if prescribed == "held" and kind != "constant":
                 continue
             kernels = KERNELS[kind]
             out = compare(scene(pairing, rule, kernels=kernels), prescribed)
@@ -611,8 +614,8 @@ def main():
               + " | ".join(f"{r['worst'][k]:.1e}" for k in ("u_nu", "reaction_nu", "sigma_tau",
                                                               "master")) + " |" for r in rows]
     for rule in ("paper", "exponential"):
-        a = finals["mortar", rule, "constant", "held"]
-        b = finals["node_to_segment", rule, "constant", "held"]
+        a = finals["mortar", rule, "constant", "relative"]
+        b = finals["node_to_segment", rule, "constant", "relative"]
         difference = np.abs(a["reaction_nu"] - b["reaction_nu"]).max() / \
             np.abs(a["reaction_nu"]).max()
         lines.append(f"\n{rule} rule: mortar and node to segment differ at T by "

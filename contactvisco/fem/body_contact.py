@@ -61,7 +61,8 @@ class BodyContact:
     rigid: bool = False                # no position of its own: D follows u
     slide_nodes: np.ndarray | None = None      # owned slave nodes (local P1 numbers)
     slide_points: np.ndarray | None = None     # their reference coordinates
-    slide_limits: np.ndarray | None = None     # half their master facet's size
+    slide_limits: np.ndarray | None = None     # contact.sliding_limit of their facet
+    sliding_limit: float = 0.5                 # contact.sliding_limit
 
     def sliding(self, u: fem.Function) -> tuple | None:
         """The slave node whose tangential displacement relative to the master goes furthest
@@ -73,8 +74,8 @@ class BodyContact:
             |u_rel,tau,i| <= l_i,    u_rel,tau = u_rel - (u_rel . nu) nu,
             u_rel,i = u_i - (Pi u)_i,
 
-        l_i half the length (2D) or half the smallest height (3D) of the master facet of
-        x_i's closest point.
+        l_i the fraction contact.sliding_limit (a half by default) of the length (2D) or of
+        the smallest height (3D) of the master facet of x_i's closest point.
 
         Parameters
         ----------
@@ -240,7 +241,9 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     P = pairing.matrix(comm, sizes, sizes, d)
     return BodyContact(normal=normal, gap=gap, D=fem.Function(W), P=P, pairing=pairing,
                        method=method, slide_nodes=local, slide_points=slave.coordinates,
-                       slide_limits=facet_sizes(master.coordinates)[found.facet])
+                       sliding_limit=contact["sliding_limit"],
+                       slide_limits=2.0 * contact["sliding_limit"]
+                       * facet_sizes(master.coordinates)[found.facet])
 
 
 def facet_sizes(coordinates: np.ndarray) -> np.ndarray:

@@ -532,6 +532,10 @@ class Contact(Table):
         "pairing": choice("mortar", *PAIRINGS),
         "search_distance": Key(None, lambda x: x is None or (finite(x) and x > 0),
                                "a finite number > 0"),
+        # The small-sliding limit of that pairing, made once in the reference configuration:
+        # the fraction of its master facet a slave node may slide (inf: no check).
+        "sliding_limit": Key(0.5, lambda x: (finite(x) and x > 0) or x == math.inf,
+                             "a number > 0 (a fraction of the master facet), or inf"),
     }
 
     def normalize(self, material: dict) -> None:

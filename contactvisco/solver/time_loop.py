@@ -282,9 +282,10 @@ def check_sliding(problem, t: float, completed: int) -> None:
     where = ", ".join(f"{c:.6g}" for c in position)
     raise SlidingLimit(
         f"at t = {t:g} the slave node at ({where}) has slid {slip:.4g} along the master, "
-        f"past the small-sliding limit {limit:.4g} (half its master facet, "
-        "obstacle.shape = 'body' pairs the boundaries once in the reference configuration); "
-        f"stopped, the {completed} step(s) before are kept", position, slip, limit, t)
+        f"past the small-sliding limit {limit:.4g} (contact.sliding_limit = "
+        f"{obstacle.sliding_limit:g} of its master facet: obstacle.shape = "
+        "'body' pairs the boundaries once in the reference configuration); stopped, the "
+        f"{completed} step(s) before are kept", position, slip, limit, t)
 
 
 def thermal_record(problem, comm) -> dict:

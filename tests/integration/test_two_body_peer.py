@@ -4,9 +4,9 @@ interface operator Pi for both pairings, Dirichlet elimination, memory recursion
 semismooth Newton): the paper's body on a layer, 16 against 22 interface segments, each body
 with its own kernel, the paper's contact law on u_rel = u_slave - Pi u_master. At every state
 and every slave node u_nu, the normal reaction and the tangential reaction, and the master's
-interface displacement, agree with contactvisco's, the peer taking contactvisco's convention
-at the slave nodes with a prescribed component (prescribed = "held": docs/interface.md, where
-the other convention's difference is measured). Skipped where GetFEM's Python interface
+interface displacement, agree with contactvisco's, the law acting on u - Pi u at the slave
+nodes with a prescribed component too (the peer's prescribed = "relative": docs/interface.md,
+where the former rule's difference is measured). Skipped where GetFEM's Python interface
 (python3-getfem) is not installed, and on more than one rank (the peer is serial)."""
 import importlib.util
 import math
@@ -64,7 +64,8 @@ def test_two_bodies_agree_with_the_peer(pairing, rule):
     assert np.sum(bound) >= 8
     sliding = (p_nu > 0) & np.isclose(np.abs(final["sigma_tau"]), mu * p_nu, rtol=1e-10)
     assert np.sum(sliding) >= 12
-    assert np.sum(final["stick"]) >= 1                 # the roller's node: its u_tau is held
+    print("sticking nodes at T:", int(np.sum(final["stick"])))
+    assert np.sum(final["stick"]) == 0      # the held roller's node slides along the layer
     assert np.all(final["reaction_nu"][bound] > c * g)  # the rigid part of the bound reacts
     assert np.sum(np.isclose(first["u_nu"], g, rtol=0.0, atol=1e-12)) > np.sum(bound)
 
@@ -80,7 +81,7 @@ def test_decaying_kernels_agree_with_the_peer(rule):
 
 def test_pairings_differ_in_pressure():
     """Mortar and node to segment on the same meshes: at T the normal reaction differs by
-    18 % of its largest value (both rules; measured 0.183), far above the solvers'
+    18 % of its largest value (both rules; measured 0.185), far above the solvers'
     agreement; the master's interface displacement by less."""
     for rule in ("paper", "exponential"):
         a, b = run("mortar", rule)["states"][-1], run("node_to_segment", rule)["states"][-1]

@@ -8,6 +8,8 @@ sigma_xx = -p nu / (1 - nu), sigma_xy = 0 in both blocks, and a uniform interfac
 (the compliance's uniform penetration p / c_nu). The mortar pairing reproduces it to round-off;
 node to segment does not (its error is measured, not bounded).
 """
+import math
+
 import numpy as np
 import pytest
 from dolfinx import fem
@@ -509,6 +511,35 @@ def test_sliding_past_the_pairing_stops_the_run(tmp_path_factory):
     assert done.returncode == 3
     assert "small-sliding limit" in done.stderr and f"{err.slip:.4g}" in done.stderr
     assert len(read_steps(path.parent / "out")) == len(steps)
+
+
+@pytest.mark.parametrize("fraction", [0.25, math.inf])
+def test_sliding_limit_is_a_fraction_of_the_facet(fraction):
+    """contact.sliding_limit scales the limit (a quarter of h_master = 0.1: 0.025 against
+    the half's 0.05); inf turns the check off, and the dragged block then takes all its
+    steps on the reference pairing."""
+    from contactvisco import SlidingLimit
+    from contactvisco.solver.time_loop import simulate
+    raw = dragged_scene()
+    raw["contact"]["sliding_limit"] = fraction
+    scene = loader.resolve(raw)
+    if fraction == math.inf:
+        result = simulate(scene, comm=MPI.COMM_WORLD, progress=False)
+        assert len(result.steps) == raw["time"]["steps"] + 1
+        return
+    with pytest.raises(SlidingLimit) as caught:
+        simulate(scene, comm=MPI.COMM_WORLD, progress=False)
+    assert caught.value.limit == pytest.approx(0.1 * fraction, rel=1e-9)
+    assert caught.value.slip > caught.value.limit
+    assert "contact.sliding_limit = 0.25" in str(caught.value)
+
+
+@pytest.mark.parametrize("value", [0, -0.5, "half", True])
+def test_sliding_limit_values_refused(value):
+    raw = patch_scene()
+    raw["contact"]["sliding_limit"] = value
+    with pytest.raises(SceneError, match="contact.sliding_limit"):
+        loader.resolve(raw)
 
 
 def test_facet_sizes():
