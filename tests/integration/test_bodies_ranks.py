@@ -66,7 +66,7 @@ def interface_state(pairing: str, comm=MPI.COMM_WORLD) -> dict:
     mine = {}
     for i in np.flatnonzero(np.abs(x[:, 1]) < 1e-12):
         side = "s" if int(i) in slave else "m"
-        key = f"{side} {x[i, 0]:.12f}"
+        key = f"{side} {round(float(x[i, 0]), 12) + 0.0:.12f}"         # no "-0.000..."
         mine[key] = ([*u[i], *c[i]] if side == "s" else [*u[i]])
     state = {}
     for part in comm.allgather(mine):
@@ -105,7 +105,7 @@ def test_one_two_and_three_ranks_agree():
     """The sliding blocks on 2 and 3 ranks, the slave nodes owned by at least two ranks,
     for both pairings: the same Newton iterations, and the slave's contact forces and
     displacements and the master's interface displacements those of 1 rank to 1e-12 of
-    their largest value (measured: at most 3e-14); at t = 1 the slave slides
+    their largest value (measured: at most 6e-14); at t = 1 the slave slides
     (|c_tau| = mu |c_nu| at its pressed nodes)."""
     from contactvisco.io.launcher import mpi_launcher
     if not mpi_launcher():
