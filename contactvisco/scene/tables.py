@@ -49,8 +49,9 @@ DEFAULT_FRICTION_LAW = "compliance"
 #: contact.slip: the friction law acts on u_tau or on u_tau - u_tau(t_{n-1}).
 SLIP_MEASURES = ("total", "increment")
 
-#: Script parameters that are lengths but not extents of the body (a refinement distance).
-NOT_EXTENTS = ("refine",)
+#: Script parameters that are not extents of the body: a refinement distance, an angle in
+#: degrees (the arc of a cylinder's contact boundary).
+NOT_EXTENTS = ("refine", "angle")
 
 
 def _mesh_dir() -> pathlib.Path:
