@@ -59,6 +59,11 @@ class BodyContact:
     contact_form: object | None = None
     force_forms: dict | None = None
     rigid: bool = False                # no position of its own: D follows u
+    facet: np.ndarray | None = None    # the master facet of each owned slave node's projection
+    boundaries: tuple = ("", "")       # (slave, master) boundary names
+    master_nodes: np.ndarray | None = None   # global P1 nodes of the master boundary
+    _compiled: object | None = None
+    _vectors: tuple | None = None
 
     @property
     def controlled(self) -> list:
@@ -80,6 +85,69 @@ class BodyContact:
         target = compat.petsc_vector(self.D)
         self.P.mult(compat.petsc_vector(u), target)
         target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+
+    def nodal_forces(self) -> tuple:
+        """The contact forces on each body's nodes at the current u and D (collective).
+
+        With c the contact terms of the slave's residual (the assembled ``contact_form``),
+        the slave's nodes receive f_s = -c and the master's nodes f_m = P^T c, so that
+        sum f_m = -sum f_s wherever every row of Pi sums to 1.
+
+        Returns
+        -------
+        tuple of petsc4py.PETSc.Vec
+            (f_s, f_m), vectors of u's layout (owned entries complete; owned by this
+            object, overwritten by the next call).
+        """
+        from dolfinx.fem.petsc import assemble_vector
+        if self._vectors is None:
+            self._compiled = (None if self.contact_form is None
+                              else fem.form(self.contact_form))
+            c = compat.petsc_vector(self.D).copy()
+            self._vectors = (c, c.copy(), c.copy())
+        c, slave, master = self._vectors
+        with c.localForm() as local:
+            local.set(0.0)
+        if self._compiled is not None:
+            assemble_vector(c, self._compiled)
+            c.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        c.copy(slave)
+        slave.scale(-1.0)
+        self.P.multTranspose(c, master)
+        return slave, master
+
+    def resultants(self) -> dict:
+        """The resultant contact force on each body (collective): F_s = -sum_i c_i over the
+        slave nodes, F_m = sum_k (Pi^T c)_k over the master nodes (nodal_forces), equal and
+        opposite where the master covers every slave node's support.
+
+        Returns
+        -------
+        dict
+            ``slave_force`` and ``master_force``, lists of d floats (every rank).
+        """
+        d = self.D.function_space.mesh.geometry.dim
+        comm = self.D.function_space.mesh.comm
+        owned = self.D.function_space.dofmap.index_map.size_local
+        out = {}
+        for name, vector in zip(("slave_force", "master_force"), self.nodal_forces()):
+            mine = vector.array_r.reshape(-1, d)[:owned].sum(axis=0)
+            out[name] = comm.allreduce(mine, MPI.SUM).tolist()
+        return out
+
+    def record(self) -> dict:
+        """The obstacle entry of a step record: what the master is (another body of the
+        mesh, no rigid position of its own) and each body's resultant contact force
+        (resultants).
+
+        Returns
+        -------
+        dict
+            ``shape`` = "body", ``slave`` and ``master`` (the boundary names),
+            ``pairing``, ``slave_force``, ``master_force``.
+        """
+        return {"shape": "body", "slave": self.boundaries[0], "master": self.boundaries[1],
+                "pairing": self.method, **self.resultants()}
 
     def prepare(self, committed) -> None:
         """Nothing to prepare between steps (the pairing is fixed)."""
@@ -195,4 +263,6 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     sizes = interface.index_sizes(V)
     P = pairing.matrix(comm, sizes, sizes, d)
     return BodyContact(normal=normal, gap=gap, D=fem.Function(W), P=P, pairing=pairing,
-                       method=method)
+                       method=method, facet=found.facet.copy(),
+                       boundaries=(slave_name, master_name),
+                       master_nodes=np.unique(master.nodes))

@@ -275,10 +275,14 @@ def obstacle_record(problem, table) -> dict:
     """The obstacle's entry of a step record ({} without an obstacle): its displacement d and
     the resultant contact force it exerts on the body, sum_i w_i (-(reaction_nu) nu +
     sigma_tau) over the contact nodes (the force obstacle.force prescribes under force
-    control)."""
+    control). Another body of the mesh as the obstacle (fem.body_contact) has no position of
+    its own: its entry says so and gives each body's resultant contact force
+    (BodyContact.record)."""
     obstacle = problem.contact and problem.contact.obstacle
     if obstacle is None or table is None:
         return {}
+    if hasattr(obstacle, "record"):
+        return {"obstacle": obstacle.record()}
     weight = table["weight"][:, None]
     force = np.sum(weight * (table["sigma_tau_vector"]
                              - table["reaction_nu"][:, None] * table["normal"]), axis=0)

@@ -1,0 +1,76 @@
+"""What a run of two bodies in contact writes (obstacle.shape = "body"): each body's resultant
+contact force in the step records, the interface tables, the cell field of the bodies.
+
+The two blocks of meshes/two_blocks.py (13 slave against 10 master segments), the lower held
+at its bottom, both blocks' sides held in x, a pressure growing in time on the top of the
+upper one, or the upper one dragged over the lower with Coulomb friction."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from contactvisco.scene import loader
+from contactvisco.solver.time_loop import simulate
+
+PRESSURE = 0.01
+
+
+def blocks(pairing="mortar", friction=False, **extra) -> dict:
+    """The two blocks pressed by p min(2 t, 1) on the upper one's top (normal compliance);
+    friction: Signorini contact with Coulomb friction, the upper block dragged by its top."""
+    raw = {
+        "name": "two_blocks",
+        "geometry": {"type": "gmsh", "script": "two_blocks",
+                     "parameters": {"h_slave": 0.077, "h_master": 0.1}},
+        "material": {"model": "plane_strain", "E": 1.0, "nu": 0.3},
+        "dirichlet": [{"boundary": "bottom", "components": [1]},
+                      {"boundary": "master_sides", "components": [0]},
+                      {"boundary": "slave_sides", "components": [0]}],
+        "traction": [{"boundary": "top", "value": [0.0, f"-{PRESSURE} * min(2 * t, 1)"]}],
+        "body": [{"name": "upper", "cells": "slave_body", "material": {"E": 2.0}},
+                 {"name": "lower", "cells": "master_body"}],
+        "contact": {"boundary": "slave", "stiffness": 100.0, "pairing": pairing},
+        "obstacle": {"shape": "body", "boundary": "master"},
+        "time": {"T": 1.0, "steps": 3},
+        "output": {"probes": [], "figures": False},
+    }
+    if friction:
+        raw["dirichlet"] = [{"boundary": "bottom", "components": "all"},
+                            {"boundary": "top", "components": [0], "value": "0.2 * t"}]
+        raw["contact"].update(stiffness=0.0, g=0.0, mu=0.3, friction_law="coulomb")
+    raw.update(extra)
+    return raw
+
+
+def folder(tmp_path_factory, name) -> str:
+    comm = MPI.COMM_WORLD
+    return comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
+
+
+@pytest.mark.parametrize("pairing, friction", [("mortar", False), ("node_to_segment", False),
+                                               ("mortar", True)])
+def test_step_records_balance_the_bodies(tmp_path_factory, pairing, friction):
+    """Every step record says the obstacle is a body (no displacement of its own) and holds
+    each body's resultant contact force: action = -reaction to 1e-12 of the load, the slave's
+    the load it carries (compliance: (0, p min(2t, 1)) per unit length to 1e-10 p)."""
+    out = folder(tmp_path_factory, "records")
+    result = simulate(loader.resolve(blocks(pairing, friction)), out=out,
+                      comm=MPI.COMM_WORLD, progress=False)
+    from contactvisco.io.output import read_summary
+    written = read_summary(out)["steps"]
+    assert len(result.steps) == len(written) == 4
+    for record, stored in zip(result.steps, written):
+        entry = record["obstacle"]
+        assert stored["obstacle"] == entry
+        assert entry["shape"] == "body" and "displacement" not in entry
+        assert (entry["slave"], entry["master"], entry["pairing"]) == ("slave", "master",
+                                                                       pairing)
+        slave, master = np.array(entry["slave_force"]), np.array(entry["master_force"])
+        print(f"t = {record['t']:.3f}: slave {slave}, master {master}, "
+              f"|sum| {np.abs(slave + master).max():.2e}")
+        assert np.abs(slave + master).max() <= 1e-12 * PRESSURE
+        if not friction:
+            load = PRESSURE * min(2 * record["t"], 1.0)
+            assert slave == pytest.approx([0.0, load], abs=1e-10 * PRESSURE)
+    if friction:          # the last step slides: the slave is held back by mu p
+        assert result.steps[-1]["obstacle"]["slave_force"][0] == pytest.approx(
+            -0.3 * result.steps[-1]["obstacle"]["slave_force"][1], rel=1e-8)
