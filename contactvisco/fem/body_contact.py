@@ -59,11 +59,12 @@ class BodyContact:
     contact_form: object | None = None
     force_forms: dict | None = None
     rigid: bool = False                # no position of its own: D follows u
-    facet: np.ndarray | None = None    # the master facet of each owned slave node's projection
+    facet_at: np.ndarray | None = None   # per local P1 node: its projection's master facet
     boundaries: tuple = ("", "")       # (slave, master) boundary names
     master_nodes: np.ndarray | None = None   # global P1 nodes of the master boundary
     _compiled: object | None = None
     _vectors: tuple | None = None
+    _master_rows: tuple | None = None
 
     @property
     def controlled(self) -> list:
@@ -134,6 +135,49 @@ class BodyContact:
             mine = vector.array_r.reshape(-1, d)[:owned].sum(axis=0)
             out[name] = comm.allreduce(mine, MPI.SUM).tolist()
         return out
+
+    def interface_values(self, own: np.ndarray) -> dict:
+        """The slave's columns of the interface table at the owned contact nodes `own` (local
+        P1 node indices; collective): the master facet of each node's closest point (its
+        index in the gathered master boundary, whose order does not depend on the partition)
+        and the node's contact force f_s = -c_i (nodal_forces).
+
+        Parameters
+        ----------
+        own : numpy.ndarray
+            Local indices of the owned contact (slave) nodes.
+
+        Returns
+        -------
+        dict
+            ``facet`` (n,) and ``force`` (n, d).
+        """
+        d = self.D.function_space.mesh.geometry.dim
+        slave, _ = self.nodal_forces()
+        with slave.localForm() as local:
+            force = local.array_r.reshape(-1, d)[own].copy()
+        return {"facet": self.facet_at[own].copy(), "force": force}
+
+    def master_values(self) -> dict:
+        """The master's rows of the interface table: the owned master boundary nodes, their
+        coordinates and contact forces f_m = (Pi^T c)_k (nodal_forces; collective). Rows of
+        this rank only, to be gathered.
+
+        Returns
+        -------
+        dict
+            ``x`` (m, d) and ``force`` (m, d).
+        """
+        space = self.D.function_space
+        d = space.mesh.geometry.dim
+        if self._master_rows is None:        # once: the coordinates are O(local nodes)
+            start, end = space.dofmap.index_map.local_range
+            mine = self.master_nodes[(self.master_nodes >= start)
+                                     & (self.master_nodes < end)] - start
+            self._master_rows = (mine, space.tabulate_dof_coordinates()[mine, :d].copy())
+        mine, x = self._master_rows
+        _, master = self.nodal_forces()
+        return {"x": x.copy(), "force": master.array_r.reshape(-1, d)[mine].copy()}
 
     def record(self) -> dict:
         """The obstacle entry of a step record: what the master is (another body of the
@@ -260,9 +304,11 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
         compat.petsc_vector(f).ghostUpdate(addv=_INSERT, mode=_FORWARD)
     nodes.normals = normal.x.array.reshape(-1, d)[nodes.nodes].copy()
     nodes.corners = np.zeros(0, dtype=nodes.nodes.dtype)
+    facet_at = np.full(len(gap.x.array), -1, dtype=np.int64)
+    facet_at[local] = found.facet
     sizes = interface.index_sizes(V)
     P = pairing.matrix(comm, sizes, sizes, d)
     return BodyContact(normal=normal, gap=gap, D=fem.Function(W), P=P, pairing=pairing,
-                       method=method, facet=found.facet.copy(),
+                       method=method, facet_at=facet_at,
                        boundaries=(slave_name, master_name),
                        master_nodes=np.unique(master.nodes))

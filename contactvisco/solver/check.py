@@ -58,6 +58,10 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
     opts = scene["output"]
     steps = scene["time"]["steps"]
     records = (steps + 1) * (STEP_RECORD + problem.count_contact_nodes() * CSV_NUMBER * (d + 10))
+    body = problem.contact and problem.contact.obstacle
+    if getattr(body, "master_nodes", None) is not None:    # two bodies: the interface tables
+        records += (steps + 1) * CSV_NUMBER * (problem.count_contact_nodes() * (2 * d + 10)
+                                               + len(body.master_nodes) * (2 * d + 2))
     if not opts["xdmf"]:
         return records
     cells = mesh.topology.index_map(tdim).size_global

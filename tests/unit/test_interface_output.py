@@ -74,3 +74,58 @@ def test_step_records_balance_the_bodies(tmp_path_factory, pairing, friction):
     if friction:          # the last step slides: the slave is held back by mu p
         assert result.steps[-1]["obstacle"]["slave_force"][0] == pytest.approx(
             -0.3 * result.steps[-1]["obstacle"]["slave_force"][1], rel=1e-8)
+
+
+def read_table(path) -> dict:
+    """A CSV table as {column: array} (numbers as floats, names as strings)."""
+    import csv
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    out = {}
+    for j, name in enumerate(rows[0]):
+        column = [row[j] for row in rows[1:]]
+        try:
+            out[name] = np.array(column, dtype=float)
+        except ValueError:
+            out[name] = np.array(column)
+    return out
+
+
+@pytest.mark.parametrize("pairing, friction", [("mortar", True), ("node_to_segment", False)])
+def test_interface_tables_match_the_records(tmp_path_factory, pairing, friction):
+    """interface_nodes.csv (a row per step and slave node) and interface_master.csv (per
+    step and master boundary node), written once whatever the rank count: per step the
+    nodal forces add up to the record's resultants (to 1e-12 of the load); each slave node's
+    force is its law's, f . (t, -nu) proportional to (sigma_tau, p_nu + R_nu) (the master's
+    normal is -y here: f_x / f_y = sigma_tau / (p_nu + R_nu)) wherever it is pressed; a
+    pressed node has s > 0 with a compliance and R_nu > 0 with Signorini; every slave node
+    projects onto a facet of the master (0..9)."""
+    out = folder(tmp_path_factory, "tables")
+    result = simulate(loader.resolve(blocks(pairing, friction)), out=out,
+                      comm=MPI.COMM_WORLD, progress=False)
+    if MPI.COMM_WORLD.rank != 0:
+        return
+    import pathlib
+    slave = read_table(pathlib.Path(out) / "interface_nodes.csv")
+    master = read_table(pathlib.Path(out) / "interface_master.csv")
+    assert len(slave["step"]) == 4 * 14 and len(master["step"]) == 4 * 11
+    assert set(slave["facet"]) <= set(range(10)) and len(set(slave["facet"])) == 10
+    for record in result.steps:
+        n = record["step"]
+        mine, theirs = slave["step"] == n, master["step"] == n
+        forces = [np.array([slave["f_x"][mine].sum(), slave["f_y"][mine].sum()]),
+                  np.array([master["f_x"][theirs].sum(), master["f_y"][theirs].sum()])]
+        for force, key in zip(forces, ("slave_force", "master_force")):
+            assert np.abs(force - record["obstacle"][key]).max() <= 1e-12 * PRESSURE
+        pressure = slave["p_nu"][mine] + slave["R_nu"][mine]
+        pressed = slave["f_y"][mine] > 1e-9 * PRESSURE
+        assert np.all(pressure[pressed] > 0) and np.all(slave["status"][mine][pressed]
+                                                        != "separated")
+        ratio = slave["f_x"][mine][pressed] / slave["f_y"][mine][pressed]
+        assert np.abs(ratio - slave["sigma_tau"][mine][pressed] / pressure[pressed]).max(
+            initial=0.0) < 1e-9
+        if friction:
+            assert np.all(slave["R_nu"][mine][pressed] > 0)
+        else:
+            assert np.all(slave["s"][mine][pressed] > 0)
+    assert pressed.sum() >= 10
