@@ -581,6 +581,32 @@ def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
     return fields
 
 
+def body_field(problem):
+    """The DG0 cell field "body": on each cell the index b of the [[body]] table it lies in
+    (0, 1, ...), so that a viewer can tell the bodies apart (ParaView: Threshold on "body");
+    None for a scene without [[body]] tables.
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem (its scene and mesh).
+
+    Returns
+    -------
+    dolfinx.fem.Function or None
+        b on the cells of body b (ghost cells included).
+    """
+    from contactvisco.fem.problem import body_cells
+    if not problem.scene.get("body"):
+        return None
+    mesh = problem.geometry.mesh
+    field = fem.Function(compat.scalar_space(mesh, "DG", 0), name="body")
+    dofs = compat.cell_dofs(field.function_space.dofmap)
+    for b, cells in enumerate(body_cells(problem.scene, problem.geometry)):
+        field.x.array[dofs[cells].ravel()] = float(b)
+    return field
+
+
 def _cached(cache: dict, name: str, space):
     """The Function `name` of cache, made on space() the first time."""
     if name not in cache:

@@ -372,6 +372,7 @@ class FieldWriter:
         self.derived = {}                     # the Functions of output.derived_fields
         self.schedule = schedule or FieldSchedule(1, (), 1.0, 0)
         self.sigma_step = None       # the step at which sigma was last interpolated
+        self.body = output.body_field(problem) if writer.xdmf is not None else None
 
     def __call__(self, record, table):
         fields = []
@@ -386,6 +387,8 @@ class FieldWriter:
             derived = output.derived_fields(self.names, problem, self.sigma, table, self.derived)
             fields = [available[name] for name in self.names if available.get(name) is not None]
             fields += [f for name in self.names for f in derived.get(name, [])]
+            if self.body is not None:             # the bodies' cells, at every field step
+                fields.append(self.body)
         self.writer.step(record, table, fields)
 
 

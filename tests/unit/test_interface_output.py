@@ -129,3 +129,25 @@ def test_interface_tables_match_the_records(tmp_path_factory, pairing, friction)
         else:
             assert np.all(slave["s"][mine][pressed] > 0)
     assert pressed.sum() >= 10
+
+
+def test_body_field_tells_the_bodies_apart(tmp_path_factory):
+    """Every step of solution.xdmf holds the cell field "body": 0 on the cells of the upper
+    block (body[0], y > 0), 1 on those of the lower one (body[1], y < 0), read back from the
+    written mesh and field."""
+    from contactvisco.io.h5read import check_xdmf
+    out = folder(tmp_path_factory, "fields")
+    raw = blocks(time={"T": 1.0, "steps": 1})
+    simulate(loader.resolve(raw), out=out, comm=MPI.COMM_WORLD, progress=False)
+    if MPI.COMM_WORLD.rank != 0:
+        return
+    import pathlib
+    series = check_xdmf(pathlib.Path(out) / "solution.xdmf")
+    assert len(series) == 2
+    for _, arrays in series:
+        cells = arrays["topology"].astype(int)
+        y = arrays["geometry"][cells].mean(axis=1)[:, 1]
+        body = arrays["body"].ravel()
+        assert body.shape == y.shape
+        assert np.all(body[y > 0] == 0) and np.all(body[y < 0] == 1)
+        assert (body == 0).sum() > 0 and (body == 1).sum() > 0
