@@ -62,6 +62,7 @@ class BodyContact:
     facet_at: np.ndarray | None = None   # per local P1 node: its projection's master facet
     boundaries: tuple = ("", "")       # (slave, master) boundary names
     master_nodes: np.ndarray | None = None   # global P1 nodes of the master boundary
+    facet_nodes: np.ndarray | None = None    # (facets, d) global P1 nodes of each master facet
     _compiled: object | None = None
     _vectors: tuple | None = None
     _master_rows: tuple | None = None
@@ -222,6 +223,59 @@ def search_distance(scene: dict, length_scale: float) -> float:
     return float(given) if given is not None else SEARCH_FRACTION * length_scale
 
 
+def overlap(comm, slave, master, found, reach: float, slave_name: str, master_name: str,
+            gaps=None) -> None:
+    """Stop when the bodies overlap in the reference configuration by more than the search
+    distance: a slave node whose signed gap to the master boundary (its closest point's,
+    over all master facets, or `gaps` when given: the gap h of the pairing) is below -reach
+    (collective).
+
+    Parameters
+    ----------
+    comm : mpi4py.MPI.Comm
+        The mesh's communicator.
+    slave : contactvisco.fem.interface.SlaveSide
+        The owned slave nodes and their coordinates.
+    master : contactvisco.fem.interface.Surface
+        The gathered master boundary.
+    found : contactvisco.fem.interface.Projection
+        The slave nodes' projection within `reach` (nodes beyond it are projected again
+        without a limit).
+    reach : float
+        contact.search_distance.
+    slave_name, master_name : str
+        The boundaries, for the message.
+    gaps : numpy.ndarray, optional
+        The signed gaps of the owned slave nodes, in place of the closest points'.
+
+    Raises
+    ------
+    SceneError
+        Naming contact.search_distance: how many slave nodes lie inside the master by more
+        than it, the deepest and where.
+    """
+    if gaps is None:
+        gaps = found.gap.copy()
+        if found.missing:
+            again = interface.project(slave.coordinates[found.missing], master, np.inf)
+            gaps[found.missing] = again.gap
+    inside = np.flatnonzero(gaps < -reach)
+    deepest = None
+    if len(inside):
+        j = inside[np.argmin(gaps[inside])]
+        deepest = (float(gaps[j]), ", ".join(f"{c:.6g}" for c in slave.coordinates[j]))
+    count = comm.allreduce(len(inside), MPI.SUM)
+    if not count:
+        return
+    depth, where = min(g for g in comm.allgather(deepest) if g is not None)
+    raise SceneError(f"contact.search_distance: the bodies overlap in the reference "
+                     f"configuration: {count} slave node(s) of '{slave_name}' lie inside the "
+                     f"master body (obstacle.boundary '{master_name}') by more than "
+                     f"contact.search_distance = {reach:g}, the deepest by {-depth:.6g} at "
+                     f"({where}); move the bodies apart (contact.search_distance bounds the "
+                     "initial penetration that is accepted)", key="contact.search_distance")
+
+
 def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyContact:
     """The pairing of the contact boundary (slave) with obstacle.boundary (master), and the
     fields nu, h and D at the slave nodes (module description).
@@ -250,8 +304,9 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     Raises
     ------
     SceneError
-        A slave node farther than the search distance from the master boundary (naming
-        contact.search_distance), or a boundary name the mesh does not have.
+        A slave node farther than the search distance from the master boundary, or inside
+        the master by more than it (overlap; both naming contact.search_distance), or a
+        boundary name the mesh does not have.
     """
     mesh = geometry.mesh
     comm = mesh.comm
@@ -276,6 +331,7 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     found = interface.project(slave.coordinates, master, reach)
     method = contact["pairing"]
     pairing = interface.pair(slave, master, method, reach)
+    overlap(comm, slave, master, found, reach, slave_name, master_name)
     far = sorted(set(slave.nodes[found.missing].tolist()) | set(pairing.unpaired))
     first = None
     if far:
@@ -304,6 +360,10 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
         compat.petsc_vector(f).ghostUpdate(addv=_INSERT, mode=_FORWARD)
     nodes.normals = normal.x.array.reshape(-1, d)[nodes.nodes].copy()
     nodes.corners = np.zeros(0, dtype=nodes.nodes.dtype)
+    deepest = float(gap.x.array[local].min(initial=np.inf))
+    if comm.allreduce(deepest, MPI.MIN) < -reach:       # the weighted gap (mortar)
+        overlap(comm, slave, master, found, reach, slave_name, master_name,
+                gaps=gap.x.array[local])
     facet_at = np.full(len(gap.x.array), -1, dtype=np.int64)
     facet_at[local] = found.facet
     sizes = interface.index_sizes(V)
@@ -311,4 +371,4 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     return BodyContact(normal=normal, gap=gap, D=fem.Function(W), P=P, pairing=pairing,
                        method=method, facet_at=facet_at,
                        boundaries=(slave_name, master_name),
-                       master_nodes=np.unique(master.nodes))
+                       master_nodes=np.unique(master.nodes), facet_nodes=master.nodes)
