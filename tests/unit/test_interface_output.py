@@ -151,3 +151,35 @@ def test_body_field_tells_the_bodies_apart(tmp_path_factory):
         assert body.shape == y.shape
         assert np.all(body[y > 0] == 0) and np.all(body[y < 0] == 1)
         assert (body == 0).sum() > 0 and (body == 1).sum() > 0
+
+
+def test_interface_tables_survive_a_restart(tmp_path_factory, monkeypatch):
+    """A run stopped right after its checkpoint of step 2 and restarted writes the interface
+    tables of the uninterrupted run, each step's rows once (the rows past the checkpoint are
+    cut back); the run's figures draw the two bodies' forces."""
+    from helpers import run_stopped_after_checkpoint
+    comm = MPI.COMM_WORLD
+    whole, stopped = folder(tmp_path_factory, "whole"), folder(tmp_path_factory, "stopped")
+    scene = loader.resolve(blocks("mortar", True))
+    simulate(scene, out=whole, comm=comm, progress=False)
+    run_stopped_after_checkpoint(monkeypatch, 2, lambda: simulate(
+        scene, out=stopped, comm=comm, progress=False))
+    simulate(scene, out=stopped, comm=comm, progress=False, restart=True)
+    if comm.rank != 0:
+        return
+    import pathlib
+    for name in ("interface_nodes.csv", "interface_master.csv"):
+        a, b = (read_table(pathlib.Path(f) / name) for f in (whole, stopped))
+        assert list(a) == list(b) and np.array_equal(a["step"], b["step"])
+        for key in a:
+            if a[key].dtype.kind == "f":
+                assert np.abs(a[key] - b[key]).max() <= 1e-12 * max(np.abs(a[key]).max(), 1)
+            else:
+                assert np.array_equal(a[key], b[key])
+    from contactvisco.post.figures import build_all
+    drawn = dict(build_all(whole))
+    axes = drawn["obstacle"].axes
+    assert [ax.get_ylabel().split(" (")[0] for ax in axes[:2]] == [
+        "contact force on the slave", "contact force on the master"]
+    slave_y, master_y = (ax.lines[1].get_ydata() for ax in axes[:2])
+    assert np.allclose(slave_y, -np.asarray(master_y), atol=1e-12 * PRESSURE)
