@@ -183,3 +183,22 @@ def test_interface_tables_survive_a_restart(tmp_path_factory, monkeypatch):
         "contact force on the slave", "contact force on the master"]
     slave_y, master_y = (ax.lines[1].get_ydata() for ax in axes[:2])
     assert np.allclose(slave_y, -np.asarray(master_y), atol=1e-12 * PRESSURE)
+
+
+def test_check_estimates_the_output_of_two_bodies(tmp_path_factory):
+    """contactvisco check's estimate of the folder's records (the fields with the cell field
+    "body", the contact and interface tables, the step records) within 15 % of what a run of
+    two bodies writes."""
+    import pathlib
+    from contactvisco import api
+    scene = loader.resolve(blocks(time={"T": 1.0, "steps": 6}))
+    estimate = api.check(scene)["output_bytes"]
+    out = folder(tmp_path_factory, "estimate")
+    simulate(scene, out=out, comm=MPI.COMM_WORLD, progress=False)
+    if MPI.COMM_WORLD.rank == 0:
+        out = pathlib.Path(out)
+        written = sum(p.stat().st_size for p in (out / "solution").iterdir())
+        written += sum((out / name).stat().st_size for name in (
+            "contact_nodes.csv", "steps.jsonl", "solution.xdmf", "interface_nodes.csv",
+            "interface_master.csv"))
+        assert estimate == pytest.approx(written, rel=0.15)
