@@ -356,6 +356,48 @@ def free_body_motions(problem) -> list[str]:
     return out
 
 
+def interface_parts(problem) -> np.ndarray:
+    """Per local P1 node (ghosts included) of a two-body problem, its body: 0 the slave's
+    part of the mesh (the contact boundary's), 1 the master's (obstacle.boundary's), 2, 3, ...
+    any other part, in the order of its first node by position (x, then y, then z), so that
+    the numbers do not depend on the partition (collective).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        A built problem with obstacle.shape = "body".
+
+    Returns
+    -------
+    numpy.ndarray
+        The body number of every local node.
+    """
+    V = problem.V
+    comm = V.mesh.comm
+    d = V.mesh.geometry.dim
+    labels, count = components(V)
+    link = problem.contact.obstacle
+    nodes = problem.contact.nodes
+    start, end = V.dofmap.index_map.local_range
+    mine = link.master_nodes[(link.master_nodes >= start) & (link.master_nodes < end)]
+    x = V.tabulate_dof_coordinates()[:, :d]
+    first = {}
+    for b in range(count):
+        at = np.flatnonzero(labels == b)
+        if len(at):
+            first[b] = tuple(x[at[np.lexsort(x[at].T[::-1])[0]]].tolist())
+    gathered = comm.allgather((set(labels[nodes.nodes[nodes.owned]].tolist()),
+                               set(labels[mine - start].tolist()), first))
+    slave = set().union(*(g[0] for g in gathered))
+    master = set().union(*(g[1] for g in gathered))
+    where = {b: min(g[2][b] for g in gathered if b in g[2]) for b in range(count)}
+    order = sorted(slave) + sorted(master - slave)
+    order += sorted((b for b in range(count) if b not in order), key=lambda b: where[b])
+    number = np.empty(count, dtype=np.int64)
+    number[order] = np.arange(count)
+    return number[labels]
+
+
 def _part_names(problem, count: int) -> list[str]:
     """How a message names each part: the slave or master body by its boundary, any other
     by its least node's position."""

@@ -584,7 +584,8 @@ def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
 def body_field(problem):
     """The DG0 cell field "body": on each cell the index b of the [[body]] table it lies in
     (0, 1, ...), so that a viewer can tell the bodies apart (ParaView: Threshold on "body");
-    None for a scene without [[body]] tables.
+    two bodies in contact without [[body]] tables: 0 on the slave's part of the mesh, 1 on
+    the master's (fem.rigid.interface_parts); None for a scene with neither.
 
     Parameters
     ----------
@@ -597,13 +598,21 @@ def body_field(problem):
         b on the cells of body b (ghost cells included).
     """
     from contactvisco.fem.problem import body_cells
-    if not problem.scene.get("body"):
+    obstacle = problem.contact and problem.contact.obstacle
+    two = hasattr(obstacle, "pairing")
+    if not problem.scene.get("body") and not two:
         return None
     mesh = problem.geometry.mesh
     field = fem.Function(compat.scalar_space(mesh, "DG", 0), name="body")
     dofs = compat.cell_dofs(field.function_space.dofmap)
-    for b, cells in enumerate(body_cells(problem.scene, problem.geometry)):
-        field.x.array[dofs[cells].ravel()] = float(b)
+    if problem.scene.get("body"):
+        for b, cells in enumerate(body_cells(problem.scene, problem.geometry)):
+            field.x.array[dofs[cells].ravel()] = float(b)
+        return field
+    from contactvisco.fem.rigid import interface_parts
+    parts = interface_parts(problem)
+    cells = compat.cell_dofs(problem.V.dofmap)
+    field.x.array[dofs[:, 0]] = parts[cells[:, 0]]
     return field
 
 

@@ -74,7 +74,8 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
                "von_mises": tensor_dofs // d ** 2,
                "contact_status": vertices if problem.contact is not None else 0}
     values = cells * (tdim + 1) + vertices * d + sum(written[name] for name in opts["fields"])
-    values += cells if scene.get("body") else 0          # the cell field "body"
+    two = (scene.get("obstacle") or {}).get("shape") == "body"
+    values += cells if scene.get("body") or two else 0    # the cell field "body"
     k = scene["time"]["T"] / steps
     schedule = FieldSchedule(opts["field_every"], opts["field_times"], k, steps)
     field_steps = sum(schedule.due(n, n * k) for n in range(steps + 1))

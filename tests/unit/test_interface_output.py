@@ -202,3 +202,23 @@ def test_check_estimates_the_output_of_two_bodies(tmp_path_factory):
             "contact_nodes.csv", "steps.jsonl", "solution.xdmf", "interface_nodes.csv",
             "interface_master.csv"))
         assert estimate == pytest.approx(written, rel=0.15)
+
+
+def test_body_field_without_body_tables():
+    """Two bodies without [[body]] tables: the cell field "body" is 0 on the slave's block
+    (y > 0) and 1 on the master's (y < 0), the same on any partition."""
+    from contactvisco.fem import geometry as geometry_module
+    from contactvisco.fem.problem import build
+    from contactvisco.io.output import body_field
+    raw = blocks()
+    del raw["body"]
+    scene = loader.resolve(raw)
+    problem = build(scene, geometry_module.build(scene, MPI.COMM_WORLD))
+    field = body_field(problem)
+    space = field.function_space
+    y = space.tabulate_dof_coordinates()[:, 1]     # DG0: the cells' midpoints
+    values = field.x.array
+    assert np.all(values[y > 0] == 0) and np.all(values[y < 0] == 1)
+    count = MPI.COMM_WORLD.allreduce(int((values[:space.dofmap.index_map.size_local] == 1)
+                                         .sum()), MPI.SUM)
+    assert count > 0
