@@ -197,10 +197,17 @@ def components(space) -> tuple[np.ndarray, int]:
     cells = compat.cell_dofs(space.dofmap)[:mesh.topology.index_map(mesh.topology.dim)
                                            .size_local]
     labels = np.arange(n)
+    # the cells of each node, as runs of one sorted list (for a minimum per node)
+    order = np.argsort(cells.ravel(), kind="stable")
+    sorted_nodes = cells.ravel()[order]
+    runs = np.flatnonzero(np.r_[True, sorted_nodes[1:] != sorted_nodes[:-1]])
+    touched = sorted_nodes[runs]
     while True:
         least = labels[cells].min(axis=1)
         new = labels.copy()
-        np.minimum.at(new, cells, least[:, None])
+        if len(runs):
+            reached = np.minimum.reduceat(np.repeat(least, cells.shape[1])[order], runs)
+            new[touched] = np.minimum(new[touched], reached)
         while True:                              # pointer jumping: new[i] <= i throughout
             jumped = new[new]
             if np.array_equal(jumped, new):
@@ -209,11 +216,12 @@ def components(space) -> tuple[np.ndarray, int]:
         if np.array_equal(new, labels):
             break
         labels = new
-    global_nodes = imap.local_to_global(np.arange(n, dtype=np.int32))
-    roots = np.unique(labels)
+    global_nodes = np.asarray(imap.local_to_global(np.arange(n, dtype=np.int32)), np.int64)
+    roots, inverse = np.unique(labels, return_inverse=True)
     # a part of this rank is named by the least global node in it
-    least_global = {int(r): int(global_nodes[labels == r].min()) for r in roots}
-    name = np.array([least_global[int(r)] for r in labels], dtype=np.int64)
+    least = np.full(len(roots), np.iinfo(np.int64).max)
+    np.minimum.at(least, inverse, global_nodes)
+    name = least[inverse]
     ghosts = np.asarray(global_nodes[imap.size_local:], dtype=np.int64)
     parts = comm.allgather((ghosts, name[imap.size_local:]))
     start, end = imap.local_range
@@ -235,10 +243,10 @@ def components(space) -> tuple[np.ndarray, int]:
         a, b = find(a), find(b)
         if a != b:
             parent[max(a, b)] = min(a, b)
-    every = sorted({find(a) for part in comm.allgather(sorted(set(name.tolist())))
-                    for a in part})
+    every = sorted({find(a) for part in comm.allgather(least.tolist()) for a in part})
     number = {a: i for i, a in enumerate(every)}
-    return np.array([number[find(int(a))] for a in name], dtype=np.int64), len(every)
+    mapped = np.array([number[find(int(a))] for a in least], dtype=np.int64)
+    return mapped[inverse], len(every)
 
 
 def body_gram(problem) -> tuple[np.ndarray, int, list[str]]:
