@@ -63,6 +63,13 @@ class BodyContact:
     slide_points: np.ndarray | None = None     # their reference coordinates
     slide_limits: np.ndarray | None = None     # contact.sliding_limit of their facet
     sliding_limit: float = 0.5                 # contact.sliding_limit
+    facet_at: np.ndarray | None = None   # per local P1 node: its projection's master facet
+    boundaries: tuple = ("", "")       # (slave, master) boundary names
+    master_nodes: np.ndarray | None = None   # global P1 nodes of the master boundary
+    facet_nodes: np.ndarray | None = None    # (facets, d) global P1 nodes of each master facet
+    _compiled: object | None = None
+    _vectors: tuple | None = None
+    _master_rows: tuple | None = None
 
     def sliding(self, u: fem.Function) -> tuple | None:
         """The slave node whose tangential displacement relative to the master goes furthest
@@ -126,6 +133,112 @@ class BodyContact:
         self.P.mult(compat.petsc_vector(u), target)
         target.ghostUpdate(addv=_INSERT, mode=_FORWARD)
 
+    def nodal_forces(self) -> tuple:
+        """The contact forces on each body's nodes at the current u and D (collective).
+
+        With c the contact terms of the slave's residual (the assembled ``contact_form``),
+        the slave's nodes receive f_s = -c and the master's nodes f_m = P^T c, so that
+        sum f_m = -sum f_s wherever every row of Pi sums to 1.
+
+        Returns
+        -------
+        tuple of petsc4py.PETSc.Vec
+            (f_s, f_m), vectors of u's layout (owned entries complete; owned by this
+            object, overwritten by the next call).
+        """
+        from dolfinx.fem.petsc import assemble_vector
+        if self._vectors is None:
+            self._compiled = (None if self.contact_form is None
+                              else fem.form(self.contact_form))
+            c = compat.petsc_vector(self.D).copy()
+            self._vectors = (c, c.copy(), c.copy())
+        c, slave, master = self._vectors
+        with c.localForm() as local:
+            local.set(0.0)
+        if self._compiled is not None:
+            assemble_vector(c, self._compiled)
+            c.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        c.copy(slave)
+        slave.scale(-1.0)
+        self.P.multTranspose(c, master)
+        return slave, master
+
+    def resultants(self) -> dict:
+        """The resultant contact force on each body (collective): F_s = -sum_i c_i over the
+        slave nodes, F_m = sum_k (Pi^T c)_k over the master nodes (nodal_forces), equal and
+        opposite where the master covers every slave node's support.
+
+        Returns
+        -------
+        dict
+            ``slave_force`` and ``master_force``, lists of d floats (every rank).
+        """
+        d = self.D.function_space.mesh.geometry.dim
+        comm = self.D.function_space.mesh.comm
+        owned = self.D.function_space.dofmap.index_map.size_local
+        out = {}
+        for name, vector in zip(("slave_force", "master_force"), self.nodal_forces()):
+            mine = vector.array_r.reshape(-1, d)[:owned].sum(axis=0)
+            out[name] = comm.allreduce(mine, MPI.SUM).tolist()
+        return out
+
+    def interface_values(self, own: np.ndarray) -> dict:
+        """The slave's columns of the interface table at the owned contact nodes `own` (local
+        P1 node indices; collective): the master facet of each node's closest point (its
+        index in the gathered master boundary, whose order does not depend on the partition)
+        and the node's contact force f_s = -c_i (nodal_forces).
+
+        Parameters
+        ----------
+        own : numpy.ndarray
+            Local indices of the owned contact (slave) nodes.
+
+        Returns
+        -------
+        dict
+            ``facet`` (n,) and ``force`` (n, d).
+        """
+        d = self.D.function_space.mesh.geometry.dim
+        slave, _ = self.nodal_forces()
+        with slave.localForm() as local:
+            force = local.array_r.reshape(-1, d)[own].copy()
+        return {"facet": self.facet_at[own].copy(), "force": force}
+
+    def master_values(self) -> dict:
+        """The master's rows of the interface table: the owned master boundary nodes, their
+        coordinates and contact forces f_m = (Pi^T c)_k (nodal_forces; collective). Rows of
+        this rank only, to be gathered.
+
+        Returns
+        -------
+        dict
+            ``x`` (m, d) and ``force`` (m, d).
+        """
+        space = self.D.function_space
+        d = space.mesh.geometry.dim
+        if self._master_rows is None:        # once: the coordinates are O(local nodes)
+            start, end = space.dofmap.index_map.local_range
+            mine = self.master_nodes[(self.master_nodes >= start)
+                                     & (self.master_nodes < end)] - start
+            self._master_rows = (mine, space.tabulate_dof_coordinates()[mine, :d].copy())
+        mine, x = self._master_rows
+        _, master = self.nodal_forces()
+        return {"x": x.copy(), "force": master.array_r.reshape(-1, d)[mine].copy()}
+
+    def record(self) -> dict:
+        """The obstacle entry of a step record: what the master is (another body of the
+        mesh, no rigid position of its own) and each body's resultant contact force
+        (resultants).
+
+        Returns
+        -------
+        dict
+            ``shape`` = "body", ``slave`` and ``master`` (the boundary names),
+            ``pairing``, ``slave_force``, ``master_force``.
+        """
+        return {"shape": "body", "slave": self.boundaries[0], "master": self.boundaries[1],
+                "pairing": self.method, **self.resultants()}
+
     def prepare(self, committed) -> None:
         """Nothing to prepare between steps (the pairing is fixed)."""
 
@@ -153,6 +266,59 @@ def search_distance(scene: dict, length_scale: float) -> float:
     """
     given = scene["contact"]["search_distance"]
     return float(given) if given is not None else SEARCH_FRACTION * length_scale
+
+
+def overlap(comm, slave, master, found, reach: float, slave_name: str, master_name: str,
+            gaps=None) -> None:
+    """Stop when the bodies overlap in the reference configuration by more than the search
+    distance: a slave node whose signed gap to the master boundary (its closest point's,
+    over all master facets, or `gaps` when given: the gap h of the pairing) is below -reach
+    (collective).
+
+    Parameters
+    ----------
+    comm : mpi4py.MPI.Comm
+        The mesh's communicator.
+    slave : contactvisco.fem.interface.SlaveSide
+        The owned slave nodes and their coordinates.
+    master : contactvisco.fem.interface.Surface
+        The gathered master boundary.
+    found : contactvisco.fem.interface.Projection
+        The slave nodes' projection within `reach` (nodes beyond it are projected again
+        without a limit).
+    reach : float
+        contact.search_distance.
+    slave_name, master_name : str
+        The boundaries, for the message.
+    gaps : numpy.ndarray, optional
+        The signed gaps of the owned slave nodes, in place of the closest points'.
+
+    Raises
+    ------
+    SceneError
+        Naming contact.search_distance: how many slave nodes lie inside the master by more
+        than it, the deepest and where.
+    """
+    if gaps is None:
+        gaps = found.gap.copy()
+        if found.missing:
+            again = interface.project(slave.coordinates[found.missing], master, np.inf)
+            gaps[found.missing] = again.gap
+    inside = np.flatnonzero(gaps < -reach)
+    deepest = None
+    if len(inside):
+        j = inside[np.argmin(gaps[inside])]
+        deepest = (float(gaps[j]), ", ".join(f"{c:.6g}" for c in slave.coordinates[j]))
+    count = comm.allreduce(len(inside), MPI.SUM)
+    if not count:
+        return
+    depth, where = min(g for g in comm.allgather(deepest) if g is not None)
+    raise SceneError(f"contact.search_distance: the bodies overlap in the reference "
+                     f"configuration: {count} slave node(s) of '{slave_name}' lie inside the "
+                     f"master body (obstacle.boundary '{master_name}') by more than "
+                     f"contact.search_distance = {reach:g}, the deepest by {-depth:.6g} at "
+                     f"({where}); move the bodies apart (contact.search_distance bounds the "
+                     "initial penetration that is accepted)", key="contact.search_distance")
 
 
 def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyContact:
@@ -183,8 +349,9 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     Raises
     ------
     SceneError
-        A slave node farther than the search distance from the master boundary (naming
-        contact.search_distance), or a boundary name the mesh does not have.
+        A slave node farther than the search distance from the master boundary, or inside
+        the master by more than it (overlap; both naming contact.search_distance), or a
+        boundary name the mesh does not have.
     """
     mesh = geometry.mesh
     comm = mesh.comm
@@ -209,6 +376,7 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     found = interface.project(slave.coordinates, master, reach)
     method = contact["pairing"]
     pairing = interface.pair(slave, master, method, reach)
+    overlap(comm, slave, master, found, reach, slave_name, master_name)
     far = sorted(set(slave.nodes[found.missing].tolist()) | set(pairing.unpaired))
     first = None
     if far:
@@ -237,13 +405,21 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
         compat.petsc_vector(f).ghostUpdate(addv=_INSERT, mode=_FORWARD)
     nodes.normals = normal.x.array.reshape(-1, d)[nodes.nodes].copy()
     nodes.corners = np.zeros(0, dtype=nodes.nodes.dtype)
+    deepest = float(gap.x.array[local].min(initial=np.inf))
+    if comm.allreduce(deepest, MPI.MIN) < -reach:       # the weighted gap (mortar)
+        overlap(comm, slave, master, found, reach, slave_name, master_name,
+                gaps=gap.x.array[local])
+    facet_at = np.full(len(gap.x.array), -1, dtype=np.int64)
+    facet_at[local] = found.facet
     sizes = interface.index_sizes(V)
     P = pairing.matrix(comm, sizes, sizes, d)
     return BodyContact(normal=normal, gap=gap, D=fem.Function(W), P=P, pairing=pairing,
                        method=method, slide_nodes=local, slide_points=slave.coordinates,
                        sliding_limit=contact["sliding_limit"],
                        slide_limits=2.0 * contact["sliding_limit"]
-                       * facet_sizes(master.coordinates)[found.facet])
+                       * facet_sizes(master.coordinates)[found.facet],
+                       facet_at=facet_at, boundaries=(slave_name, master_name),
+                       master_nodes=np.unique(master.nodes), facet_nodes=master.nodes)
 
 
 def facet_sizes(coordinates: np.ndarray) -> np.ndarray:

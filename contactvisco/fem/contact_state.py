@@ -26,7 +26,10 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     step's u_tau - u_tau(t_{n-1}) with contact.slip = "increment"), status (0, 1, 2 as in
     STATUSES), friction (the stick/slip state: 0, 1, 2 as in STICK_SLIP_STATES). With an
     obstacle, normal and gap are the obstacle's and u_nu, u_tau, slip_vector are those of
-    u - d, the displacement relative to the obstacle.
+    u - d, the displacement relative to the obstacle. With another body of the mesh as the
+    obstacle (fem.body_contact) also facet (the master facet of the node's closest point),
+    force (the node's contact force) and master: a table of the master boundary's nodes, x
+    and force (what they receive, Pi^T c), sorted by position.
     """
     if problem.contact is None:
         return None
@@ -52,7 +55,13 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
                  radius=radius, u_tau_vector=law_values["u_tau_vector"],
                  sigma_tau_vector=fields["sigma_tau_vector"],
                  slip_vector=law_values["slip_vector"], weight=nodes.weights[nodes.owned])
+    body = getattr(problem.contact.obstacle, "interface_values", None)
+    if body is not None:                  # another body of the mesh as the obstacle
+        local.update(body(own))
     table = _gather_sorted(local, comm, problem.length_scale)
+    if body is not None:
+        table["master"] = _gather_sorted(problem.contact.obstacle.master_values(), comm,
+                                         problem.length_scale)
     table["status"] = classify(table["penetration"], contact["g"], problem.length_scale)
     table["friction"] = stick_slip(table)             # the stick/slip state
     table["status_name"] = state_names(table["status"], STATUSES)

@@ -33,8 +33,15 @@ from petsc4py import PETSc
 from contactvisco.errors import SceneError
 from contactvisco.fem import compat
 
-#: Slave nodes projected per block of the closest-point search (memory: block x facets x d).
+#: Slave nodes projected per block of the closest-point search, at most (memory: block x
+#: facets x the bytes of one node-facet pair, _PAIR_BYTES).
 _BLOCK = 256
+#: The closest-point search's temporaries per node-facet pair, measured (tracemalloc): 48
+#: bytes against segments, 195 against triangles (docs/interface.md), rounded up.
+_PAIR_BYTES = {2: 64, 3: 256}
+#: The most the closest-point search allocates at once: the block shrinks below _BLOCK nodes
+#: for a master boundary of more than 2**26 / (256 x 256) = 1024 triangles (4096 segments).
+_SEARCH_BYTES = 2 ** 26
 
 #: Pieces of a slave facet shorter (2D) or smaller (3D) than this in its reference coordinates
 #: are left out: a master facet that only touches the slave facet at a point or along an edge.
@@ -333,8 +340,9 @@ def project(points, master: Surface, search_distance: float) -> Projection:
     local = np.zeros((n, d - 1))
     dist2 = np.full(n, np.inf)
     scale = np.max(np.abs(v)) ** 2 if len(v) else 0.0
-    for start in range(0, n if len(v) else 0, _BLOCK):
-        block = slice(start, min(n, start + _BLOCK))
+    step = max(1, min(_BLOCK, _SEARCH_BYTES // (_PAIR_BYTES[d] * max(len(v), 1))))
+    for start in range(0, n if len(v) else 0, step):
+        block = slice(start, min(n, start + step))
         if d == 2:
             xi, d2 = _closest_on_segments(x[block], v[:, 0], v[:, 1])
         else:

@@ -343,7 +343,8 @@ def _checked_meta(path: pathlib.Path) -> dict:
         raise bad(f"{len(meta['parts'])} parts for {meta['ranks']} ranks")
     records = meta.get("records")
     if records is not None and not (isinstance(records, dict) and all(
-            name in ("steps.jsonl", "contact_nodes.csv", "solution.xdmf")
+            name in ("steps.jsonl", "contact_nodes.csv", "solution.xdmf",
+                     "interface_nodes.csv", "interface_master.csv")
             and isinstance(entry, dict) and isinstance(entry.get("bytes"), int)
             and entry["bytes"] >= 0 and isinstance(entry.get("sha256"), str)
             for name, entry in records.items())):

@@ -32,7 +32,8 @@ class FolderError(SceneError):
 LOCK = "contactvisco.io.lock"
 #: Everything a run writes into its folder (files, and folders removed as a whole).
 OWN_FILES = ("summary.json", "summary.json.tmp", "steps.jsonl", "steps.jsonl.tmp",
-             "contact_nodes.csv", "contact_nodes.csv.tmp", "solution.xdmf",
+             "contact_nodes.csv", "contact_nodes.csv.tmp", "interface_nodes.csv",
+             "interface_master.csv", "solution.xdmf",
              "solution.xdmf.tmp", "solution.h5", "snapshots.npz", "snapshots.tmp.npz",
              "deformed_mesh.png", "stress.png", "contact_reactions.png",
              "contact_displacements.png", "contact_status.png", "probes.png")

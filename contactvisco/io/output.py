@@ -100,6 +100,13 @@ class Writer:
         if self.rank == 0 and problem.contact is not None:
             self._start_csv(problem.geometry.mesh.geometry.dim, restart_count,
                             CSV_FILE in verified)
+        self.interface = {}                  # two bodies: the interface tables
+        if self.rank == 0 and hasattr(problem.contact and problem.contact.obstacle,
+                                      "interface_values"):
+            d = problem.geometry.mesh.geometry.dim
+            for name, header in interface_headers(d).items():
+                self.interface[name] = self._start_table(name, header, restart_count,
+                                                         name in verified)
         self.xdmf = None
         if xdmf:
             self.xdmf = self.folder / SOLUTION_DIR
@@ -129,7 +136,14 @@ class Writer:
         header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
             "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
             "status", "friction"]
-        path = self.folder / CSV_FILE
+        self.csv = self._start_table(CSV_FILE, header, restart_count, verified)
+
+    def _start_table(self, name: str, header: list, restart_count: int | None,
+                     verified: bool = False) -> "AppendedRecord":
+        """Rank 0: the CSV table `name` with its header and, on a restart, the rows of the
+        first restart_count steps (a row cut by a stop is dropped), opened for appending.
+        verified: the file was already cut back to the checkpoint (check_records)."""
+        path = self.folder / name
         if not (verified and files.what(path) == ""):
             kept = []
             if restart_count is not None and files.what(path) is not None:
@@ -142,7 +156,7 @@ class Writer:
             writer.writerow(header)
             writer.writerows(kept)
             files.replace(path, text.getvalue())
-        self.csv = AppendedRecord(path)
+        return AppendedRecord(path)
 
     def step(self, record: dict, table, fields=()):
         """Write step record["step"]: its fields (none: the step has no XDMF entry; the
@@ -175,6 +189,9 @@ class Writer:
                               + [STATUSES[table["status"][i]],
                                  STICK_SLIP_STATES[table["friction"][i]]])
             self.csv.append(text.getvalue())
+        if self.interface and table is not None:
+            for name, text in interface_rows(n, record["t"], table).items():
+                self.interface[name].append(text)
         if self.index is not None and fields:
             self.index.append(n, record["t"])
         # One line, written whole and flushed: a stop leaves whole lines (and at most a cut
@@ -201,7 +218,7 @@ class Writer:
             return
         if self.index is not None:
             self.index.close()
-        for f in (self.csv, self.steps_file):
+        for f in (self.csv, self.steps_file, *self.interface.values()):
             if f is not None:
                 f.close()
 
@@ -214,7 +231,7 @@ class Writer:
             return None
         state = {}
         for name, f in ((STEPS_FILE, self.steps_file), (CSV_FILE, self.csv),
-                        ("solution.xdmf", self.index)):
+                        ("solution.xdmf", self.index), *self.interface.items()):
             if f is not None:
                 state[name] = {"bytes": f.size, "sha256": f.digest.hexdigest()}
         return state
@@ -226,6 +243,48 @@ class Writer:
 
 STEPS_FILE = "steps.jsonl"
 CSV_FILE = "contact_nodes.csv"
+#: Two bodies in contact: the slave nodes' and the master boundary nodes' tables.
+INTERFACE_FILE = "interface_nodes.csv"
+MASTER_FILE = "interface_master.csv"
+
+
+def interface_headers(d: int) -> dict:
+    """The columns of the interface tables of dimension d, by file name: the slave nodes'
+    (position, the master facet of the closest point, s, u_tau, p_nu, R_nu, sigma_tau, the
+    node's contact force, status, friction) and the master boundary nodes' (position and
+    contact force)."""
+    xyz = ["xyz"[i] for i in range(d)]
+    force = [f"f_{c}" for c in xyz]
+    return {INTERFACE_FILE: ["step", "t"] + xyz + ["facet", "s", "u_tau", "p_nu", "R_nu",
+                                                   "sigma_tau"] + force
+            + ["status", "friction"],
+            MASTER_FILE: ["step", "t"] + xyz + force}
+
+
+def interface_rows(n: int, t: float, table: dict) -> dict:
+    """The CSV rows of step n at time t of the interface tables, by file name, from a contact
+    table of two bodies (contact_state.contact_table: its facet, force and master entries);
+    R_nu = -lambda_nu, sigma_tau the table's reaction_tau."""
+    out = {}
+    text = io_module.StringIO()
+    rows = csv.writer(text)
+    for i in range(len(table["u_nu"])):
+        rows.writerow([n, repr(t)] + [repr(float(c)) for c in table["x"][i]]
+                      + [int(table["facet"][i])]
+                      + [repr(float(v)) for v in (
+                          table["penetration"][i], table["u_tau"][i], table["p_nu"][i],
+                          -table["lambda_nu"][i], table["reaction_tau"][i])]
+                      + [repr(float(c)) for c in table["force"][i]]
+                      + [STATUSES[table["status"][i]],
+                         STICK_SLIP_STATES[table["friction"][i]]])
+    out[INTERFACE_FILE] = text.getvalue()
+    text = io_module.StringIO()
+    rows = csv.writer(text)
+    master = table["master"]
+    for x, f in zip(master["x"], master["force"]):
+        rows.writerow([n, repr(t)] + [repr(float(c)) for c in x] + [repr(float(c)) for c in f])
+    out[MASTER_FILE] = text.getvalue()
+    return out
 SOLUTION_DIR = "solution"
 #: The largest summary.json and JSON line read back (a run's scene and notes: far less).
 JSON_MAX_BYTES = 64 * 2**20
@@ -520,6 +579,41 @@ def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
         target.x.scatter_forward()
         fields["contact_status"] = [target]
     return fields
+
+
+def body_field(problem):
+    """The DG0 cell field "body": on each cell the index b of the [[body]] table it lies in
+    (0, 1, ...), so that a viewer can tell the bodies apart (ParaView: Threshold on "body");
+    two bodies in contact without [[body]] tables: 0 on the slave's part of the mesh, 1 on
+    the master's (fem.rigid.interface_parts); None for a scene with neither.
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem (its scene and mesh).
+
+    Returns
+    -------
+    dolfinx.fem.Function or None
+        b on the cells of body b (ghost cells included).
+    """
+    from contactvisco.fem.problem import body_cells
+    obstacle = problem.contact and problem.contact.obstacle
+    two = hasattr(obstacle, "pairing")
+    if not problem.scene.get("body") and not two:
+        return None
+    mesh = problem.geometry.mesh
+    field = fem.Function(compat.scalar_space(mesh, "DG", 0), name="body")
+    dofs = compat.cell_dofs(field.function_space.dofmap)
+    if problem.scene.get("body"):
+        for b, cells in enumerate(body_cells(problem.scene, problem.geometry)):
+            field.x.array[dofs[cells].ravel()] = float(b)
+        return field
+    from contactvisco.fem.rigid import interface_parts
+    parts = interface_parts(problem)
+    cells = compat.cell_dofs(problem.V.dofmap)
+    field.x.array[dofs[:, 0]] = parts[cells[:, 0]]
+    return field
 
 
 def _cached(cache: dict, name: str, space):

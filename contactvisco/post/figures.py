@@ -265,6 +265,8 @@ def obstacle_history(steps: list, units: dict) -> Figure:
         Two panels: d_j(t) and F_j(t).
     """
     times = [record["t"] for record in steps]
+    if "displacement" not in steps[0]["obstacle"]:
+        return interface_forces(steps, units)
     d = np.array([record["obstacle"]["displacement"] for record in steps], dtype=float)
     force = np.array([record["obstacle"]["force"] for record in steps], dtype=float)
     fig = Figure(figsize=(PAGE * 0.75, 2.4), layout="constrained")
@@ -278,6 +280,38 @@ def obstacle_history(steps: list, units: dict) -> Figure:
     axes[1].set_ylabel(label("contact force on the body", "force", units))
     for ax in axes:
         ax.set_xlabel(label("t", "time", units))
+        ax.axhline(0.0, color="k", lw=0.5)
+    axes[1].legend(frameon=False)
+    return fig
+
+
+def interface_forces(steps: list, units: dict) -> Figure:
+    """Two bodies in contact: the resultant contact force on the slave and on the master
+    body against time, one line per component (the step records' ``obstacle`` entries
+    ``slave_force`` and ``master_force``, equal and opposite).
+
+    Parameters
+    ----------
+    steps : list of dict
+        The step records of steps.jsonl.
+    units : dict
+        The scene's [units] labels.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels: F_s,j(t) and F_m,j(t).
+    """
+    times = [record["t"] for record in steps]
+    fig = Figure(figsize=(PAGE * 0.75, 2.4), layout="constrained")
+    axes = fig.subplots(1, 2, sharey=True)
+    for ax, key, name in zip(axes, ("slave_force", "master_force"), ("slave", "master")):
+        force = np.array([record["obstacle"][key] for record in steps], dtype=float)
+        for j in range(force.shape[1]):
+            ax.plot(times, force[:, j], marker="os^"[j], ls=("-", "--", ":")[j], ms=2.5,
+                    lw=0.9, color=f"C{j}", label=f"${'xyz'[j]}$")
+        ax.set_xlabel(label("t", "time", units))
+        ax.set_ylabel(label(f"contact force on the {name}", "force", units))
         ax.axhline(0.0, color="k", lw=0.5)
     axes[1].legend(frameon=False)
     return fig

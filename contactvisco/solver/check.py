@@ -58,6 +58,10 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
     opts = scene["output"]
     steps = scene["time"]["steps"]
     records = (steps + 1) * (STEP_RECORD + problem.count_contact_nodes() * CSV_NUMBER * (d + 10))
+    body = problem.contact and problem.contact.obstacle
+    if getattr(body, "master_nodes", None) is not None:    # two bodies: the interface tables
+        records += (steps + 1) * CSV_NUMBER * (problem.count_contact_nodes() * (2 * d + 10)
+                                               + len(body.master_nodes) * (2 * d + 2))
     if not opts["xdmf"]:
         return records
     cells = mesh.topology.index_map(tdim).size_global
@@ -70,6 +74,8 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
                "von_mises": tensor_dofs // d ** 2,
                "contact_status": vertices if problem.contact is not None else 0}
     values = cells * (tdim + 1) + vertices * d + sum(written[name] for name in opts["fields"])
+    two = (scene.get("obstacle") or {}).get("shape") == "body"
+    values += cells if scene.get("body") or two else 0    # the cell field "body"
     k = scene["time"]["T"] / steps
     schedule = FieldSchedule(opts["field_every"], opts["field_times"], k, steps)
     field_steps = sum(schedule.due(n, n * k) for n in range(steps + 1))

@@ -309,10 +309,14 @@ def obstacle_record(problem, table) -> dict:
     """The obstacle's entry of a step record ({} without an obstacle): its displacement d and
     the resultant contact force it exerts on the body, sum_i w_i (-(reaction_nu) nu +
     sigma_tau) over the contact nodes (the force obstacle.force prescribes under force
-    control)."""
+    control). Another body of the mesh as the obstacle (fem.body_contact) has no position of
+    its own: its entry says so and gives each body's resultant contact force
+    (BodyContact.record)."""
     obstacle = problem.contact and problem.contact.obstacle
     if obstacle is None or table is None:
         return {}
+    if hasattr(obstacle, "record"):
+        return {"obstacle": obstacle.record()}
     weight = table["weight"][:, None]
     force = np.sum(weight * (table["sigma_tau_vector"]
                              - table["reaction_nu"][:, None] * table["normal"]), axis=0)
@@ -402,6 +406,7 @@ class FieldWriter:
         self.derived = {}                     # the Functions of output.derived_fields
         self.schedule = schedule or FieldSchedule(1, (), 1.0, 0)
         self.sigma_step = None       # the step at which sigma was last interpolated
+        self.body = output.body_field(problem) if writer.xdmf is not None else None
 
     def __call__(self, record, table):
         fields = []
@@ -416,6 +421,8 @@ class FieldWriter:
             derived = output.derived_fields(self.names, problem, self.sigma, table, self.derived)
             fields = [available[name] for name in self.names if available.get(name) is not None]
             fields += [f for name in self.names for f in derived.get(name, [])]
+            if self.body is not None:             # the bodies' cells, at every field step
+                fields.append(self.body)
         self.writer.step(record, table, fields)
 
 
