@@ -36,8 +36,8 @@ the identity plus a matrix of rank at most their number s, and a Krylov method p
 by P's factors solves J x = b in at most s + 1 iterations (in exact arithmetic). Such a step
 is solved by FGMRES (right-preconditioned: its residual is J's own) to STALE_RTOL with P's
 factors, and P is refactorized only when J differs from it in more than STALE_ROWS rows, or
-when the last solve with P needed more Krylov iterations than the row count allowed. A
-factorization costs 7 to 13 triangular solves at 64^2 to 128^2 cells (docs/scaling.md), so
+when the last solve with P took more than STALE_KRYLOV iterations or did not converge. A
+factorization costs 9 to 15 triangular solves at 64^2 to 128^2 cells (docs/scaling.md), so
 each kept factorization saves most of a Newton iteration's time. Matrices equal to P are solved
 by P's factors alone (KSP preonly), bit for bit as before.
 """
