@@ -400,8 +400,8 @@ class NewtonSolver:
         Parameters
         ----------
         rows : int, optional
-            s_max (default STALE_ROWS): J with at most s_max rows other than P's is solved by FGMRES with P's
-            factors, P^-1 J = I + (rank <= s_max); 0 turns the mode off.
+            s_max (default STALE_ROWS): J with at most s_max rows other than P's is solved
+            by FGMRES with P's factors, P^-1 J = I + (rank <= s_max); 0 turns the mode off.
         """
         ksp = self.snes.getKSP()
         if self.reuse and ksp.getType() == "preonly" and ksp.getPC().getType() == "lu":
