@@ -40,6 +40,7 @@ condensed rows into J and refuses a pattern without the node's own columns.
 from __future__ import annotations
 
 import numpy as np
+import ufl
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector, create_matrix
 from mpi4py import MPI
@@ -217,6 +218,51 @@ def node_indices(space, nodes):
     return ((start + nodes[:, None]) * bs + np.arange(bs)).astype(PETSc.IntType)
 
 
+class BulkPart:
+    """J_uu = J_cell + J_facet: the cell integrals (the bulk law A, the implicit memory term)
+    assembled once and kept while the Constants they use keep their values, the facet
+    integrals (Gamma_C, a few rows) assembled at every Jacobian and added to a copy of the
+    kept matrix. Only where the cell integrals use no Function (a linear bulk law with
+    Constant coefficients, the paper's): otherwise `split` is False and J_uu is assembled
+    whole.
+
+    Parameters
+    ----------
+    J_uu : ufl.Form
+        dF_u/du.
+    A : petsc4py.PETSc.Mat
+        J_uu assembled: the kept matrix is a duplicate of it, with its sparsity pattern.
+    """
+
+    def __init__(self, J_uu, A):
+        cells = [i for i in J_uu.integrals() if i.integral_type() == "cell"]
+        facets = [i for i in J_uu.integrals() if i.integral_type() != "cell"]
+        cell_form = ufl.Form(cells)
+        self.split = bool(cells and facets) and not cell_form.coefficients()
+        if not self.split:
+            return
+        self.cell, self.facet = fem.form(cell_form), fem.form(ufl.Form(facets))
+        self.constants = cell_form.constants()
+        self.values = None               # the Constants' values of the kept matrix
+        self.matrix = A.duplicate()
+
+    def assemble_into(self, A, bcs):
+        """A = J_uu: the kept cell part (assembled again if a Constant changed) plus the
+        facet part; Dirichlet rows and columns zero with 1 on the diagonal."""
+        values = [np.array(c.value, copy=True) for c in self.constants]
+        if self.values is None or any(not np.array_equal(a, b)
+                                      for a, b in zip(values, self.values)):
+            self.matrix.zeroEntries()
+            # The diagonal of Dirichlet rows is 0 here and 1 from the facet part: 1 whether
+            # DOLFINx inserts or adds it.
+            compat.assemble_matrix(self.matrix, self.cell, bcs, diagonal=0.0)
+            self.matrix.assemble()
+            self.values = values
+        self.matrix.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        compat.assemble_matrix(A, self.facet, bcs, diagonal=1.0)
+        A.assemble()
+
+
 def coupling_blocks(J):
     """The blocks of the block Jacobian J (J[i][j] = dF_i/dw_j, w = (u, multipliers...))
     that the node blocks come from: every (i, j) but (0, 0) with a form, as
@@ -276,7 +322,9 @@ class NodalCondensation:
         # overwritten by the condensed ones (J_red); the original contact rows are kept in the
         # small matrix self.J_contact for the multiplier update.
         self.A = create_matrix(self.J_uu)
+        self._bulk = None
         self._assemble_J()
+        self._bulk = BulkPart(problem.J[0][0], self.A)
         self.scale = diagonal_scale(self.A, self.own, d)
         self._contact_rows, self._columns = row_selection(self.A, self.rows)
         self.J_contact = self.A.createSubMatrix(self._contact_rows, self._columns)
@@ -286,6 +334,9 @@ class NodalCondensation:
         self.full_norm = 0.0
 
     def _assemble_J(self):
+        if self._bulk is not None and self._bulk.split:
+            self._bulk.assemble_into(self.A, self.bcs)
+            return
         self.A.zeroEntries()
         compat.assemble_matrix(self.A, self.J_uu, self.bcs, diagonal=1.0)
         self.A.assemble()

@@ -28,6 +28,18 @@ copied there, so an unchanged operator keeps its factorization and the solve is 
 one a new factorization would give. The price is one more matrix of the system's size, small
 beside the LU factors; the iterative solver, whose memory is mostly the matrix, assembles
 into its operator directly and rebuilds its AMG hierarchy at every Jacobian.
+
+Factorizations of nearby matrices (the condensed system with the direct solver): a Newton
+matrix J that differs from the factorized operator P in only a few rows (a few contact nodes
+changed branch) is J = P + E Delta with E the identity's columns of those rows, so P^-1 J is
+the identity plus a matrix of rank at most their number s, and a Krylov method preconditioned
+by P's factors solves J x = b in at most s + 1 iterations (in exact arithmetic). Such a step
+is solved by FGMRES (right-preconditioned: its residual is J's own) to STALE_RTOL with P's
+factors, and P is refactorized only when J differs from it in more than STALE_ROWS rows, or
+when the last solve with P took more than STALE_KRYLOV iterations or did not converge. A
+factorization costs 9 to 15 triangular solves at 64^2 to 128^2 cells (docs/scaling.md), so
+each kept factorization saves most of a Newton iteration's time. Matrices equal to P are solved
+by P's factors alone (KSP preonly), bit for bit as before.
 """
 from __future__ import annotations
 
@@ -100,11 +112,29 @@ GAMG_OPTIONS = {
 }
 
 #: linear_solver = "auto" takes the iterative solver from this many displacement unknowns on
-#: (by dimension), with BoomerAMG; where the measurements put the switch: docs/scaling.md.
-AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
+#: (by dimension), with BoomerAMG; where the measurements put the switch: docs/scaling.md
+#: (in 2D 100000 since the direct solver keeps factorizations of nearby matrices: MUMPS is
+#: ahead at 33282 unknowns and even at 132098).
+AUTO_ITERATIVE = {2: 100_000, 3: 5_000}
 
 #: The same where PETSc has no hypre (GAMG): docs/scaling.md.
 AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 22_000}
+
+
+#: A direct solver keeps its factorization for Newton matrices that differ from the factorized
+#: one in at most this many rows (over all ranks), solving them by FGMRES (module description).
+STALE_ROWS = 16
+
+#: FGMRES with an earlier matrix's factors: relative and absolute residual tolerance (the
+#: residual of J x = b, against |b|), and the most iterations before the factorization is
+#: renewed (the step is then taken from the last Krylov iterate).
+STALE_RTOL = 1e-12
+STALE_ATOL = 1e-300
+STALE_MAX_IT = 2 * STALE_ROWS + 8
+
+#: The next Newton matrix is factorized when the last solve with an earlier matrix's factors
+#: took more FGMRES iterations than this (each costs a triangular solve and a product).
+STALE_KRYLOV = 4
 
 
 def auto_iterative_size(d: int) -> int:
@@ -315,6 +345,10 @@ class NewtonSolver:
         self.snes = PETSc.SNES().create(comm)
         self.setups = 0                  # preconditioner set-ups (factorizations) of a solve
         self._fingerprint = None         # of the matrix the preconditioner was built from
+        self.stale_rows = 0              # keep P's factors for J differing in <= these rows
+        self._factorized = None          # the CSR values of the factorized operator P
+        self._stale = False              # the current step is solved with an earlier P
+        self._krylov_limit = 0           # the most FGMRES iterations the row count allows
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -371,6 +405,9 @@ class NewtonSolver:
         if not self.reuse:
             self.setups += 1
             return
+        if self.stale_rows > 0:
+            self._to_operator_or_stale(A)
+            return
         fingerprint = matrix_fingerprint(A)
         same = fingerprint is not None and fingerprint == self._fingerprint
         if A.getComm().tompi4py().allreduce(same, op=MPI.LAND):
@@ -378,6 +415,76 @@ class NewtonSolver:
         A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         self._fingerprint = fingerprint
         self.setups += 1
+
+    def enable_stale(self, rows: int | None = None):
+        """Keep the factorization of the operator P for Newton matrices J that differ from it
+        in at most `rows` rows (module description); only with the direct solver's defaults
+        (reuse, KSP preonly, PC lu): otherwise nothing changes. The SNES must have been given
+        J as its Jacobian matrix and P as its preconditioner matrix.
+
+        Parameters
+        ----------
+        rows : int, optional
+            s_max (default STALE_ROWS): J with at most s_max rows other than P's is solved
+            by FGMRES with P's factors, P^-1 J = I + (rank <= s_max); 0 turns the mode off.
+        """
+        ksp = self.snes.getKSP()
+        if self.reuse and ksp.getType() == "preonly" and ksp.getPC().getType() == "lu":
+            self.stale_rows = STALE_ROWS if rows is None else rows
+
+    def _to_operator_or_stale(self, A):
+        """_to_operator with stale factorizations: the rows of A that differ from P, counted
+        over all ranks, decide between P's factors alone (none), FGMRES with P's factors (at
+        most stale_rows, and the last such solve converged within its bound) and a new
+        factorization of A (copied into P)."""
+        ksp = self.snes.getKSP()
+        comm = A.getComm().tompi4py()
+        try:
+            indptr, _, values = A.getValuesCSR()
+        except PETSc.Error:
+            indptr = values = None
+        if values is None or self._factorized is None or len(values) != len(self._factorized):
+            differ = -1
+        else:
+            entries = np.flatnonzero(values != self._factorized)
+            differ = int(np.unique(np.searchsorted(indptr, entries, side="right")).size)
+        exhausted = self._stale and (
+            ksp.getConvergedReason() != PETSc.KSP.ConvergedReason.CONVERGED_RTOL
+            or ksp.getIterationNumber() > STALE_KRYLOV)
+        counts = comm.allgather((differ, exhausted))
+        rows = -1 if any(c < 0 for c, _ in counts) else sum(c for c, _ in counts)
+        if rows == 0:
+            self._use_factors(ksp, stale=False)
+        elif 0 < rows <= self.stale_rows and not any(e for _, e in counts):
+            self._krylov_limit = min(rows + 2, STALE_MAX_IT)
+            self._use_factors(ksp, stale=True)
+        else:
+            A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            self._factorized = None if values is None else values.copy()
+            self.setups += 1
+            self._use_factors(ksp, stale=False)
+
+    def _use_factors(self, ksp, stale):
+        """P's factors alone (preonly: A equals P) or inside FGMRES (A differs from P)."""
+        if stale != self._stale or ksp.getType() != ("fgmres" if stale else "preonly"):
+            ksp.setType("fgmres" if stale else "preonly")
+            if stale:
+                ksp.setGMRESRestart(STALE_MAX_IT)
+                ksp.setPCSide(PETSc.PC.Side.RIGHT)
+                ksp.setConvergenceTest(_weak(self._krylov_converged))
+        self._stale = stale
+
+    def _krylov_converged(self, ksp, its, rnorm):
+        """FGMRES with an earlier matrix's factors: converged at |r| <= STALE_RTOL |b| (or
+        STALE_ATOL); at its bound (stale row count + 2, at most STALE_MAX_IT) the iterate is
+        taken as it is and the next Jacobian is factorized."""
+        if its == 0:
+            self._krylov_b = rnorm
+        if rnorm <= max(STALE_RTOL * self._krylov_b, STALE_ATOL):
+            return PETSc.KSP.ConvergedReason.CONVERGED_RTOL
+        if its >= self._krylov_limit:
+            return PETSc.KSP.ConvergedReason.CONVERGED_ITS
+        return PETSc.KSP.ConvergedReason.ITERATING
 
     def _monitor(self, snes, it, norm):
         self.residuals.append(float(norm))
@@ -528,7 +635,7 @@ class CondensedSNES(NewtonSolver):
         self._broken = None              # why the iterates left the coupled method's, if so
         self.operator = self.system.J_red.duplicate(copy=True) if reuse else self.system.J_red
         self.snes.setFunction(_weak(self._residual), self.b)
-        self.snes.setJacobian(_weak(self._jacobian), self.operator)
+        self.snes.setJacobian(_weak(self._jacobian), self.system.J_red, self.operator)
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
         # as with BlockSNES; the condensed residual alone leaves out the multiplier rows.
         self.snes.setConvergenceTest(_weak(self._converged))
@@ -540,6 +647,8 @@ class CondensedSNES(NewtonSolver):
         if self.force is not None:
             self._shift, self._u_now = u_vector.copy(), u_vector.copy()
         self._finish_setup()
+        if self.force is None:           # the bordered solves need P's exact factors
+            self.enable_stale()
 
     def _check_options(self):
         """The multipliers are recovered from each displacement step as the coupled Newton

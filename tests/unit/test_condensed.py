@@ -299,3 +299,32 @@ def test_iterative_needs_condensed():
     problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
     with pytest.raises(SceneError, match="needs the displacement-only system"):
         solver_module.create(problem, MPI.COMM_WORLD)
+
+
+def test_kept_bulk_matrix_equals_the_whole_assembly():
+    """J_uu from the kept cell part plus the facet part of Gamma_C (BulkPart) is J_uu
+    assembled whole, pattern and values (to 1e-14 of the largest entry), at a contact state
+    with active nodes and after a Constant of the cell part (the Lame constant mu) changed;
+    a law whose cell part uses a Function (Hencky) is assembled whole."""
+    scene = scene_module.load("paper", ["geometry.cells=[6, 6]"])
+    problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
+    system = NodalCondensation(problem)
+    assert system._bulk.split
+    whole = system.A.duplicate()
+
+    def compare():
+        system._assemble_J()
+        whole.zeroEntries()
+        compat.assemble_matrix(whole, system.J_uu, system.bcs, diagonal=1.0)
+        whole.assemble()
+        a, b = system.A.getValuesCSR(), whole.getValuesCSR()
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+        assert np.max(np.abs(a[2] - b[2])) <= 1e-14 * np.max(np.abs(b[2]))
+
+    problem.u.x.array.reshape(-1, 2)[:, 1] = -np.linspace(0.0, 0.3, len(problem.u.x.array) // 2)
+    compare()
+    problem.constants["lame_mu"].value *= 1.5      # a Constant of the cell part changes
+    compare()
+    hencky = scene_module.load("paper", ["geometry.cells=[4, 4]", "material.law='hencky'"])
+    problem = problem_module.build(hencky, geometry.build(hencky, MPI.COMM_WORLD))
+    assert not NodalCondensation(problem)._bulk.split
