@@ -526,14 +526,19 @@ def _stress_3d(data, index, clim, bar_label, t_text, table, edges, asked_line=""
 
 
 def _shade_zones(ax, s, status):
-    """Shade runs of equal status along the boundary coordinate s."""
+    """Shade runs of equal status along the boundary coordinate s: node i owns the interval
+    between the midpoints to its neighbours, and a run of nodes of one status is one span
+    (one patch per run, not per node: a figure to draw and to lay out stays small)."""
     if len(s) < 2:
         return
     mids = np.concatenate([[s[0]], 0.5 * (s[1:] + s[:-1]), [s[-1]]])
+    status = np.asarray(status)
+    starts = np.flatnonzero(np.concatenate([[True], status[1:] != status[:-1]]))
+    ends = np.append(starts[1:], len(status))
     done = set()
-    for i, st in enumerate(status):
-        name = STATUSES[st]
-        ax.axvspan(mids[i], mids[i + 1], color=ZONE_COLOURS[name], alpha=0.5, lw=0,
+    for first, stop in zip(starts, ends):
+        name = STATUSES[status[first]]
+        ax.axvspan(mids[first], mids[stop], color=ZONE_COLOURS[name], alpha=0.5, lw=0,
                    label=None if name in done else name)
         done.add(name)
 
