@@ -7,10 +7,14 @@ the drawing) and the process's exit (PETSc and MPI finalize).
 Each run is a child process (`python startup.py --child OUT ...`) that runs the command line's
 `main` with timers wrapped around a few functions of the package (installed by an import hook
 as their modules load, so nothing is imported earlier than the command line imports it); the
-parent measures the process from its start to its end. One warm-up run fills the JIT cache
-and the file cache, then the median of `--repeat` runs (3) per configuration: the default
-figures, and `output.figures=false`. One more run under `python -X importtime` gives the
-import time by top-level package. The machine's load (`uptime`) is recorded before and after.
+parent measures the process from its start to its end. One warm-up run fills the JIT cache,
+the file cache and the bytecode cache, then the median of `--repeat` runs (3) per
+configuration: the default figures, `output.figures=false`, and the default figures with no
+bytecode cache (every module compiled from source at every start, as under
+PYTHONDONTWRITEBYTECODE=1). The bytecode cache is kept under the benchmark's temporary folder
+(PYTHONPYCACHEPREFIX), so that nothing is written beside the sources. One more run under
+`python -X importtime` gives the import time by top-level package. The machine's load
+(`uptime`) is recorded before and after.
 
     python benchmarks/performance/startup.py [--repeat 3] [--name startup_debian]
                                              [--set KEY=VALUE ...]
@@ -121,12 +125,26 @@ def load_average() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
-def one_run(folder: pathlib.Path, extra) -> dict:
+def environment(folder: pathlib.Path, bytecode: bool = True) -> dict:
+    """The children's environment: with `bytecode`, Python's compiled modules are written to
+    and read from folder/pycache (a warm start, as after an installation that compiled
+    them); without, every module is compiled from its source at every start."""
+    env = dict(ENV)
+    if bytecode:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
+    else:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+        env.pop("PYTHONPYCACHEPREFIX", None)
+    return env
+
+
+def one_run(folder: pathlib.Path, extra, bytecode: bool = True) -> dict:
     """One child run into a new folder under `folder`: its phases in seconds."""
-    out = str(folder / f"run{len(list(folder.iterdir()))}")
+    out = str(folder / f"run{len(list(folder.glob('run*')))}")
     started = time.monotonic()
-    done = subprocess.run([sys.executable, __file__, "--child", out, *extra], env=ENV,
-                          capture_output=True, text=True)
+    done = subprocess.run([sys.executable, __file__, "--child", out, *extra],
+                          env=environment(folder, bytecode), capture_output=True, text=True)
     finished = time.monotonic()
     if done.returncode != 0:
         raise RuntimeError(f"the run failed ({done.returncode}):\n{done.stderr[-3000:]}")
@@ -162,7 +180,7 @@ def import_split(folder: pathlib.Path, extra) -> dict:
     importtime): {package: seconds}, largest first."""
     out = str(folder / "imports")
     done = subprocess.run([sys.executable, "-X", "importtime", __file__, "--child", out,
-                           *extra], env=ENV, capture_output=True, text=True)
+                           *extra], env=environment(folder), capture_output=True, text=True)
     by_package = {}
     for line in done.stderr.splitlines():
         if not line.startswith("import time:") or "self [us]" in line:
@@ -194,15 +212,17 @@ def main():
     stack = route()
     name = args.name or f"startup_{stack}"
     extra = [item for pair in args.set for item in ("--set", pair)]
-    configurations = {"default figures": extra,
-                      "output.figures=false": extra + ["--set", "output.figures=false"]}
+    configurations = {"default figures": (extra, True),
+                      "output.figures=false": (extra + ["--set", "output.figures=false"],
+                                               True),
+                      "default figures, no bytecode cache": (extra, False)}
     rows = []
     load_before = load_average()
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(tmp)
-        one_run(folder, extra)                          # warm JIT and file caches
-        for label, options in configurations.items():
-            runs = [one_run(folder, options) for _ in range(args.repeat)]
+        one_run(folder, extra)                # warm JIT, file and bytecode caches
+        for label, (options, bytecode) in configurations.items():
+            runs = [one_run(folder, options, bytecode) for _ in range(args.repeat)]
             median = {key: statistics.median(r[key] for r in runs) for key in runs[0]}
             rows.append({"configuration": label, "median": median,
                          "totals": [r["total"] for r in runs]})
@@ -215,7 +235,8 @@ def main():
         interpreter.append(time.monotonic() - tick)
     lines = [f"`contactvisco run paper` {' '.join(extra)} on the {stack} route "
              f"(Python {sys.version.split()[0]}), median of {args.repeat} runs after a "
-             "warm-up, seconds of wall time", "",
+             "warm-up (JIT, file and bytecode caches warm unless said), seconds of wall time",
+             "",
              f"load before: `{load_before}`", "", f"load after: `{load_after}`", "",
              "| phase | " + " | ".join(r["configuration"] for r in rows) + " |",
              "|---|" + "---|" * len(rows)]

@@ -156,7 +156,11 @@ def draw_all(folder, fmt: str = "png", dpi: int = DPI, times=None,
             if kind:
                 raise files.refusal(path, kind, "a figure (a regular file)")
         for path, (_, fig) in zip(paths, figures):
-            files.replace_with(path, lambda f: fig.savefig(f, format=fmt, dpi=dpi))
+            # Not synced to the disk (durable=False): the rename still leaves the old or the
+            # new figure after a stop, and a figure lost to a power cut is redrawn from the
+            # synced run files (`contactvisco plot DIR`); a sync costs milliseconds a file.
+            files.replace_with(path, lambda f: fig.savefig(f, format=fmt, dpi=dpi),
+                               durable=False)
             written.append(path)
     return written
 
