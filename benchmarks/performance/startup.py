@@ -14,7 +14,9 @@ bytecode cache (every module compiled from source at every start, as under
 PYTHONDONTWRITEBYTECODE=1). The bytecode cache is kept under the benchmark's temporary folder
 (PYTHONPYCACHEPREFIX), so that nothing is written beside the sources. One more run under
 `python -X importtime` gives the import time by top-level package. The machine's load
-(`uptime`) is recorded before and after.
+(`uptime`) is recorded before and after, and the CPU time of each process (user + sys, and
+that of the figures): on a shared machine the wall time grows with the load, the CPU time
+much less, so it is the one to compare between two measurements under different loads.
 
     python benchmarks/performance/startup.py [--repeat 3] [--name startup_debian]
                                              [--set KEY=VALUE ...]
@@ -26,6 +28,7 @@ import argparse
 import json
 import os
 import pathlib
+import resource
 import statistics
 import subprocess
 import sys
@@ -64,12 +67,12 @@ def child(out, extra):
 
     def timed(function, name):
         def wrapper(*args, **kwargs):
-            span = [time.monotonic(), None]
+            span = [time.monotonic(), None, time.process_time(), None]
             spans.setdefault(name, []).append(span)
             try:
                 return function(*args, **kwargs)
             finally:
-                span[1] = time.monotonic()
+                span[1], span[3] = time.monotonic(), time.process_time()
         return wrapper
 
     def wrap(module):
@@ -142,20 +145,24 @@ def environment(folder: pathlib.Path, bytecode: bool = True) -> dict:
 def one_run(folder: pathlib.Path, extra, bytecode: bool = True) -> dict:
     """One child run into a new folder under `folder`: its phases in seconds."""
     out = str(folder / f"run{len(list(folder.glob('run*')))}")
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.monotonic()
     done = subprocess.run([sys.executable, __file__, "--child", out, *extra],
                           env=environment(folder, bytecode), capture_output=True, text=True)
     finished = time.monotonic()
+    now = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (now.ru_utime - used.ru_utime) + (now.ru_stime - used.ru_stime)
     if done.returncode != 0:
         raise RuntimeError(f"the run failed ({done.returncode}):\n{done.stderr[-3000:]}")
     times = json.loads(pathlib.Path(out + ".times.json").read_text())
     spans = times["spans"]
     summary = json.loads((pathlib.Path(out) / "summary.json").read_text())
 
-    def total(name):
-        return sum(b - a for a, b in spans.get(name, []))
-    (sim_in, sim_out), = spans["simulate"]
-    (loop_in, loop_out), = spans["loop"]
+    def total(name, cpu=False):
+        return sum(span[3] - span[2] if cpu else span[1] - span[0]
+                   for span in spans.get(name, []))
+    (sim_in, sim_out, _, _), = spans["simulate"]
+    (loop_in, loop_out, _, _), = spans["loop"]
     figures = spans.get("figures", [[sim_out, sim_out]])[0]
     drawing = total("figure_drawing")
     row = {"total": finished - started,
@@ -170,7 +177,8 @@ def one_run(folder: pathlib.Path, extra, bytecode: bool = True) -> dict:
            "step_output": total("records_and_fields") + total("snapshots")
            + total("checkpoints"),
            "checkpoints": total("checkpoints"),
-           "setup_s_reported": summary["final"]["setup_s"]}
+           "setup_s_reported": summary["final"]["setup_s"],
+           "cpu": cpu, "figures_cpu": total("figures", cpu=True)}
     row["unaccounted"] = row["total"] - sum(row[p] for p in PHASES)
     return row
 
@@ -245,7 +253,9 @@ def main():
               "step_output": "  of which per-step output", "checkpoints":
               "  of which checkpoints", "close": "closing the run",
               "figure_import": "figures: import", "figure_drawing": "figures: drawing",
-              "exit": "exit (finalize)", "unaccounted": "unaccounted", "total": "**total**"}
+              "exit": "exit (finalize)", "unaccounted": "unaccounted", "total": "**total**",
+              "cpu": "CPU time of the process (user + sys)",
+              "figures_cpu": "  of which figures (import and drawing)"}
     for key, text in labels.items():
         lines.append(f"| {text} | " + " | ".join(f"{r['median'][key]:.3f}" for r in rows)
                      + " |")
