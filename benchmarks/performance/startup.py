@@ -7,10 +7,16 @@ the drawing) and the process's exit (PETSc and MPI finalize).
 Each run is a child process (`python startup.py --child OUT ...`) that runs the command line's
 `main` with timers wrapped around a few functions of the package (installed by an import hook
 as their modules load, so nothing is imported earlier than the command line imports it); the
-parent measures the process from its start to its end. One warm-up run fills the JIT cache
-and the file cache, then the median of `--repeat` runs (3) per configuration: the default
-figures, and `output.figures=false`. One more run under `python -X importtime` gives the
-import time by top-level package. The machine's load (`uptime`) is recorded before and after.
+parent measures the process from its start to its end. One warm-up run fills the JIT cache,
+the file cache and the bytecode cache, then the median of `--repeat` runs (3) per
+configuration: the default figures, `output.figures=false`, and the default figures with no
+bytecode cache (every module compiled from source at every start, as under
+PYTHONDONTWRITEBYTECODE=1). The bytecode cache is kept under the benchmark's temporary folder
+(PYTHONPYCACHEPREFIX), so that nothing is written beside the sources. One more run under
+`python -X importtime` gives the import time by top-level package. The machine's load
+(`uptime`) is recorded before and after, and the CPU time of each process (user + sys, and
+that of the figures): on a shared machine the wall time grows with the load, the CPU time
+much less, so it is the one to compare between two measurements under different loads.
 
     python benchmarks/performance/startup.py [--repeat 3] [--name startup_debian]
                                              [--set KEY=VALUE ...]
@@ -22,6 +28,7 @@ import argparse
 import json
 import os
 import pathlib
+import resource
 import statistics
 import subprocess
 import sys
@@ -60,12 +67,12 @@ def child(out, extra):
 
     def timed(function, name):
         def wrapper(*args, **kwargs):
-            span = [time.monotonic(), None]
+            span = [time.monotonic(), None, time.process_time(), None]
             spans.setdefault(name, []).append(span)
             try:
                 return function(*args, **kwargs)
             finally:
-                span[1] = time.monotonic()
+                span[1], span[3] = time.monotonic(), time.process_time()
         return wrapper
 
     def wrap(module):
@@ -121,23 +128,41 @@ def load_average() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
-def one_run(folder: pathlib.Path, extra) -> dict:
+def environment(folder: pathlib.Path, bytecode: bool = True) -> dict:
+    """The children's environment: with `bytecode`, Python's compiled modules are written to
+    and read from folder/pycache (a warm start, as after an installation that compiled
+    them); without, every module is compiled from its source at every start."""
+    env = dict(ENV)
+    if bytecode:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(folder / "pycache")
+    else:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+        env.pop("PYTHONPYCACHEPREFIX", None)
+    return env
+
+
+def one_run(folder: pathlib.Path, extra, bytecode: bool = True) -> dict:
     """One child run into a new folder under `folder`: its phases in seconds."""
-    out = str(folder / f"run{len(list(folder.iterdir()))}")
+    out = str(folder / f"run{len(list(folder.glob('run*')))}")
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.monotonic()
-    done = subprocess.run([sys.executable, __file__, "--child", out, *extra], env=ENV,
-                          capture_output=True, text=True)
+    done = subprocess.run([sys.executable, __file__, "--child", out, *extra],
+                          env=environment(folder, bytecode), capture_output=True, text=True)
     finished = time.monotonic()
+    now = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (now.ru_utime - used.ru_utime) + (now.ru_stime - used.ru_stime)
     if done.returncode != 0:
         raise RuntimeError(f"the run failed ({done.returncode}):\n{done.stderr[-3000:]}")
     times = json.loads(pathlib.Path(out + ".times.json").read_text())
     spans = times["spans"]
     summary = json.loads((pathlib.Path(out) / "summary.json").read_text())
 
-    def total(name):
-        return sum(b - a for a, b in spans.get(name, []))
-    (sim_in, sim_out), = spans["simulate"]
-    (loop_in, loop_out), = spans["loop"]
+    def total(name, cpu=False):
+        return sum(span[3] - span[2] if cpu else span[1] - span[0]
+                   for span in spans.get(name, []))
+    (sim_in, sim_out, _, _), = spans["simulate"]
+    (loop_in, loop_out, _, _), = spans["loop"]
     figures = spans.get("figures", [[sim_out, sim_out]])[0]
     drawing = total("figure_drawing")
     row = {"total": finished - started,
@@ -152,7 +177,8 @@ def one_run(folder: pathlib.Path, extra) -> dict:
            "step_output": total("records_and_fields") + total("snapshots")
            + total("checkpoints"),
            "checkpoints": total("checkpoints"),
-           "setup_s_reported": summary["final"]["setup_s"]}
+           "setup_s_reported": summary["final"]["setup_s"],
+           "cpu": cpu, "figures_cpu": total("figures", cpu=True)}
     row["unaccounted"] = row["total"] - sum(row[p] for p in PHASES)
     return row
 
@@ -162,7 +188,7 @@ def import_split(folder: pathlib.Path, extra) -> dict:
     importtime): {package: seconds}, largest first."""
     out = str(folder / "imports")
     done = subprocess.run([sys.executable, "-X", "importtime", __file__, "--child", out,
-                           *extra], env=ENV, capture_output=True, text=True)
+                           *extra], env=environment(folder), capture_output=True, text=True)
     by_package = {}
     for line in done.stderr.splitlines():
         if not line.startswith("import time:") or "self [us]" in line:
@@ -194,15 +220,17 @@ def main():
     stack = route()
     name = args.name or f"startup_{stack}"
     extra = [item for pair in args.set for item in ("--set", pair)]
-    configurations = {"default figures": extra,
-                      "output.figures=false": extra + ["--set", "output.figures=false"]}
+    configurations = {"default figures": (extra, True),
+                      "output.figures=false": (extra + ["--set", "output.figures=false"],
+                                               True),
+                      "default figures, no bytecode cache": (extra, False)}
     rows = []
     load_before = load_average()
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(tmp)
-        one_run(folder, extra)                          # warm JIT and file caches
-        for label, options in configurations.items():
-            runs = [one_run(folder, options) for _ in range(args.repeat)]
+        one_run(folder, extra)                # warm JIT, file and bytecode caches
+        for label, (options, bytecode) in configurations.items():
+            runs = [one_run(folder, options, bytecode) for _ in range(args.repeat)]
             median = {key: statistics.median(r[key] for r in runs) for key in runs[0]}
             rows.append({"configuration": label, "median": median,
                          "totals": [r["total"] for r in runs]})
@@ -215,7 +243,8 @@ def main():
         interpreter.append(time.monotonic() - tick)
     lines = [f"`contactvisco run paper` {' '.join(extra)} on the {stack} route "
              f"(Python {sys.version.split()[0]}), median of {args.repeat} runs after a "
-             "warm-up, seconds of wall time", "",
+             "warm-up (JIT, file and bytecode caches warm unless said), seconds of wall time",
+             "",
              f"load before: `{load_before}`", "", f"load after: `{load_after}`", "",
              "| phase | " + " | ".join(r["configuration"] for r in rows) + " |",
              "|---|" + "---|" * len(rows)]
@@ -224,7 +253,9 @@ def main():
               "step_output": "  of which per-step output", "checkpoints":
               "  of which checkpoints", "close": "closing the run",
               "figure_import": "figures: import", "figure_drawing": "figures: drawing",
-              "exit": "exit (finalize)", "unaccounted": "unaccounted", "total": "**total**"}
+              "exit": "exit (finalize)", "unaccounted": "unaccounted", "total": "**total**",
+              "cpu": "CPU time of the process (user + sys)",
+              "figures_cpu": "  of which figures (import and drawing)"}
     for key, text in labels.items():
         lines.append(f"| {text} | " + " | ".join(f"{r['median'][key]:.3f}" for r in rows)
                      + " |")

@@ -639,12 +639,16 @@ def xdmf_field(function, cache: dict, convert: bool = None):
     """What XDMFFile can write of a Function: the Function itself where XDMFFile writes any
     degree (DOLFINx 0.5), else (0.6 on: only the mesh's degree) its interpolation into the P1
     or DG0 space of the same shape, under the same name. convert=True always interpolates.
-    `cache` keeps the interpolation targets between steps."""
+    `cache` keeps the interpolation targets between steps. A Function of the mesh's degree
+    is written as it is, without asking what XDMFFile can write (a probe file written once per
+    process: compat.xdmf_writes_any_degree)."""
     space = function.function_space
     discontinuous = compat.is_discontinuous(space)
+    if compat.element_degree(space) == (0 if discontinuous else 1):
+        return function
     if convert is None:
         convert = not compat.xdmf_writes_any_degree()
-    if not convert or compat.element_degree(space) == (0 if discontinuous else 1):
+    if not convert:
         return function
     if function.name not in cache:
         family, degree = ("DG", 0) if discontinuous else ("CG", 1)

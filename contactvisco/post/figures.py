@@ -156,9 +156,74 @@ def draw_all(folder, fmt: str = "png", dpi: int = DPI, times=None,
             if kind:
                 raise files.refusal(path, kind, "a figure (a regular file)")
         for path, (_, fig) in zip(paths, figures):
-            files.replace_with(path, lambda f: fig.savefig(f, format=fmt, dpi=dpi))
+            # Not synced to the disk (durable=False): the rename still leaves the old or the
+            # new figure after a stop, and a figure lost to a power cut is redrawn from the
+            # synced run files (`contactvisco plot DIR`); a sync costs milliseconds a file.
+            files.replace_with(path, lambda f: _save(fig, f, fmt, dpi), durable=False)
             written.append(path)
     return written
+
+
+def _save(fig: Figure, f, fmt: str, dpi: float) -> None:
+    """fig saved as `fmt` into the open file f, cropped to what it draws plus
+    savefig.pad_inches (savefig.bbox "tight" of STYLE).
+
+    A PNG is drawn once and cropped to its ink: savefig's tight box draws the figure three
+    times (once to lay it out, once to measure the box, once into the cropped canvas), and
+    most of a run's figure time went there. The picture is the same (the same layout, drawn
+    at the same dpi); the crop follows the drawn pixels instead of the artists' boxes, so it
+    may differ from savefig's by the few pixels of empty space a text box holds. Vector
+    formats, and rc settings the crop does not know (a transparent or other coloured saved
+    background), go through savefig."""
+    rc = matplotlib.rcParams
+    if fmt != "png" or rc["savefig.transparent"] or rc["savefig.facecolor"] != "auto" or \
+            rc["savefig.edgecolor"] != "auto" or rc["savefig.bbox"] != "tight":
+        fig.savefig(f, format=fmt, dpi=dpi)
+        return
+    from matplotlib import image
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    fig.dpi = dpi
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    pixels = np.asarray(canvas.buffer_rgba())
+    image.imsave(f, ink_crop(pixels, round(rc["savefig.pad_inches"] * dpi)), format="png",
+                 origin="upper", dpi=dpi)
+
+
+def ink_crop(pixels: np.ndarray, pad: int) -> np.ndarray:
+    """The smallest box of an image that holds every pixel unlike its top left corner (the
+    figure's background), widened by `pad` pixels of that background on every side.
+
+    Parameters
+    ----------
+    pixels : numpy.ndarray
+        An image (rows, columns, channels), its first row at the top.
+    pad : int
+        The margin kept around the drawn pixels, in pixels.
+
+    Returns
+    -------
+    numpy.ndarray
+        out[pad + i, pad + j] = pixels[r0 + i, c0 + j] for r0 <= r0 + i <= r1 and
+        c0 <= c0 + j <= c1, where [r0, r1] x [c0, c1] bounds the pixels p with
+        p != pixels[0, 0]; the background pixels[0, 0] elsewhere. An image of background
+        only is returned whole.
+    """
+    background = pixels[0, 0]
+    if pixels.dtype == np.uint8 and pixels.shape[2:] == (4,) and pixels.flags.c_contiguous:
+        words = pixels.view(np.uint32)[..., 0]         # a pixel as one word: 4x fewer tests
+        ink = words != words[0, 0]
+    else:
+        ink = np.any(pixels != background, axis=-1)
+    rows, columns = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    if not rows.size:
+        return pixels.copy()
+    drawn = pixels[rows[0]:rows[-1] + 1, columns[0]:columns[-1] + 1]
+    out = np.empty((drawn.shape[0] + 2 * pad, drawn.shape[1] + 2 * pad) + pixels.shape[2:],
+                   dtype=pixels.dtype)
+    out[...] = background
+    out[pad:pad + drawn.shape[0], pad:pad + drawn.shape[1]] = drawn
+    return out
 
 
 def build_all(folder, times=None, edges: bool = False,
@@ -560,14 +625,19 @@ def _stress_3d(data, index, clim, bar_label, t_text, table, edges, asked_line=""
 
 
 def _shade_zones(ax, s, status):
-    """Shade runs of equal status along the boundary coordinate s."""
+    """Shade runs of equal status along the boundary coordinate s: node i owns the interval
+    between the midpoints to its neighbours, and a run of nodes of one status is one span
+    (one patch per run, not per node: a figure to draw and to lay out stays small)."""
     if len(s) < 2:
         return
     mids = np.concatenate([[s[0]], 0.5 * (s[1:] + s[:-1]), [s[-1]]])
+    status = np.asarray(status)
+    starts = np.flatnonzero(np.concatenate([[True], status[1:] != status[:-1]]))
+    ends = np.append(starts[1:], len(status))
     done = set()
-    for i, st in enumerate(status):
-        name = STATUSES[st]
-        ax.axvspan(mids[i], mids[i + 1], color=ZONE_COLOURS[name], alpha=0.5, lw=0,
+    for first, stop in zip(starts, ends):
+        name = STATUSES[status[first]]
+        ax.axvspan(mids[first], mids[stop], color=ZONE_COLOURS[name], alpha=0.5, lw=0,
                    label=None if name in done else name)
         done.add(name)
 
