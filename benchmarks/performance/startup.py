@@ -26,7 +26,6 @@ the DOLFINx version: debian for 0.5, pip otherwise).
 """
 import argparse
 import json
-import os
 import pathlib
 import resource
 import statistics
