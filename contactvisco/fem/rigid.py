@@ -88,17 +88,29 @@ def _gram(problem, centre: np.ndarray, scale: float, modes: int) -> np.ndarray:
         Xc = part.Q_coordinates[nodes.nodes[on], :d]
         normals = nodes.normals[on]
         motion, _ = _basis(Xc, centre, scale)
-        normal = np.einsum("mnd,nd->mn", motion, normals)
-        add("normal", normal)
-        if part.lambda_tau is not None:             # friction: mu > 0 with a compliance law
-            tangential = motion - normal[:, :, None] * normals[None]
-            for c in range(d):
-                add("tangential", tangential[:, :, c])
-    G = np.zeros((modes, modes))
-    for gram, count in kinds.values():
-        gram, count = comm.allreduce(gram, op=MPI.SUM), comm.allreduce(count, op=MPI.SUM)
-        if count:
-            G += gram / count
+        _add_contact_rows(add, motion, normals, part.lambda_tau is not None)
+    return _summed_gram(kinds, modes, comm)
+
+
+def _add_contact_rows(add, motion: np.ndarray, normals: np.ndarray, friction: bool) -> None:
+    """Hand `add` the rows a contact boundary holds: the motions' normal components at its
+    nodes, and with friction (mu > 0 with a compliance law) their tangential components."""
+    normal = np.einsum("mnd,nd->mn", motion, normals)
+    add("normal", normal)
+    if friction:
+        tangential = motion - normal[:, :, None] * normals[None]
+        for c in range(motion.shape[2]):
+            add("tangential", tangential[:, :, c])
+
+
+def _summed_gram(kinds: dict, size: int, comm) -> np.ndarray:
+    """The sum over the kinds of conditions of each kind's Gram matrix over all ranks divided
+    by its number of rows (each kind weighs the same, whatever its number of points)."""
+    G = np.zeros((size, size))
+    for gram, rows in kinds.values():
+        gram, rows = comm.allreduce(gram, op=MPI.SUM), comm.allreduce(rows, op=MPI.SUM)
+        if rows:
+            G += gram / rows
     return G
 
 
@@ -315,18 +327,8 @@ def body_gram(problem) -> tuple[np.ndarray, int, list[str]]:
         block = slice(b * modes, (b + 1) * modes)
         relative[block] += np.where((slave_of == b)[None, :, None], motion, 0.0)
         relative[block] -= np.where((master_of == b)[None, :, None], motion, 0.0)
-    normal = np.einsum("mnd,nd->mn", relative, normals)
-    add("normal", normal)
-    if part.lambda_tau is not None:
-        tangential = relative - normal[:, :, None] * normals[None]
-        for c in range(d):
-            add("tangential", tangential[:, :, c])
-    G = np.zeros((size, size))
-    for gram, rows in kinds.values():
-        gram, rows = comm.allreduce(gram, op=MPI.SUM), comm.allreduce(rows, op=MPI.SUM)
-        if rows:
-            G += gram / rows
-    return G, count, names
+    _add_contact_rows(add, relative, normals, part.lambda_tau is not None)
+    return _summed_gram(kinds, size, comm), count, names
 
 
 def free_body_motions(problem) -> list[str]:
