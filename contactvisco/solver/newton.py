@@ -375,7 +375,7 @@ class NewtonSolver:
         operator itself. With floating motions (solver.floating) the operator gets its null
         spaces among them."""
         if self.floating is not None:
-            self.floating.attach(A)
+            self.floating.attach(A, self.b)
         if not self.reuse:
             self.setups += 1
             return
@@ -403,6 +403,8 @@ class NewtonSolver:
         self.residuals = []
         self.krylov_iterations = []
         self.setups = 0
+        if self.floating is not None:
+            self.floating.unbalanced = 0
         self._from_functions(self.x)
         try:
             self.snes.solve(None, self.x)
@@ -419,6 +421,9 @@ class NewtonSolver:
             self.options.note_reads()
         self._to_functions(self.x)
         reason = self.snes.getConvergedReason()
+        if (reason <= 0 and self.floating is not None
+                and self.floating.unbalanced >= floating.UNBALANCED_JACOBIANS):
+            raise SceneError(floating.UNBALANCED, key="solver.linear_solver")
         if reason > 0 and not np.isfinite(self.x.norm()):
             reason = -4      # never accept a non-finite solution as converged
         if reason <= 0:
@@ -670,6 +675,9 @@ class CondensedSNES(NewtonSolver):
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
         self._to_operator(self.system.J_red)
+        if (self.floating is not None
+                and self.floating.unbalanced >= floating.UNBALANCED_JACOBIANS):
+            self._error = SceneError(floating.UNBALANCED, key="solver.linear_solver")
         (self._shifted(x) if self.force is not None else x).copy(self._x_jacobian)
         self._pending = True
         self._residuals_since_jacobian = 0
@@ -813,7 +821,7 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
     kind = solver["linear_solver"]
     if kind == "auto":
         kind = ("iterative" if system != "coupled" and size >= auto_iterative_size(d)
-                else "direct")
+                and not _held_by_contact(problem) else "direct")
     if kind == "iterative" and system == "coupled":
         raise SceneError("solver.linear_solver = 'iterative' needs the displacement-only "
                          "system: solver.linear_system = 'condensed' (nodal contact "
@@ -844,6 +852,18 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
             newton.system_kind = system
             newton.operator.setNearNullSpace(near_nullspace(problem))
     return _with_floating(newton, problem, kind)
+
+
+def _held_by_contact(problem) -> bool:
+    """Whether the problem pairs two bodies of its mesh and one of them has a rigid motion no
+    prescribed component restrains (fem.parts.floating_motions): held only by the contact,
+    its Newton matrix can be singular with an unbalanced load in an iterate
+    (solver.floating), so linear_solver = "auto" takes the direct solver."""
+    obstacle = problem.contact and problem.contact.obstacle
+    if not hasattr(obstacle, "pairing"):
+        return False
+    labels, count = parts.part_labels(problem.V)
+    return bool(parts.floating_motions(problem.V, problem.u_fixed, labels, count))
 
 
 def _with_floating(newton, problem, kind):

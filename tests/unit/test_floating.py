@@ -15,8 +15,11 @@ from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem import parts
 from contactvisco.fem.problem import build
 from contactvisco.scene import loader
+from contactvisco.errors import SceneError
+from contactvisco.solver import newton as newton_module
 from contactvisco.solver.newton import create, near_nullspace
-from test_body_contact import hertz_scene, patch_scene, two_cylinders_scene
+from test_body_contact import (hertz_scene, patch_scene, rigid_limit_scene,
+                               two_cylinders_scene)
 
 H = 0.02          # the contact's node spacing: 1857 (two cylinders) and 2002 nodes
 
@@ -156,3 +159,32 @@ def test_a_held_body_attaches_nothing():
     assert iterative["found"] and not any(iterative["found"])
     scale = np.abs(direct["c"]).max()
     assert np.abs(direct["c"] - iterative["c"]).max() <= 1e-8 * scale
+
+
+def test_an_unheld_load_stops_the_krylov_solver_by_name():
+    """The two cylinders at h = 0.01: no slave node is active at the first iterate, the load
+    pushes the upper body down freely and the least-squares step never moves it; the
+    iterative solver stops after two such Newton matrices with a SceneError naming
+    solver.linear_solver (the direct solver converges: test_hertz_two_cylinders)."""
+    raw, _ = two_cylinders_scene(h=0.01)
+    with pytest.raises(SceneError) as err:
+        _solve(raw, "iterative")
+    assert err.value.key == "solver.linear_solver"
+    assert "held only by contact" in str(err.value)
+
+
+@pytest.mark.parametrize("scene, kind", [("two_cylinders", "preonly/lu"),
+                                         ("rigid_limit", "gmres/")])
+def test_auto_takes_the_direct_solver_for_a_body_held_by_contact(scene, kind, monkeypatch):
+    """linear_solver = "auto" above its size threshold (set to 0 here): the direct solver
+    where a body is held only by the contact (the upper cylinder), the iterative one where
+    both bodies are clamped (the rigid-limit scene: the body at its left side, the layer at
+    its bottom)."""
+    monkeypatch.setattr(newton_module, "auto_iterative_size", lambda d: 0)
+    raw = two_cylinders_scene(h=H)[0] if scene == "two_cylinders" else rigid_limit_scene(1e4)
+    problem = _problem(raw)
+    snes = create(problem, MPI.COMM_WORLD)
+    try:
+        assert snes.linear_solver().startswith(kind)
+    finally:
+        snes.destroy()
