@@ -22,7 +22,7 @@ from petsc4py import PETSc
 
 from contactvisco.fem import compat, interface
 from contactvisco.solver.condensed import NodalCondensation
-from contactvisco.solver.newton import NewtonSolver, _weak, rigid_body_modes
+from contactvisco.solver.newton import NewtonSolver, _weak, near_nullspace
 
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
 _FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE
@@ -100,7 +100,7 @@ class InterfaceSNES(NewtonSolver):
         self.operator = self.A.duplicate(copy=True) if reuse else self.A
         self.snes.setFunction(_weak(self._residual), self.b)
         self.snes.setJacobian(_weak(self._jacobian), self.operator)
-        self.operator.setNearNullSpace(rigid_body_modes(problem.V))
+        self.operator.setNearNullSpace(near_nullspace(problem))
         self._finish_setup()
 
     def destroy(self):

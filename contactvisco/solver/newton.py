@@ -53,8 +53,9 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from contactvisco.fem import compat
+from contactvisco.fem import compat, parts
 from contactvisco.solver.bordered import ObstacleForce
+from contactvisco.solver import floating
 from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.errors import SceneError
 
@@ -349,6 +350,7 @@ class NewtonSolver:
         self._factorized = None          # the CSR values of the factorized operator P
         self._stale = False              # the current step is solved with an earlier P
         self._krylov_limit = 0           # the most FGMRES iterations the row count allows
+        self.floating = None             # the Krylov solver's null spaces (solver.floating)
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -389,6 +391,9 @@ class NewtonSolver:
         """Free the SNES and its vectors and matrices and take its options out of PETSc's
         database (idempotent); the object is unusable afterwards."""
         self.options.remove()
+        if self.__dict__.get("floating") is not None:
+            self.floating.destroy()
+            self.floating = None
         owned = ("snes", "b", "x", "A", "_x_jacobian", "_du") + (
             ("operator",) if self.reuse else ())   # else the operator is A or J_red
         for name in owned:
@@ -401,7 +406,10 @@ class NewtonSolver:
         SNES's operator (and the preconditioner rebuilt from it, counted in `setups`) unless
         A is bitwise the operator already there, on every rank; then the operator's PETSc
         state is unchanged and PCSetUp keeps its factorization. Without `reuse` A is the
-        operator itself."""
+        operator itself. With floating motions (solver.floating) the operator gets its null
+        spaces among them."""
+        if self.floating is not None:
+            self.floating.attach(A, self.b)
         if not self.reuse:
             self.setups += 1
             return
@@ -502,6 +510,8 @@ class NewtonSolver:
         self.residuals = []
         self.krylov_iterations = []
         self.setups = 0
+        if self.floating is not None:
+            self.floating.unbalanced = 0
         self._from_functions(self.x)
         try:
             self.snes.solve(None, self.x)
@@ -518,6 +528,9 @@ class NewtonSolver:
             self.options.note_reads()
         self._to_functions(self.x)
         reason = self.snes.getConvergedReason()
+        if (reason <= 0 and self.floating is not None
+                and self.floating.unbalanced >= floating.UNBALANCED_JACOBIANS):
+            raise SceneError(floating.UNBALANCED, key="solver.linear_solver")
         if reason > 0 and not np.isfinite(self.x.norm()):
             reason = -4      # never accept a non-finite solution as converged
         if reason <= 0:
@@ -639,7 +652,7 @@ class CondensedSNES(NewtonSolver):
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
         # as with BlockSNES; the condensed residual alone leaves out the multiplier rows.
         self.snes.setConvergenceTest(_weak(self._converged))
-        self.operator.setNearNullSpace(rigid_body_modes(problem.V))
+        self.operator.setNearNullSpace(near_nullspace(problem))
         obstacle = problem.contact.obstacle
         self.force = (ObstacleForce(problem, self.system)
                       if obstacle is not None and obstacle.controlled else None)
@@ -771,6 +784,9 @@ class CondensedSNES(NewtonSolver):
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
         self._to_operator(self.system.J_red)
+        if (self.floating is not None
+                and self.floating.unbalanced >= floating.UNBALANCED_JACOBIANS):
+            self._error = SceneError(floating.UNBALANCED, key="solver.linear_solver")
         (self._shifted(x) if self.force is not None else x).copy(self._x_jacobian)
         self._pending = True
         self._residuals_since_jacobian = 0
@@ -824,12 +840,32 @@ def _weak(method):
     return call
 
 
-def rigid_body_modes(V) -> PETSc.NullSpace:
+def rigid_body_modes(V, labels=None, count: int = 1) -> PETSc.NullSpace:
     """The rigid motions (2D: 3, 3D: 6) as an orthonormal near-nullspace of elasticity, for
-    algebraic multigrid."""
+    algebraic multigrid; with several parts of the mesh (two bodies in contact), those of
+    each part (fem.parts.rigid_motions: 3 or 6 per part, zero off it).
+
+    Parameters
+    ----------
+    V : dolfinx.fem.FunctionSpace
+        The displacement space (P1, block size d).
+    labels : numpy.ndarray, optional
+        The part of every local node (fem.parts.part_labels).
+    count : int, optional
+        The number of parts; with 1 the motions of the whole mesh.
+
+    Returns
+    -------
+    petsc4py.PETSc.NullSpace
+        The motions m(x) = a + W (x - c) (W skew) orthonormalized by modified Gram-Schmidt.
+    """
     d = V.dofmap.index_map_bs
     x = V.tabulate_dof_coordinates()[:V.dofmap.index_map.size_local, :d]
     n = x.shape[0]
+    if count > 1:
+        modes = [mode for per_part in parts.rigid_motions(x, labels[:n], count, V.mesh.comm)
+                 for mode in per_part]
+        return _orthonormal(modes, V.mesh.comm)
     modes = []
     for c in range(d):                          # translations
         mode = np.zeros((n, d))
@@ -839,16 +875,40 @@ def rigid_body_modes(V) -> PETSc.NullSpace:
         mode = np.zeros((n, d))
         mode[:, a], mode[:, b] = -x[:, b], x[:, a]
         modes.append(mode)
+    return _orthonormal(modes, V.mesh.comm)
+
+
+def _orthonormal(modes, comm) -> PETSc.NullSpace:
+    """Arrays (owned nodes, d) as an orthonormal PETSc.NullSpace (modified Gram-Schmidt)."""
+    n, d = modes[0].shape
     vectors = []
     for mode in modes:
-        vec = PETSc.Vec().createMPI((n * d, None), bsize=d, comm=V.mesh.comm)
+        vec = PETSc.Vec().createMPI((n * d, None), bsize=d, comm=comm)
         vec.array[:] = mode.ravel()
         vectors.append(vec)
     for i, vec in enumerate(vectors):           # modified Gram-Schmidt
         for earlier in vectors[:i]:
             vec.axpy(-earlier.dot(vec), earlier)
         vec.normalize()
-    return PETSc.NullSpace().create(vectors=vectors, comm=V.mesh.comm)
+    return PETSc.NullSpace().create(vectors=vectors, comm=comm)
+
+
+def near_nullspace(problem) -> PETSc.NullSpace:
+    """The near-nullspace of a problem's Newton matrix for algebraic multigrid: the rigid
+    motions of each connected part of its mesh (rigid_body_modes).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem (its displacement space V).
+
+    Returns
+    -------
+    petsc4py.PETSc.NullSpace
+        3 (2D) or 6 (3D) orthonormal motions per part.
+    """
+    labels, count = parts.part_labels(problem.V)
+    return rigid_body_modes(problem.V, labels, count)
 
 
 def create(problem, comm, scene_options=None) -> NewtonSolver:
@@ -870,7 +930,7 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
     kind = solver["linear_solver"]
     if kind == "auto":
         kind = ("iterative" if system != "coupled" and size >= auto_iterative_size(d)
-                else "direct")
+                and not _held_by_contact(problem) else "direct")
     if kind == "iterative" and system == "coupled":
         raise SceneError("solver.linear_solver = 'iterative' needs the displacement-only "
                          "system: solver.linear_system = 'condensed' (nodal contact "
@@ -885,7 +945,8 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
     if hasattr(obstacle, "pairing"):           # another body of the mesh (fem.body_contact)
         if not multipliers:
             from contactvisco.solver.interface_newton import InterfaceSNES
-            return InterfaceSNES(problem, comm, options, defaults, reuse=kind == "direct")
+            return _with_floating(InterfaceSNES(problem, comm, options, defaults,
+                                                reuse=kind == "direct"), problem, kind)
         if system != "condensed":
             raise SceneError("obstacle.shape = 'body' with contact multipliers is solved with "
                              "the condensed Newton system (solver.linear_system = 'auto' or "
@@ -898,5 +959,25 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
                            options, defaults, reuse=kind == "direct")
         if system == "displacement":           # u alone: a block system of one block
             newton.system_kind = system
-            newton.operator.setNearNullSpace(rigid_body_modes(problem.V))
+            newton.operator.setNearNullSpace(near_nullspace(problem))
+    return _with_floating(newton, problem, kind)
+
+
+def _held_by_contact(problem) -> bool:
+    """Whether the problem pairs two bodies of its mesh and one of them has a rigid motion no
+    prescribed component restrains (fem.parts.floating_motions): held only by the contact,
+    its Newton matrix can be singular with an unbalanced load in an iterate
+    (solver.floating), so linear_solver = "auto" takes the direct solver."""
+    obstacle = problem.contact and problem.contact.obstacle
+    if not hasattr(obstacle, "pairing"):
+        return False
+    labels, count = parts.part_labels(problem.V)
+    return bool(parts.floating_motions(problem.V, problem.u_fixed, labels, count))
+
+
+def _with_floating(newton, problem, kind):
+    """The iterative solver with the null spaces of its Newton matrices among the floating
+    rigid motions of the mesh's parts (contactvisco.solver.floating)."""
+    if kind == "iterative":
+        newton.floating = floating.FloatingNullSpace.of(problem, newton.operator.createVecRight())
     return newton
