@@ -27,14 +27,19 @@ def raw_scene(material: dict, T: float = 4.0, steps: int = 8, rule: str = "trape
             "output": {"probes": [[2.0, 1.0], [1.0, 0.0]]}}
 
 
-def prony_scene(tmp_path, T=4.0, steps=8, rule="trapezoid", **extra):
-    (tmp_path / "shear.csv").write_text("tau (s),g_i\n0.5,0.3\n3.0,0.25\n")
+def prony_scene(tmp_path, T=4.0, steps=8, rule="trapezoid", comm=MPI.COMM_SELF, **extra):
+    """The block's scene file and its CSV written in tmp_path (by comm's first rank only: a
+    folder shared by the ranks must not be rewritten while another rank reads it) and
+    loaded."""
     raw = raw_scene({"viscoelastic": {
         "shear": {"instantaneous": 30.0, "file": "shear.csv", "values": "fractions"},
         "bulk": {"long_term": 50.0, "tau": [1.0], "moduli": [15.0]}, **WLF, **extra}}, T, steps,
         rule)
     path = tmp_path / "block.toml"
-    path.write_text(document_text(raw))
+    if comm.rank == 0:
+        (tmp_path / "shear.csv").write_text("tau (s),g_i\n0.5,0.3\n3.0,0.25\n")
+        path.write_text(document_text(raw))
+    comm.barrier()
     return loader.load(str(path))
 
 
@@ -119,7 +124,7 @@ def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch, rule):
                        "part": "deviatoric"},
             "viscoelastic": dict(WLF, temperature=temperature)}, steps=16))
     else:
-        scene = prony_scene(pathlib.Path(folders[0]), steps=16, rule=rule,
+        scene = prony_scene(pathlib.Path(folders[0]), steps=16, rule=rule, comm=comm,
                             temperature=temperature)
     whole = simulate(scene, out=folders[1], comm=comm, progress=False, keep_tables=True)
     run_stopped_after_checkpoint(monkeypatch, 4, lambda: simulate(
