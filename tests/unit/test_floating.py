@@ -129,7 +129,6 @@ def test_iterative_solver_reaches_the_direct_contact_forces(scene, pairing):
     upper body's turn), none later; the contact forces and displacements are the direct solver's within
     1e-8 of their largest values (at the slave nodes), and the Krylov iterations per Newton step stay below 100
     (measured: docs/interface.md)."""
-    comm = MPI.COMM_WORLD
     maker = two_cylinders_scene if scene == "two_cylinders" else hertz_scene
     raw, P = maker(pairing, h=H)
     direct = _solve(raw, "direct")
@@ -152,7 +151,6 @@ def test_a_held_body_attaches_nothing():
     """The patch scene's slave block is held up only by the compliance of its contact,
     which every interface node feels: the iterative solver finds no null motion in any
     Newton matrix and reaches the direct solver's contact forces."""
-    comm = MPI.COMM_WORLD
     raw = patch_scene()
     raw["solver"]["petsc_options"] = {}        # Newton's default tolerances (1e-10)
     direct, iterative = _solve(raw, "direct"), _solve(raw, "iterative")
