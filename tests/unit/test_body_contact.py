@@ -42,17 +42,22 @@ def patch_scene(pairing="mortar", **contact) -> dict:
     }
 
 
+def solve_one_step(raw: dict, comm):
+    """The scene's problem and Newton solver after one step to t = 1 from rest, with the
+    Newton iteration count."""
+    scene = loader.resolve(raw)
+    problem = build(scene, geometry_module.build(scene, comm))
+    snes = create(problem, comm)
+    problem.time.stage(1.0)
+    return problem, snes, snes.solve()
+
+
 def solve_patch(raw):
     """The converged patch: per block (slave, master) the largest deviation of the stress
     from the exact one over p, the interface pressure's deviation over p, and the resultants
     of the slave's contact forces and of what the master receives."""
     comm = MPI.COMM_WORLD
-    scene = loader.resolve(raw)
-    geometry = geometry_module.build(scene, comm)
-    problem = build(scene, geometry)
-    snes = create(problem, comm)
-    problem.time.stage(1.0)
-    iterations = snes.solve()
+    problem, snes, iterations = solve_one_step(raw, comm)
     sigma = fem.Function(problem.tensor_space)
     sigma.interpolate(problem.sigma_expression)
     owned = problem.tensor_space.dofmap.index_map.size_local
@@ -167,11 +172,7 @@ def test_hertz_cylinder_on_block(pairing):
     h, a = 0.01, 0.1
     raw, P = hertz_scene(pairing, h=h, a=a)
     comm = MPI.COMM_WORLD
-    scene = loader.resolve(raw)
-    problem = build(scene, geometry_module.build(scene, comm))
-    snes = create(problem, comm)
-    problem.time.stage(1.0)
-    iterations = snes.solve()
+    problem, snes, iterations = solve_one_step(raw, comm)
     c = snes.system.contact_forces().array.reshape(-1, 2)
     nodes = problem.contact.nodes
     own = nodes.nodes[nodes.owned]
@@ -584,11 +585,7 @@ def hertz_errors(raw, P, a):
     sum_i D_i p(x_i)^2) (D_i the slave vertex weights), the slave's resultant and Newton's
     iterations."""
     comm = MPI.COMM_WORLD
-    scene = loader.resolve(raw)
-    problem = build(scene, geometry_module.build(scene, comm))
-    snes = create(problem, comm)
-    problem.time.stage(1.0)
-    iterations = snes.solve()
+    problem, snes, iterations = solve_one_step(raw, comm)
     c = snes.system.contact_forces().array.reshape(-1, 2)
     nodes = problem.contact.nodes
     own = nodes.nodes[nodes.owned]
