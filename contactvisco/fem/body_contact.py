@@ -150,7 +150,7 @@ class BodyContact:
         if self._vectors is None:
             self._compiled = (None if self.contact_form is None
                               else fem.form(self.contact_form))
-            c = compat.petsc_vector(self.D).copy()
+            c = compat.ghosted_vector(self.D.function_space, self.P.getComm().tompi4py())
             self._vectors = (c, c.copy(), c.copy())
         c, slave, master = self._vectors
         with c.localForm() as local:
@@ -412,7 +412,9 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
     facet_at = np.full(len(gap.x.array), -1, dtype=np.int64)
     facet_at[local] = found.facet
     sizes = interface.index_sizes(V)
-    P = pairing.matrix(comm, sizes, sizes, d)
+    # On a lasting communicator: P and the force vectors live as long as the problem, and
+    # whenever it is dropped the next run can still destroy them (compat.lasting_comm).
+    P = pairing.matrix(compat.lasting_comm(comm), sizes, sizes, d)
     return BodyContact(normal=normal, gap=gap, D=fem.Function(W), P=P, pairing=pairing,
                        method=method, slide_nodes=local, slide_points=slave.coordinates,
                        sliding_limit=contact["sliding_limit"],

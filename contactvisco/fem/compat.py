@@ -176,6 +176,103 @@ def release_dispatch_caches():
 release_dispatch_caches()
 
 
+# ------------------------------------------------------------------ PETSc garbage
+
+def destroy_petsc_objects(owner, borrowed=()) -> None:
+    """Destroy the PETSc objects that `owner` holds in its attributes, directly or in lists,
+    tuples and dict values (collective on their communicators; destroying twice does
+    nothing), except in the attributes named in `borrowed`: objects that belong to another
+    owner, such as a Function's vector."""
+    def destroy(value):
+        if isinstance(value, PETSc.Object):
+            value.destroy()
+        elif isinstance(value, (list, tuple)):
+            for item in value:
+                destroy(item)
+        elif isinstance(value, dict):
+            for item in value.values():
+                destroy(item)
+
+    for name, value in vars(owner).items():
+        if name not in borrowed:
+            destroy(value)
+
+
+_LASTING: dict = {}
+
+
+def _lasting_key(comm) -> tuple:
+    """The ranks of `comm` in MPI.COMM_WORLD: one key for every congruent communicator."""
+    from mpi4py import MPI
+    group, world = comm.Get_group(), MPI.COMM_WORLD.Get_group()
+    try:
+        return tuple(MPI.Group.Translate_ranks(group, list(range(comm.size)), world))
+    finally:
+        group.Free()
+        world.Free()
+
+
+def lasting_comm(comm):
+    """A communicator congruent to `comm` that lives as long as the process (made once per
+    group of ranks; collective the first time), for the PETSc objects a problem holds: they
+    become garbage whenever the problem is dropped, and on a communicator that is never
+    freed release_petsc_garbage can still destroy them afterwards. `comm` itself for one
+    rank, whose objects are destroyed at once."""
+    if comm.size == 1:
+        return comm
+    key = _lasting_key(comm)
+    if key not in _LASTING:
+        _LASTING[key] = comm.Dup()
+    return _LASTING[key]
+
+
+def ghosted_vector(space, comm) -> PETSc.Vec:
+    """A PETSc vector of a space's layout (owned entries, then its index map's ghosts, as
+    the space's own vectors) on `comm`, a communicator congruent to the mesh's."""
+    index_map, bs = space.dofmap.index_map, space.dofmap.index_map_bs
+    ghosts = np.asarray(index_map.ghosts, dtype=PETSc.IntType)
+    vector = PETSc.Vec().createGhost(ghosts, size=(index_map.size_local * bs, PETSc.DECIDE),
+                                     bsize=bs, comm=comm)
+    vector.set(0.0)
+    vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    return vector
+
+
+def release_petsc_garbage(spaces) -> None:
+    """Destroy the PETSc objects that Python dropped on the communicators of `spaces` and of
+    their mesh (collective on them).
+
+    petsc4py does not destroy a garbage-collected object of more than one rank: it puts it
+    on its communicator's list and waits for a collective ``PETSc.garbage_cleanup`` there.
+    DOLFINx 0.10 and later make each index map its own communicator, and PETSc objects
+    assembled on a space (``assemble_vector``, ``create_matrix``) live on that one: once the
+    space is freed with garbage still on its communicator, the communicator is never
+    released, and MPICH aborts the process after about 2000 of them. DOLFINx 0.5's index
+    maps name no communicator: there the mesh's is cleaned (the garbage of its index maps
+    only costs memory, and Open MPI does not run out of communicators).
+    """
+    spaces = list(spaces)
+    if not spaces:
+        return
+    mesh = spaces[0].mesh
+    comms = [mesh.comm, _LASTING.get(_lasting_key(mesh.comm)) if mesh.comm.size > 1 else None]
+    topology = mesh.topology
+    for dim in range(topology.dim + 1):
+        try:
+            comms.append(getattr(topology.index_map(dim), "comm", None))
+        except RuntimeError:           # entities never made (DOLFINx 0.10+ says so)
+            pass
+    comms += [getattr(space.dofmap.index_map, "comm", None) for space in spaces]
+    seen = set()
+    for comm in comms:
+        if comm is None or comm.size == 1:
+            continue
+        handle = comm.py2f()
+        if handle not in seen:
+            seen.add(handle)
+            PETSc.garbage_cleanup(comm)
+
+
 # ------------------------------------------------------------------ point location
 
 def colliding_cells(mesh, points: np.ndarray) -> list[int]:

@@ -24,6 +24,8 @@ which also forces lambda_tau . nu = 0.
 """
 from __future__ import annotations
 
+import gc
+
 import math
 from dataclasses import dataclass
 
@@ -234,6 +236,26 @@ class Problem:
     @property
     def unknowns(self) -> list[fem.Function]:
         return [self.u, *self.multipliers.values()]
+
+    def spaces(self) -> list:
+        """Every function space of the problem's forms (unknowns, multipliers, coefficients:
+        history, obstacle, normals, gap) and its stress output space."""
+        spaces = {id(self.V): self.V, id(self.tensor_space): self.tensor_space}
+        forms = list(self.F) + [a for row in self.J for a in row if a is not None]
+        for form in forms:
+            for term in (*form.coefficients(), *form.arguments()):
+                space = getattr(term, "function_space", None)
+                if space is not None and hasattr(space, "dofmap"):
+                    spaces.setdefault(id(space), space)
+        return list(spaces.values())
+
+    def release_garbage(self) -> None:
+        """Destroy the PETSc objects that Python dropped on this problem's communicators
+        (collective; fem.compat.release_petsc_garbage), the solver's included once the
+        caller holds it no more. Called when a run ends; a caller that builds problems and
+        solvers itself calls it after dropping the solver, before dropping the problem."""
+        gc.collect()                   # objects in reference cycles become garbage now
+        compat.release_petsc_garbage(self.spaces())
 
     def count_unknowns(self) -> dict:
         """Global dof counts per unknown."""

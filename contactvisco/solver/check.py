@@ -267,7 +267,7 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     history = problem.memory.history if problem.memory is not None else None
     b, body = worst_body(scene)
     steps = scene["time"]["steps"]
-    return {
+    report = {
         "cells": mesh.topology.index_map(tdim).size_global,
         "vertices": mesh.topology.index_map(0).size_global,
         "unknowns": counts, "contact_nodes": problem.count_contact_nodes(),
@@ -279,3 +279,6 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
         "history_bytes": FLOAT * tensor * history_values(history, steps),
         "output_bytes": output_bytes(scene, problem, counts, tensor),
     }
+    snes = None
+    problem.release_garbage()
+    return report

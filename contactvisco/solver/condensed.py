@@ -262,6 +262,9 @@ class BulkPart:
         compat.assemble_matrix(A, self.facet, bcs, diagonal=1.0)
         A.assemble()
 
+    def destroy(self):
+        compat.destroy_petsc_objects(self)
+
 
 def coupling_blocks(J):
     """The blocks of the block Jacobian J (J[i][j] = dF_i/dw_j, w = (u, multipliers...))
@@ -332,6 +335,15 @@ class NodalCondensation:
         self.J_red = self.A
         self.parts = None
         self.full_norm = 0.0
+
+    #: The attributes whose PETSc objects belong to the problem, not to this system.
+    BORROWED: tuple = ()
+
+    def destroy(self):
+        """Free the PETSc objects of the system (collective; idempotent)."""
+        if self._bulk is not None:
+            self._bulk.destroy()
+        compat.destroy_petsc_objects(self, self.BORROWED)
 
     def _assemble_J(self):
         if self._bulk is not None and self._bulk.split:

@@ -255,6 +255,9 @@ class InterfaceCondensation(NodalCondensation):
         The problem; ``problem.contact.obstacle`` is a fem.body_contact.BodyContact.
     """
 
+    #: Pi (x) I_d belongs to the interface of the problem, _u is u's own vector.
+    BORROWED = ("P", "_u")
+
     def __init__(self, problem):
         self.link = problem.contact.obstacle
         V = problem.V

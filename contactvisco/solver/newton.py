@@ -729,6 +729,8 @@ class CondensedSNES(NewtonSolver):
             self._shift.destroy()
             self._u_now.destroy()
             self.force = None
+        if self.__dict__.get("system") is not None:
+            self.system.destroy()
         super().destroy()
 
     def _monitor(self, snes, it, norm):

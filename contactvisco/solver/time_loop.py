@@ -105,7 +105,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     parallel.prepare(comm)          # collective: while every rank is still in step
     parallel.same_scene(comm, scene)
     folder_lock = FolderLock(out, comm, restart, overwrite) if out else None
-    snes, held = None, {}          # held: what must be closed however the run ends
+    snes, problem, held = None, None, {}   # held: what must be closed however the run ends
     signals = parallel.catch_signals()
     try:
         geometry = geometry or geometry_module.build(scene, comm)
@@ -122,7 +122,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     except BaseException as err:
         # Destroying the SNES is collective: only when every rank failed.
         if not parallel.together(comm, err):
-            snes = None
+            snes = problem = None              # nothing collective on the way out
             if isinstance(err, Exception):     # the others wait in a collective: end them
                 parallel.end_if_alone(comm, err)
         raise
@@ -134,6 +134,9 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
             held["writer"].close()
         if folder_lock is not None:
             folder_lock.release()
+        if problem is not None:
+            snes = run = held = None           # the solver's PETSc objects become garbage
+            problem.release_garbage()
     return result
 
 

@@ -104,19 +104,24 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     bs = problem.tensor_space.dofmap.index_map_bs
     T, N = scene["time"]["T"], scene["time"]["steps"]
     times, out = [], []
-    for n in range(N + 1):
-        problem.time.stage(n * T / N)
-        snes.solve()
-        problem.time.commit()
-        sigma.interpolate(problem.sigma_expression)
-        values = sigma.x.array[:owned * bs].reshape(-1, d, d)
-        times.append(n * T / N)
-        if per_point:
-            out.append(values.copy())
-            continue
-        total = comm.allreduce(values.sum(axis=0), MPI.SUM)
-        count = comm.allreduce(values.shape[0], MPI.SUM)
-        out.append(total / count)
+    try:
+        for n in range(N + 1):
+            problem.time.stage(n * T / N)
+            snes.solve()
+            problem.time.commit()
+            sigma.interpolate(problem.sigma_expression)
+            values = sigma.x.array[:owned * bs].reshape(-1, d, d)
+            times.append(n * T / N)
+            if per_point:
+                out.append(values.copy())
+                continue
+            total = comm.allreduce(values.sum(axis=0), MPI.SUM)
+            count = comm.allreduce(values.shape[0], MPI.SUM)
+            out.append(total / count)
+    finally:
+        snes.destroy()
+        snes = None
+    problem.release_garbage()
     if per_point:
         points = problem.tensor_space.tabulate_dof_coordinates()[:owned]
         return np.array(times), np.array(out), points

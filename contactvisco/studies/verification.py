@@ -104,15 +104,20 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
     F = [problem.F[0] + ufl.dot(ufl.div(sigma), v) * ufl.dx] + problem.F[1:]
     snes = BlockSNES(F, problem.J, problem.unknowns, problem.bcs, comm)
     T, N = scene["time"]["T"], steps
-    for n in range(N + 1):
-        problem.time.stage(n * T / N)
-        snes.solve()
-        problem.time.commit()
+    try:
+        for n in range(N + 1):
+            problem.time.stage(n * T / N)
+            snes.solve()
+            problem.time.commit()
+    finally:
+        snes.destroy()
+        snes = None
     error = problem.u - U
     quadrature = {"quadrature_degree": 2 * degree + 4}
     l2 = fem.assemble_scalar(fem.form(ufl.inner(error, error) * ufl.dx(metadata=quadrature)))
     h1 = fem.assemble_scalar(fem.form(ufl.inner(ufl.grad(error), ufl.grad(error))
                                       * ufl.dx(metadata=quadrature)))
+    problem.release_garbage()
     return {"cells": cells, "degree": degree, "h": 1.0 / cells,
             "L2": math.sqrt(comm.allreduce(l2, MPI.SUM)),
             "H1": math.sqrt(comm.allreduce(h1, MPI.SUM))}
