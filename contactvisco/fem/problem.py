@@ -901,6 +901,8 @@ def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:
     with weight.localForm() as wl, normal.localForm() as nl:
         weights = wl.array.copy()
         normals = nl.array.copy().reshape(-1, d)
+    weight.destroy()
+    normal.destroy()
     if not np.allclose(Q.tabulate_dof_coordinates(),
                        W.tabulate_dof_coordinates()):
         raise RuntimeError("scalar and vector P1 node numberings differ")
@@ -930,6 +932,8 @@ def _contact_normal(mesh, Q, W, dsc, nodes, corner_angle=15.0):
         vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
     with deviation.localForm() as dl, weight.localForm() as wl:
         mean = dl.array[nodes.nodes] / wl.array[nodes.nodes]
+    deviation.destroy()
+    weight.destroy()
     corners = nodes.nodes[mean > 1.0 - np.cos(np.deg2rad(corner_angle))]
     nodes.corners = corners
     if mesh.comm.allreduce(corners.size, MPI.SUM) == 0:
