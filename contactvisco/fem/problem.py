@@ -254,6 +254,8 @@ class Problem:
         (collective; fem.compat.release_petsc_garbage), the solver's included once the
         caller holds it no more. Called when a run ends; a caller that builds problems and
         solvers itself calls it after dropping the solver, before dropping the problem."""
+        if self.V.mesh.comm.size == 1:
+            return                     # petsc4py destroys the objects of one rank at once
         gc.collect()                   # objects in reference cycles become garbage now
         compat.release_petsc_garbage(self.spaces())
 
