@@ -25,7 +25,6 @@ which also forces lambda_tau . nu = 0.
 from __future__ import annotations
 
 import gc
-
 import math
 from dataclasses import dataclass
 

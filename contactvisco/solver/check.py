@@ -279,6 +279,6 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
         "history_bytes": FLOAT * tensor * history_values(history, steps),
         "output_bytes": output_bytes(scene, problem, counts, tensor),
     }
-    snes = None
+    snes = None                        # its PETSc objects become garbage
     problem.release_garbage()
     return report
