@@ -649,18 +649,26 @@ def _corner_forms(terms, u, normal, Q, W, dsc, with_radius=False):
     return forms
 
 
+def assembled_values(form) -> np.ndarray:
+    """The assembled vector of a linear form at every local dof, ghosts included (their
+    contributions summed on the owner, then sent back; collective). The PETSc vector is
+    destroyed here: dropped on several ranks, it would wait for a collective clean-up."""
+    vec = assemble_vector(form)
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+    with vec.localForm() as local:
+        values = local.array.copy()
+    vec.destroy()
+    return values
+
+
 def corner_values(problem, nodes_local) -> dict:
     """The law's values at the local P1 nodes `nodes_local` from corner_forms (collective):
     a dict of (n,) or (n, d) arrays, keys as in corner_forms but the weight."""
     d = problem.V.mesh.geometry.dim
     out = {}
     for key, form in problem.contact.corner_forms.items():
-        vec = assemble_vector(form)
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        with vec.localForm() as local:
-            values = local.array.copy()
-        vec.destroy()
+        values = assembled_values(form)
         out[key] = values.reshape(-1, d)[nodes_local] if key in ("slip", "u_tau") \
             else values[nodes_local]
     weight = out.pop("weight")
@@ -894,16 +902,9 @@ def _contact_nodes(mesh, Q, W, dsc) -> ContactNodes:
     d = mesh.geometry.dim
     scalar_test, vector_test = ufl.TestFunction(Q), ufl.TestFunction(W)
     facet_normal = ufl.FacetNormal(mesh)
-    weight = assemble_vector(fem.form(scalar_test * dsc))
-    normal = assemble_vector(fem.form(ufl.dot(facet_normal, vector_test) * dsc))
-    for vec in (weight, normal):
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-    with weight.localForm() as wl, normal.localForm() as nl:
-        weights = wl.array.copy()
-        normals = nl.array.copy().reshape(-1, d)
-    weight.destroy()
-    normal.destroy()
+    weights = assembled_values(fem.form(scalar_test * dsc))
+    normals = assembled_values(fem.form(ufl.dot(facet_normal, vector_test) * dsc))
+    normals = normals.reshape(-1, d)
     if not np.allclose(Q.tabulate_dof_coordinates(),
                        W.tabulate_dof_coordinates()):
         raise RuntimeError("scalar and vector P1 node numberings differ")
@@ -926,15 +927,10 @@ def _contact_normal(mesh, Q, W, dsc, nodes, corner_angle=15.0):
     nodal.x.array.reshape(-1, d)[nodes.nodes] = nodes.normals
     facet = ufl.FacetNormal(mesh)
     scalar_test = ufl.TestFunction(Q)
-    deviation = assemble_vector(fem.form((1.0 - ufl.dot(facet, nodal)) * scalar_test * dsc))
-    weight = assemble_vector(fem.form(scalar_test * dsc))
-    for vec in (deviation, weight):
-        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-    with deviation.localForm() as dl, weight.localForm() as wl:
-        mean = dl.array[nodes.nodes] / wl.array[nodes.nodes]
-    deviation.destroy()
-    weight.destroy()
+    deviation = assembled_values(
+        fem.form((1.0 - ufl.dot(facet, nodal)) * scalar_test * dsc))
+    weight = assembled_values(fem.form(scalar_test * dsc))
+    mean = deviation[nodes.nodes] / weight[nodes.nodes]
     corners = nodes.nodes[mean > 1.0 - np.cos(np.deg2rad(corner_angle))]
     nodes.corners = corners
     if mesh.comm.allreduce(corners.size, MPI.SUM) == 0:
