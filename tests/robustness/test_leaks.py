@@ -166,13 +166,17 @@ def two_blocks(pairing: str) -> dict:
 def free_communicators(limit: int = 4096) -> int | None:
     """How many more communicators this process can make (collective): None where MPI gives
     more than `limit` (Open MPI). MPICH has 2048 per process."""
-    COMM.Set_errhandler(MPI.ERRORS_RETURN)
+    handler = COMM.Get_errhandler()
+    COMM.Set_errhandler(MPI.ERRORS_RETURN)      # the last Dup fails instead of aborting
     made = []
     try:
         while len(made) < limit:
             made.append(COMM.Dup())
     except MPI.Exception:
         pass
+    finally:
+        COMM.Set_errhandler(handler)
+        handler.Free()
     for comm in made:
         comm.Free()
     return None if len(made) == limit else len(made)
