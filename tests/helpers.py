@@ -333,6 +333,31 @@ def assert_contact_conditions(table, g, tol=1e-10, prescribed_tangential=None,
     return int(sliding.sum())
 
 
+# ---- steps that Newton cannot take within a limit: step cutting ----
+
+#: Overrides of the ironing scene whose steps are hard for Newton: the moving load in 5 large
+#: steps, ramped up from zero (t times the shipped load), so that the first state, which is
+#: never cut, is u = 0 and takes no Newton iteration; each step starts from the last accepted
+#: state (no predictor). The coupled Newton system, factorized at every iteration, gives the
+#: same iterates in every run of a process: the condensed system solves with kept factors
+#: inside FGMRES, whose iterates differ in their last digits from run to run on the PyPI route
+#: (PETSc 3.25), and these steps' iteration counts move with such digits (docs/parallel.md,
+#: Reproducibility).
+HARD_IRONING = ["geometry.parameters.h=0.1", "time.steps=5", "output.probes=[]",
+                "solver.predictor='none'", "solver.linear_system='coupled'",
+                "traction.0.value=[0.0, '-60 * t * exp(-((x[0] - 0.4 - 2.2 * t) / 0.15)**2)']"]
+
+
+def newton_limit(iterations) -> int:
+    """One Newton iteration fewer than the most that a run without cuts took in a step. The
+    same run with this limit (-snes_max_it) takes the same iterates up to the first step that
+    needs more, so it must fail or cut that step, whatever the counts are on this stack."""
+    iterations = list(iterations)
+    limit = max(iterations) - 1
+    assert limit >= 1 and iterations[0] == 0, f"no step to cut in {iterations}"
+    return limit
+
+
 # ---- a run stopped after a checkpoint ----
 
 class StoppedAfterCheckpoint(Exception):

@@ -22,7 +22,7 @@ from contactvisco.scene import loader as scene_module
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure
 from contactvisco.solver.time_loop import simulate
-from helpers import run_cli
+from helpers import HARD_IRONING, newton_limit, run_cli
 
 COMM = MPI.COMM_WORLD
 
@@ -499,22 +499,20 @@ def test_non_finite_residual_is_caught():
     assert "the initial state (t = 0)" in str(err.value) and "NaN or Inf" in str(err.value)
 
 
-def test_step_cutting_recovers(hard_newton_steps):
-    """A moving load with 5 large steps needs up to 29 Newton iterations per step with Newton's
-    derivative at the bound taken on the bound side (hard_newton_steps). With at most
-    8 allowed, failed steps are halved (up to 4 times in a row) and the run ends in the same
-    contact state as the uncut one; the memory uses the exact non-uniform weights. Run on one
-    rank (COMM_SELF): the iteration counts, and so where steps are cut, depend on the
-    partition, which is not reproducible between runs. Each step starts from the last
-    accepted state (the extrapolated start would take the steps in at most 7)."""
-    base = ["geometry.parameters.h=0.1", "time.steps=5", "output.probes=[]",
-            "solver.predictor='none'"]
-    uncut = simulate(scene_module.load("ironing", base), comm=MPI.COMM_SELF, progress=False,
-                     keep_tables=True)
-    cut = simulate(scene_module.load("ironing", base + ["solver.petsc_options={snes_max_it=8}"]),
-                   comm=MPI.COMM_SELF, progress=False, keep_tables=True)
-    assert max(s["newton_iterations"] for s in uncut.steps) > 8
-    assert max(s["newton_iterations"] for s in cut.steps) <= 8
+def test_step_cutting_recovers():
+    """A moving load in 5 large steps (HARD_IRONING), run without cuts, then with one Newton
+    iteration fewer than its hardest step took (newton_limit): the steps that fail are halved
+    (up to 4 times in a row), no accepted state took more than the limit, and the run ends
+    in the same contact state as the uncut one; the memory uses the exact non-uniform
+    weights. Run on one rank (COMM_SELF): the iteration counts depend on the partition."""
+    uncut = simulate(scene_module.load("ironing", HARD_IRONING), comm=MPI.COMM_SELF,
+                     progress=False, keep_tables=True)
+    assert not any(s["cuts"] for s in uncut.steps)
+    limit = newton_limit(s["newton_iterations"] for s in uncut.steps)
+    cut = simulate(scene_module.load("ironing", HARD_IRONING + [
+        f"solver.petsc_options={{snes_max_it={limit}}}"]), comm=MPI.COMM_SELF,
+        progress=False, keep_tables=True)
+    assert max(s["newton_iterations"] for s in cut.steps) <= limit
     assert any(s["cuts"] > 0 for s in cut.steps) and len(cut.steps) > len(uncut.steps)
     assert cut.steps[-1]["t"] == pytest.approx(1.0)
     assert cut.steps[-1]["status_counts"] == uncut.steps[-1]["status_counts"]

@@ -1,42 +1,61 @@
 """Step cutting as a function: `run.advance` yields accepted states that tile the step with
 halved sizes, each one converged, and a step that may not be cut leaves the unknowns as they
-were. On COMM_SELF: where Newton needs more than 8 iterations depends on the partition."""
+were. On COMM_SELF: where Newton needs the most iterations depends on the partition."""
 import numpy as np
 import pytest
 from mpi4py import MPI
 
 from contactvisco import load_scene
 from contactvisco.fem import geometry as geometry_module
-from contactvisco.solver import newton as solver_module
 from contactvisco.fem.problem import build
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver import newton as solver_module
 from contactvisco.solver.time_loop import StepFailed, advance
+from helpers import HARD_IRONING, newton_limit
 
 STEPS = 5
 
 
-def ironing(max_newton):
-    """The moving load of the ironing scene in 5 large steps: up to 29 Newton iterations per
-    step without cuts with Newton's derivative at the bound taken on the bound side (the
-    tests' fixture hard_newton_steps)."""
-    scene = load_scene("ironing", geometry={"parameters": {"h": 0.1}}, time={"steps": STEPS},
-                       output={"probes": []},
-                       solver={"petsc_options": {"snes_max_it": max_newton}})
+def quiet(text):
+    """What advance says about a cut step, dropped."""
+
+
+def ironing(max_newton=None):
+    """The moving load of the ironing scene in 5 large steps (HARD_IRONING), with at most
+    `max_newton` Newton iterations per state (None: the scene's limit)."""
+    options = [] if max_newton is None else [f"solver.petsc_options={{snes_max_it={max_newton}}}"]
+    scene = scene_module.load("ironing", HARD_IRONING + options)
     problem = build(scene, geometry_module.build(scene, MPI.COMM_SELF))
     return scene, problem, solver_module.create(problem, MPI.COMM_SELF)
 
 
-def test_cut_states_tile_the_step_and_converge(hard_newton_steps):
-    scene, problem, snes = ironing(8)
-    t_end = scene["time"]["T"]
+def step_ends(scene) -> list[float]:
+    """t_0, t_1, ..., t_N as the tests step through them."""
+    return [n * scene["time"]["T"] / STEPS for n in range(STEPS + 1)]
+
+
+def hard_limit() -> int:
+    """newton_limit of the uncut states t_0 .. t_N, taken one by one by advance."""
+    scene, problem, snes = ironing()
+    try:
+        iterations = [state.iterations for t_to in step_ends(scene)
+                      for state in advance(problem, snes, t_to, 0, quiet)]
+    finally:
+        snes.destroy()
+    return newton_limit(iterations)
+
+
+def test_cut_states_tile_the_step_and_converge():
+    limit = hard_limit()
+    scene, problem, snes = ironing(limit)
     try:
         t, cut = 0.0, 0
-        for n in range(STEPS + 1):
-            t_to = n * t_end / STEPS
+        for n, t_to in enumerate(step_ends(scene)):
             states = []
-            for state in advance(problem, snes, t_to, 4, lambda text: None):
+            for state in advance(problem, snes, t_to, 4, quiet):
                 # Converged: the residual fell by 1e6 at least (or was already at round-off).
                 assert snes.residuals[-1] <= 1e-6 * max(snes.residuals[0], 1e-8)
-                assert state.iterations <= 8
+                assert state.iterations <= limit
                 states.append(state)
             if n == 0:                                    # the initial state: never cut
                 assert len(states) == 1 and states[0].k is None and states[0].t == 0.0
@@ -56,17 +75,16 @@ def test_cut_states_tile_the_step_and_converge(hard_newton_steps):
         snes.destroy()
 
 
-def test_a_step_that_may_not_be_cut_restores_the_unknowns(hard_newton_steps):
-    scene, problem, snes = ironing(8)
-    t_end = scene["time"]["T"]
+def test_a_step_that_may_not_be_cut_restores_the_unknowns():
+    scene, problem, snes = ironing(hard_limit())
     try:
-        list(advance(problem, snes, 0.0, 0, lambda text: None))
+        ends = step_ends(scene)
+        list(advance(problem, snes, ends[0], 0, quiet))
         failures = 0
-        for n in range(1, STEPS + 1):
-            t_from, t_to = (n - 1) * t_end / STEPS, n * t_end / STEPS
+        for t_from, t_to in zip(ends, ends[1:]):
             before = [f.x.array.copy() for f in problem.unknowns]
             try:
-                list(advance(problem, snes, t_to, 0, lambda text: None))
+                list(advance(problem, snes, t_to, 0, quiet))
             except StepFailed as failed:
                 failures += 1
                 assert failed.cuts == 0
@@ -74,10 +92,8 @@ def test_a_step_that_may_not_be_cut_restores_the_unknowns(hard_newton_steps):
                 assert failed.t_from == t_from == problem.time.committed
                 for f, values in zip(problem.unknowns, before):
                     assert np.array_equal(f.x.array, values)
-                # From the restored state the step goes through when it may be cut (with or
-                # without a cut: the kept factorizations of the failed attempt give Newton
-                # another path from the same state).
-                states = list(advance(problem, snes, t_to, 4, lambda text: None))
+                # From the restored state the step goes through when it may be cut.
+                states = list(advance(problem, snes, t_to, 4, quiet))
                 assert states[-1].t == t_to and all(s.t > t_from for s in states)
         assert failures >= 1
     finally:
