@@ -1,4 +1,5 @@
-"""The null space of a Newton matrix among the floating rigid motions, for the Krylov solver.
+"""The floating rigid motions of a Newton matrix: its null space for the Krylov solver, a
+stabilization for the direct one.
 
 A part of the mesh held only by contact (contactvisco.fem.parts: a floating rigid motion f,
 which no prescribed component restrains) makes the Newton matrix J singular in an iterate
@@ -10,19 +11,33 @@ multigrid a singular coarse problem: GMRES breaks down.
 At every Jacobian, J f_k and J^T f_k are formed for the orthonormal floating motions
 F = [f_1 .. f_m] (m mat-vecs each); the combinations F a with |J F a| <= NULL_TOLERANCE
 ||J||_inf |F a| span J's null space among them (the eigenvectors of (J F)^T (J F) of small
-eigenvalue), those of J^T F its left null space. They are handed to the Krylov solver as
-MatNullSpace and transpose MatNullSpace: PETSc removes the left null space from the
-right-hand side and the null space from the preconditioned vectors, so that the step is the
-solution orthogonal to the free motion (the pseudo-inverse's choice), J du = -F projected on
-J's range. Where J holds every floating motion nothing is attached, and the solve is the
-usual one. Where the residual itself has a share along a left null motion (the load pushes
-the free body and no active contact holds it), the Newton equation has no solution: a direct
-factorization takes a step of load over a round-off pivot, the Krylov solver the least-squares
-step. Measured on the two cylinders: at h = 0.02 the turn's share of F is 1e-3 at the first
-iterate and the least-squares step brings a second node into contact; at h = 0.01 no node is
-active at the first iterate, the load (12 % of F) pushes the upper body down freely, and the
-step never moves it: after UNBALANCED_JACOBIANS such Jacobians in a row the solve stops with
-UNBALANCED (a SceneError naming solver.linear_solver).
+eigenvalue), those of J^T F its left null space.
+
+The Krylov solver (attach). They are handed to it as MatNullSpace and transpose
+MatNullSpace: PETSc removes the left null space from the right-hand side and the null space
+from the preconditioned vectors, so that the step is the solution orthogonal to the free
+motion (the pseudo-inverse's choice), J du = -F projected on J's range. Where J holds every
+floating motion nothing is attached, and the solve is the usual one. Where the residual
+itself has a share along a left null motion (the load pushes the free body and no active
+contact holds it), the Newton equation has no solution, and the least-squares step never
+moves the body: at h = 0.01 no node of the two cylinders is active at the first iterate, the
+load (12 % of F) pushes the upper body down freely, and after UNBALANCED_JACOBIANS such
+Jacobians in a row the solve stops with UNBALANCED (a SceneError naming
+solver.linear_solver).
+
+The direct solver (stabilize). Where J has a null motion, the factorization's step along it
+is the residual's share over a pivot of round-off size: its length, and even its sign,
+change with the order of the floating-point operations (the ranks' partition, MUMPS's
+scheduling), and a step that moves the body away from the contact leaves Newton drifting. So
+J is solved with a stiffness eps = STABILIZATION ||J||_inf added on the diagonal of the
+floating motions' components (those where some f_k is not zero), in that Jacobian only:
+
+    (J + eps M) du = -F,        M = diag(1 on the floating components).
+
+The step along an unbalanced free motion f is then -(f . F) / eps: in the direction the load
+pushes, into the contact, of a length fixed by F rather than by round-off. Where J holds
+every floating motion (every iterate near the solution) nothing is added, so Newton's
+equation, its solution and its last, quadratic iterations are unchanged.
 """
 from __future__ import annotations
 
@@ -38,6 +53,12 @@ NULL_TOLERANCE = 1e-8
 #: |g . F| / |F| above which the residual F has a share along a left null motion g: a load
 #: that no active contact condition balances (the step would be a free rigid motion).
 UNBALANCED_TOLERANCE = 1e-8
+
+#: The direct solver's stiffness on the floating components where J has a null motion, per
+#: ||J||_inf: the free step -(f . F) / eps overshoots the contact (the next iterate presses
+#: the body in, and the contact pushes it back), which Newton recovers from; measurements in
+#: docs/interface.md.
+STABILIZATION = 1e-8
 
 #: Consecutive Jacobians with an unbalanced residual after which the Krylov solver stops.
 UNBALANCED_JACOBIANS = 2
@@ -60,13 +81,16 @@ class FloatingNullSpace:
         Orthonormal floating motions in u's layout.
     """
 
-    def __init__(self, vectors):
+    def __init__(self, vectors, direct: bool = False):
         self.vectors = vectors
+        self.direct = direct                # stabilize (direct solver), else attach
         self.found: list[int] = []          # per Jacobian: the dimension of J's null space
         self.unbalanced = 0                 # consecutive Jacobians with an unbalanced F
+        self._support = None                # 1 on the floating components (stabilize)
 
     @classmethod
-    def of(cls, problem, template: PETSc.Vec) -> "FloatingNullSpace | None":
+    def of(cls, problem, template: PETSc.Vec,
+           direct: bool = False) -> "FloatingNullSpace | None":
         """The floating motions of a problem's mesh parts (fem.parts.floating_motions),
         orthonormalized (modified Gram-Schmidt), or None if it has none.
 
@@ -76,6 +100,9 @@ class FloatingNullSpace:
             The problem (its space V and prescribed components u_fixed).
         template : petsc4py.PETSc.Vec
             A vector of u's layout (owned entries).
+        direct : bool, optional
+            For the direct solver (prepare stabilizes J) rather than the Krylov solver
+            (prepare attaches J's null spaces).
 
         Returns
         -------
@@ -94,7 +121,7 @@ class FloatingNullSpace:
                 vec.axpy(-earlier.dot(vec), earlier)
             vec.normalize()
             vectors.append(vec)
-        return cls(vectors)
+        return cls(vectors, direct)
 
     def _null(self, apply, scale: float) -> list[PETSc.Vec]:
         """The combinations F a, |a| = 1, with |apply(F a)| <= NULL_TOLERANCE scale: the
@@ -117,6 +144,46 @@ class FloatingNullSpace:
             vec.normalize()
             out.append(vec)
         return out
+
+    def prepare(self, A: PETSc.Mat, residual: PETSc.Vec | None = None) -> int:
+        """The Newton matrix A made ready for the solver: stabilize for the direct one,
+        attach for the Krylov one; returns the dimension of A's null space among the
+        floating motions."""
+        return self.stabilize(A) if self.direct else self.attach(A, residual)
+
+    def stabilize(self, A: PETSc.Mat) -> int:
+        """Where A has a null space among the floating motions, A += eps M, M the diagonal
+        with 1 on the components that a floating motion moves and eps = STABILIZATION
+        ||A||_inf (module description); nothing where A holds them all.
+
+        Parameters
+        ----------
+        A : petsc4py.PETSc.Mat
+            The assembled Newton matrix J (changed in place).
+
+        Returns
+        -------
+        int
+            The dimension of J's null space among the floating motions (before the
+            stabilization).
+        """
+        scale = A.norm(PETSc.NormType.NORM_INFINITY)
+        right = self._null(A.mult, scale)
+        for vec in right:
+            vec.destroy()
+        self.found.append(len(right))
+        if right:
+            if self._support is None:
+                self._support = self.vectors[0].duplicate()
+                moved = np.zeros(self._support.getLocalSize(), dtype=bool)
+                for vec in self.vectors:
+                    moved |= vec.array != 0.0
+                self._support.array[:] = moved
+            stiffness = self._support.copy()
+            stiffness.scale(STABILIZATION * scale)
+            A.setDiagonal(stiffness, addv=PETSc.InsertMode.ADD_VALUES)
+            stiffness.destroy()
+        return len(right)
 
     def attach(self, A: PETSc.Mat, residual: PETSc.Vec | None = None) -> int:
         """Give A its null space and its transpose's among the floating motions (empty where
@@ -154,6 +221,6 @@ class FloatingNullSpace:
 
     def destroy(self):
         """Free the motions' vectors."""
-        for vec in self.vectors:
+        for vec in self.vectors + ([self._support] if self._support is not None else []):
             vec.destroy()
-        self.vectors = []
+        self.vectors, self._support = [], None

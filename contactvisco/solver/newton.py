@@ -350,7 +350,7 @@ class NewtonSolver:
         self._factorized = None          # the CSR values of the factorized operator P
         self._stale = False              # the current step is solved with an earlier P
         self._krylov_limit = 0           # the most FGMRES iterations the row count allows
-        self.floating = None             # the Krylov solver's null spaces (solver.floating)
+        self.floating = None             # floating motions (solver.floating)
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -409,7 +409,7 @@ class NewtonSolver:
         operator itself. With floating motions (solver.floating) the operator gets its null
         spaces among them."""
         if self.floating is not None:
-            self.floating.attach(A, self.b)
+            self.floating.prepare(A, self.b)
         if not self.reuse:
             self.setups += 1
             return
@@ -978,8 +978,9 @@ def _held_by_contact(problem) -> bool:
 
 
 def _with_floating(newton, problem, kind):
-    """The iterative solver with the null spaces of its Newton matrices among the floating
-    rigid motions of the mesh's parts (contactvisco.solver.floating)."""
-    if kind == "iterative":
-        newton.floating = floating.FloatingNullSpace.of(problem, newton.operator.createVecRight())
+    """The solver with the floating rigid motions of the mesh's parts, if it has any
+    (contactvisco.solver.floating): the iterative one gets its Newton matrices' null spaces
+    among them, the direct one its Newton matrices stabilized where they have one."""
+    newton.floating = floating.FloatingNullSpace.of(
+        problem, newton.operator.createVecRight(), direct=kind != "iterative")
     return newton
