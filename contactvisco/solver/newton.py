@@ -959,9 +959,10 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
     else:
         newton = BlockSNES(problem.F, problem.J, problem.unknowns, problem.bcs, comm,
                            options, defaults, reuse=kind == "direct")
-        if system == "displacement":           # u alone: a block system of one block
-            newton.system_kind = system
-            newton.operator.setNearNullSpace(near_nullspace(problem))
+        if system != "displacement":           # u and the multipliers: no motions of u alone
+            return newton
+        newton.system_kind = system            # u alone: a block system of one block
+        newton.operator.setNearNullSpace(near_nullspace(problem))
     return _with_floating(newton, problem, kind)
 
 
@@ -978,9 +979,10 @@ def _held_by_contact(problem) -> bool:
 
 
 def _with_floating(newton, problem, kind):
-    """The solver with the floating rigid motions of the mesh's parts, if it has any
-    (contactvisco.solver.floating): the iterative one gets its Newton matrices' null spaces
-    among them, the direct one its Newton matrices stabilized where they have one."""
+    """The solver of a system in u alone (displacement, condensed, two bodies) with the
+    floating rigid motions of the mesh's parts, if it has any (contactvisco.solver.floating):
+    the iterative one gets its Newton matrices' null spaces among them, the direct one its
+    Newton matrices stabilized where they have one."""
     newton.floating = floating.FloatingNullSpace.of(
         problem, newton.operator.createVecRight(), direct=kind != "iterative")
     return newton
