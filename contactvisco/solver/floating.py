@@ -86,7 +86,6 @@ class FloatingNullSpace:
         self.direct = direct                # stabilize (direct solver), else attach
         self.found: list[int] = []          # per Jacobian: the dimension of J's null space
         self.unbalanced = 0                 # consecutive Jacobians with an unbalanced F
-        self._support = None                # 1 on the floating components (stabilize)
 
     @classmethod
     def of(cls, problem, template: PETSc.Vec,
@@ -173,14 +172,9 @@ class FloatingNullSpace:
             vec.destroy()
         self.found.append(len(right))
         if right:
-            if self._support is None:
-                self._support = self.vectors[0].duplicate()
-                moved = np.zeros(self._support.getLocalSize(), dtype=bool)
-                for vec in self.vectors:
-                    moved |= vec.array != 0.0
-                self._support.array[:] = moved
-            stiffness = self._support.copy()
-            stiffness.scale(STABILIZATION * scale)
+            moved = np.any([vec.array != 0.0 for vec in self.vectors], axis=0)
+            stiffness = self.vectors[0].duplicate()
+            stiffness.array[:] = STABILIZATION * scale * moved
             A.setDiagonal(stiffness, addv=PETSc.InsertMode.ADD_VALUES)
             stiffness.destroy()
         return len(right)
@@ -221,6 +215,6 @@ class FloatingNullSpace:
 
     def destroy(self):
         """Free the motions' vectors."""
-        for vec in self.vectors + ([self._support] if self._support is not None else []):
+        for vec in self.vectors:
             vec.destroy()
-        self.vectors, self._support = [], None
+        self.vectors = []
