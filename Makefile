@@ -14,8 +14,10 @@ APT_PACKAGES := gcc libglu1-mesa libxcursor1 libxft2 libxinerama1 libgl1 libxren
 MPIRUN := $(CURDIR)/$(VENV)/bin/mpiexec -n $(NP)
 else ifeq ($(STACK),debian)
 VENV := .venv
+# GetFEM's Python interface runs the independent solvers that tests/integration/test_peer.py
+# and test_two_body_peer.py compare with (they are skipped where it is missing).
 APT_PACKAGES := python3-dolfinx-real python3-gmsh python3-venv python3-pytest \
-                python3-matplotlib openmpi-bin
+                python3-matplotlib openmpi-bin python3-getfem
 MPIRUN := mpirun -n $(NP)
 else
 $(error STACK must be debian or pip, not '$(STACK)')
@@ -27,7 +29,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: install demo test test-serial test-parallel test-fast benchmark benchmark-newton benchmark-peer \
+.PHONY: install demo test test-serial test-parallel test-slow test-all benchmark benchmark-newton benchmark-peer \
         benchmark-scaling benchmark-startup \
         benchmark-reliability benchmark-linear clean apt-packages compare-stacks figures notebook docs
 
@@ -70,22 +72,40 @@ endif
 demo: install
 	$(VENV)/bin/contactvisco run paper --out results/paper$(if $(filter pip,$(STACK)),-pip)
 
-# Every test (tests/unit, tests/integration, tests/robustness; markers mpi, slow and
-# convergence select nothing here), on 1 rank and on $(NP).
+# The tests in tiers (markers in pyproject.toml; docs/testing.md):
+#   make test       every test not marked slow on 1 rank (PYTEST_WORKERS pytest workers), then
+#                   the tests marked mpi on $(NP) ranks: the README's test command, and CI's;
+#   make test-slow  the tests marked slow, on 1 rank; CI runs them once, on the Debian route;
+#   make test-all   every test on 1 rank and on $(NP) ranks.
 test: test-serial test-parallel
 
 # A deadlock between ranks must fail the run, not hang it.
 TEST_TIMEOUT ?= 1800
+# Two workers use both cores of a 2-core machine (pytest-xdist); 1 runs the tests in one process.
+PYTEST_WORKERS ?= 2
+XDIST := $(if $(filter-out 0 1,$(PYTEST_WORKERS)),-n $(PYTEST_WORKERS) --dist loadgroup)
+# Extra pytest arguments for every tier, e.g. PYTEST_ARGS="--durations=30".
+PYTEST_ARGS ?=
+# JUNIT=DIR: each pass also writes a JUnit report DIR/<stack>-<pass>.xml (.ci/tally.py reads them).
+JUNIT ?=
+junit = $(if $(JUNIT),--junitxml=$(JUNIT)/$(STACK)-$(1).xml)
 
 test-serial: install
-	timeout $(TEST_TIMEOUT) $(PY) -m pytest -q tests
+	timeout $(TEST_TIMEOUT) $(PY) -m pytest -q $(XDIST) -m "not slow" $(PYTEST_ARGS) \
+	  $(call junit,1rank) tests
 
+# The tests marked processes start their own 2-rank jobs from the 1-rank pass.
 test-parallel: install
-	timeout $(TEST_TIMEOUT) $(MPIRUN) $(PY) -m pytest -q --color=no tests
+	timeout $(TEST_TIMEOUT) $(MPIRUN) $(PY) -m pytest -q --color=no -m "mpi and not processes" \
+	  $(PYTEST_ARGS) $(call junit,2ranks) tests
 
-# The tests that take under about 10 s each, on 1 rank.
-test-fast: install
-	timeout $(TEST_TIMEOUT) $(PY) -m pytest -q -m "not slow" tests
+test-slow: install
+	timeout $(TEST_TIMEOUT) $(PY) -m pytest -q $(XDIST) -m slow $(PYTEST_ARGS) $(call junit,slow) tests
+
+test-all: install
+	timeout $(TEST_TIMEOUT) $(PY) -m pytest -q $(XDIST) $(PYTEST_ARGS) $(call junit,all-1rank) tests
+	timeout $(TEST_TIMEOUT) $(MPIRUN) $(PY) -m pytest -q --color=no $(PYTEST_ARGS) \
+	  $(call junit,all-2ranks) tests
 
 # Benchmarks write their tables to benchmarks/results/ (run by hand; not part of the tests;
 # benchmarks/README.md).

@@ -1,11 +1,14 @@
 """A 3D block pressed and sheared on the layer: friction is a projection onto a disc, and the
 nodal vertex rule on triangular facets makes the conditions hold node by node."""
 import numpy as np
+import pytest
 from helpers import assert_contact_conditions
 from mpi4py import MPI
 
 from contactvisco.scene import loader as scene_module
 from contactvisco.solver.time_loop import simulate
+
+pytestmark = pytest.mark.mpi
 
 
 def test_block3d_conditions():

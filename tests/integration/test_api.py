@@ -62,6 +62,7 @@ def test_bad_overrides_are_scene_errors_naming_the_key(overrides, words):
         assert word in str(caught.value)
 
 
+@pytest.mark.mpi
 def test_own_mesh_gives_the_builtin_answer():
     """The paper's scene (mu = 0.4) on a mesh built and tagged by the caller, against the
     scene's own box of the same cells: every contact value at every step agrees to 1e-10."""

@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
-                                reason="starts its own MPI processes; run on one rank")
+pytestmark = [pytest.mark.processes,
+              pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
+                                 reason="starts its own MPI processes; run on one rank")]
 
 MU, PRESSURE = 0.3, 0.01
 

@@ -14,8 +14,9 @@ from contactvisco.io import checkpoint
 from contactvisco.scene import loader
 from helpers import ROOT, run_cli
 
-pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
-                                reason="starts its own processes; run on one rank")
+pytestmark = [pytest.mark.processes,
+              pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
+                                 reason="starts its own processes; run on one rank")]
 
 #: Two blocks (meshes/two_blocks.py) pressed together, the upper one creeping with its own
 #: kernel, the lower one elastic with the scene's material.

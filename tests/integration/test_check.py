@@ -53,6 +53,7 @@ def test_show_keeps_overrides_strings_and_special_numbers(tmp_path):
     assert "slip" in tomllib.loads(api.scene_toml(scene, every_value=True))["contact"]
 
 
+@pytest.mark.mpi
 def test_check_counts_the_unknowns_of_a_box():
     """P1 on an nx x ny box: d (nx+1)(ny+1) displacement unknowns, nx + 1 contact nodes on
     the bottom edge, the multipliers on every vertex (fixed off the contact boundary)."""
@@ -88,6 +89,7 @@ def test_check_sees_the_memory_grow_only_for_a_direct_sum():
     assert history(table, 40) / history(table, 10) == pytest.approx(41 / 11)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("every", [1, 3])
 def test_check_estimates_the_output_of_a_run(tmp_path, every):
     """The estimated size of the folder's records (fields at the steps of the schedule,

@@ -150,6 +150,7 @@ def test_signorini_coulomb_hertz_runs():
     assert_contact_conditions(table, 0.0, 1e-9 * np.max(R))
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("slip", ["total", "increment"])
 def test_condensed_equals_coupled_with_coulomb(slip):
     """Coulomb couples lambda_tau's ball with lambda_nu (a nonsymmetric D_i): the node-wise
@@ -232,6 +233,7 @@ def test_slip_increment_against_total_on_ironing():
     assert np.max(np.abs(tables["total"]["u_tau"] - tables["increment"]["u_tau"])) > 1e-4
 
 
+@pytest.mark.mpi
 def test_checkpoint_keeps_the_slip_origin(tmp_path_factory):
     """slip = "increment": the previous step's displacement is in the checkpoint and a
     restart reads it back."""
@@ -297,6 +299,7 @@ def test_cut_step_measures_slip_from_the_last_accepted_state(monkeypatch):
 
 
 
+@pytest.mark.mpi
 def test_restart_continues_the_slip_per_step(tmp_path_factory, monkeypatch):
     """A run stopped after its checkpoint of step 2 and restarted reaches the uninterrupted
     run's answer: the restart reads the slip origin u(t_{n-1}) back (without it, the next

@@ -69,6 +69,7 @@ def test_linear_law_as_expressions_gives_the_same_answer():
             assert np.max(np.abs(a[key] - b[key])) <= 1e-12 * scale, key
 
 
+@pytest.mark.mpi
 def test_condensed_equals_coupled_with_prescribed_laws():
     """A power-law p_nu and a saturating p_tau: the node-wise elimination gives the coupled
     answer (contact values to round-off) on the paper scene and the column, with the same

@@ -214,6 +214,7 @@ def _force_of(run) -> float:
     return run.steps[-1]["obstacle"]["force"][1]
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("solver", ["direct", "iterative"])
 def test_force_control_gives_the_displacement_controlled_state(solver):
     """The force a displacement-controlled run (a plane moved by 0.0035) produced, prescribed
@@ -414,6 +415,7 @@ def block_on_indenter(obstacle: dict, cells=(8, 8, 4)) -> dict:
             "obstacle": obstacle, "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("shape", ["sphere", "cylinder"])
 def test_3d_indenters_under_displacement_and_force_control(shape):
     """A sphere, and a cylinder along y (obstacle.axis), pressed 0.01 into a 3D block: the
@@ -680,6 +682,7 @@ def _force_controlled_scenes():
     return {"cylinder": (cylinder, 2), "cattaneo": (cattaneo, 3)}
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("case", ["cylinder", "cattaneo"])
 def test_force_controlled_run_restarts_to_the_same_answer(case, tmp_path_factory,
                                                           monkeypatch):
@@ -736,6 +739,7 @@ def _without_the_obstacle(folder):
     (root / "meta.json").write_text(json.dumps(meta))
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("controlled", [False, True])
 def test_checkpoint_without_the_obstacle_position(controlled, tmp_path_factory, monkeypatch):
     """A checkpoint written before checkpoints kept the obstacle's position (after step 1 of

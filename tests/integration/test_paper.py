@@ -1,10 +1,13 @@
 """The paper's 2D test (section 4): discrete contact conditions at every step, Newton
 convergence, the zone counts reported in the paper, and the equilibrium residual."""
 import numpy as np
+import pytest
 from dolfinx import fem
 from helpers import assert_contact_conditions
 
 from contactvisco.fem import compat
+
+pytestmark = pytest.mark.mpi
 
 TOL = 1e-10   # Newton stops at |F| < 1e-10: conditions hold to that order
 

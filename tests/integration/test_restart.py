@@ -14,7 +14,7 @@ from mpi4py import MPI
 from contactvisco.io.output import read_summary
 from helpers import ENV, alive, cli_command, run_cli
 
-pytestmark = [pytest.mark.slow,
+pytestmark = [pytest.mark.slow, pytest.mark.processes,
               pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                  reason="starts its own (MPI) processes; run on one rank")]
 

@@ -29,6 +29,7 @@ def run(tmp_path_factory):
     return result, out
 
 
+@pytest.mark.mpi
 def test_contact_states_have_names_next_to_their_codes(run):
     result, _ = run
     table = result.contact[-1]
@@ -43,6 +44,7 @@ def test_contact_states_have_names_next_to_their_codes(run):
     assert "slip" in set(table["friction_name"])
 
 
+@pytest.mark.mpi
 def test_contact_csv_has_the_documented_columns_and_state_names(run):
     result, out = run
     if COMM.rank != 0:
@@ -87,6 +89,7 @@ def by_position(points):
     return {tuple(p): i for i, p in enumerate(np.round(points / 1e-9).astype(np.int64))}
 
 
+@pytest.mark.mpi
 def test_xdmf_holds_named_stress_components_and_the_contact_status(run):
     """The fields read back from the HDF5 of the last step: sigma_xx, sigma_yy, sigma_xy and
     von_mises are the run's stress cell by cell, contact_status is the contact table's status
@@ -114,6 +117,7 @@ def test_xdmf_holds_named_stress_components_and_the_contact_status(run):
     assert set(status) == {0, 1, 2}
 
 
+@pytest.mark.mpi
 def test_gathered_grid_is_the_whole_mesh_on_rank_0(run):
     """pyvista_grid(u, gather=True): on rank 0 every point and cell of the mesh once (the
     cells tile the unit square) and the displacement of a run on one rank, point by point;

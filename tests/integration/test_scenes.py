@@ -15,6 +15,7 @@ from contactvisco.studies.verification import hertz
 COMM = MPI.COMM_WORLD
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("name", scene_module.builtin_names())
 def test_builtin_scene_builds(name):
     """Every built-in scene resolves and builds (gmsh meshes made and named), with the unknowns
@@ -43,6 +44,7 @@ def test_hertz_against_closed_form():
     assert np.max(np.abs(table["reaction_nu"][~touching])) < 1e-10
 
 
+@pytest.mark.mpi
 def test_ironing_nodes_go_through_every_state():
     scene = scene_module.load("ironing", ["geometry.parameters.h=0.1", "time.steps=20"])
     result = simulate(scene, comm=COMM, progress=False, keep_tables=True)

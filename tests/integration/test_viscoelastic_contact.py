@@ -105,6 +105,7 @@ def test_ranks_agree(tmp_path):
 
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("rule", ["trapezoid", "exponential", "fractional"])
 def test_restart_continues_in_reduced_time(tmp_path_factory, monkeypatch, rule):
     """A run with a temperature field stopped after its checkpoint of step 3 and restarted

@@ -489,6 +489,7 @@ def test_friction_counts_as_a_tangential_restraint():
 
 # ---- what Newton cannot solve: stopped with the step named, or cut and recovered ----
 
+@pytest.mark.mpi
 def test_non_finite_residual_is_caught():
     """A body force that divides by zero: Newton stops at once with the NaN named and the step
     given, and no NaN result is accepted."""
@@ -499,6 +500,7 @@ def test_non_finite_residual_is_caught():
     assert "the initial state (t = 0)" in str(err.value) and "NaN or Inf" in str(err.value)
 
 
+@pytest.mark.mpi
 def test_step_cutting_recovers():
     """A moving load in 5 large steps (HARD_IRONING), run without cuts, then with one Newton
     iteration fewer than its hardest step took (newton_limit): the steps that fail are halved
@@ -520,6 +522,7 @@ def test_step_cutting_recovers():
     assert abs(a["u_nu"] - b["u_nu"]).max() < 0.05 * abs(b["u_nu"]).max()
 
 
+@pytest.mark.mpi
 def test_step_cutting_gives_up_with_a_clear_message():
     """A step Newton cannot take in the iterations allowed, even halved, stops the run with the
     step, the cuts and the residual history named. The paper scene with its loads ramped from

@@ -13,8 +13,9 @@ from helpers import (EXIT_S, block_rank0_file, check_folder, end, grow_tmpfs, ki
                      mount_tmpfs, rank_pids, run_paper, start_paper, steps_done, unmount,
                      vtk_read, wait_for)
 
-pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
-                                reason="starts its own (MPI) processes; run on one rank")
+pytestmark = [pytest.mark.processes,
+              pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
+                                 reason="starts its own (MPI) processes; run on one rank")]
 
 STEPS = 60
 K = 1.0 / STEPS

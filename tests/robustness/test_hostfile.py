@@ -19,7 +19,7 @@ from contactvisco.io.output import read_summary
 from helpers import mpi_env
 
 pytestmark = [
-    pytest.mark.mpi, pytest.mark.slow,
+    pytest.mark.mpi, pytest.mark.slow, pytest.mark.processes,
     pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                        reason="starts its own (MPI) processes; run on one rank"),
     pytest.mark.skipif(not launcher.mpi_launcher(), reason="no MPI launcher"),

@@ -14,7 +14,8 @@ from contactvisco import api
 from contactvisco.errors import SceneError
 from helpers import ENV, read_steps, run_cli
 
-pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="runs the command line")
+pytestmark = [pytest.mark.processes,
+              pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="runs the command line")]
 
 SMALL = ["--set", "time.steps=3", "--set", "geometry.cells=[6, 6]"]
 

@@ -70,6 +70,7 @@ def scheduled(every, steps):
     return sorted(set(range(0, steps + 1, every)) | {steps})
 
 
+@pytest.mark.processes
 @pytest.mark.slow
 @one_rank
 @pytest.mark.parametrize("ranks, victim, at", [
@@ -112,6 +113,7 @@ def test_kill9_between_checkpoints_then_restart_gives_the_uninterrupted_run(
     assert np.max(np.abs(got[final] - want[final])) < 1e-10
 
 
+@pytest.mark.processes
 @pytest.mark.slow
 @one_rank
 def test_a_restart_with_another_schedule_drops_the_later_field_files(tmp_path):
@@ -131,6 +133,7 @@ def test_a_restart_with_another_schedule_drops_the_later_field_files(tmp_path):
         n for n in scheduled(5, STEPS) if n >= count]
 
 
+@pytest.mark.processes
 @pytest.mark.slow
 @one_rank
 def test_sigterm_checkpoints_the_step_it_stops_after(tmp_path):
@@ -169,6 +172,7 @@ def checkpoints_seen(tmp_path, *overrides, steps=9, scene="paper", base=(), comm
     return seen, checkpoint_count(out), field_steps(out), result
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("overrides, expected", [
     ((), lambda n: n or None),                                          # every step
     (("output.checkpoint_seconds=0",), lambda n: n or None),            # 0: off

@@ -26,8 +26,9 @@ from contactvisco.solver.time_loop import simulate
 from helpers import (ENV, EXIT_S, check_folder, cli_command, kill_a_rank, run_cli, run_paper,
                      start_paper)
 
-pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
-                                reason="starts its own (MPI) processes; run on one rank")
+pytestmark = [pytest.mark.processes,
+              pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
+                                 reason="starts its own (MPI) processes; run on one rank")]
 
 SELF = MPI.COMM_SELF
 #: The small finished run the link and plot cases start from (5 records, 0..4).
@@ -265,10 +266,11 @@ def test_plot_refuses_a_fifo_at_once(copy, name):
 KILL_STEPS, KILL_AT = 60, 14
 
 
-@pytest.fixture(scope="module", params=[1, pytest.param(2, marks=pytest.mark.mpi)])
+@pytest.fixture(scope="module")
 def killed(request, tmp_path_factory):
     """(ranks, a run of the paper scene killed by kill -9 of its last rank after KILL_AT
-    steps, checkpoints every 5 steps so that the records run past the checkpoint)."""
+    steps, checkpoints every 5 steps so that the records run past the checkpoint); the
+    tests give the rank count (indirect parametrization), one run per count and module."""
     ranks = request.param
     out = tmp_path_factory.mktemp(f"killed{ranks}") / "run"
     proc = start_paper(ranks, out, KILL_STEPS, 16, "--set", "output.checkpoint_every=5")
@@ -308,12 +310,18 @@ DAMAGE = {
 }
 
 
+# Every damage on 1 rank; on 2 ranks the two whose refusal reads a file on rank 0 partly (the
+# other cases take the same path on rank 0 as on one rank).
+KILLED_CASES = [pytest.param(1, case, id=f"1-{case}") for case in sorted(DAMAGE)] + [
+    pytest.param(2, case, id=f"2-{case}", marks=pytest.mark.mpi)
+    for case in ("contact_nodes.csv cut mid-row", "steps.jsonl cut")]
+KILLED_RANKS = [1, pytest.param(2, marks=pytest.mark.mpi)]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("case", sorted(DAMAGE))
+@pytest.mark.parametrize("killed, case", KILLED_CASES, indirect=["killed"])
 def test_restart_after_a_kill_refuses_records_with_holes(killed, tmp_path, case):
     ranks, out = killed
-    if ranks == 2 and case not in ("steps.jsonl cut", "contact_nodes.csv cut mid-row"):
-        pytest.skip("one rank covers it; two ranks take the same path on rank 0")
     run = tmp_path / "run"
     shutil.copytree(out, run)
     name, damage = DAMAGE[case]
@@ -326,6 +334,7 @@ def test_restart_after_a_kill_refuses_records_with_holes(killed, tmp_path, case)
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("killed", KILLED_RANKS, indirect=True)
 def test_restart_after_a_kill_cuts_records_back_exactly(killed, tmp_path):
     """Records past the checkpoint (a step written after it, and a cut line) are cut back
     to the checkpoint exactly: the restarted series has every step once."""

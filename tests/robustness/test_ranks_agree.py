@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 from helpers import ENV, EXIT_S, cli_command
 
-pytestmark = [pytest.mark.mpi,
+pytestmark = [pytest.mark.mpi, pytest.mark.processes,
               pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                  reason="starts its own MPI jobs; run on one rank")]
 

@@ -45,6 +45,7 @@ def shifted_geometry(scene, dy: float):
     return geometry
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
 def test_overlap_beyond_the_search_distance_is_refused(pairing):
     """The upper block sunk 0.05 into the lower with contact.search_distance = 0.02: a
@@ -79,6 +80,7 @@ def test_a_slave_free_to_slide_is_refused():
     assert "master body" not in message
 
 
+@pytest.mark.mpi
 def test_bodies_held_only_by_each_other_are_refused():
     """The lower block's bottom not held: the two blocks may move together along y (the
     interface holds only the one relative to the other), which the check of the whole mesh
@@ -109,6 +111,7 @@ def test_a_body_held_through_the_interface_is_held(contact):
     assert rigid.free_body_motions(problem) == []
 
 
+@pytest.mark.mpi
 def test_parts_of_the_mesh():
     """The two blocks are two parts of their mesh, the same on every rank: every node of a
     cell of "slave_body" in one, of "master_body" in the other."""

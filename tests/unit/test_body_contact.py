@@ -91,6 +91,7 @@ LAWS = {
 }
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("law", LAWS)
 def test_mortar_patch_test_is_passed(law):
     """Mortar: uniform stresses in both blocks and a uniform interface pressure to 1e-10 of p;
@@ -105,6 +106,7 @@ def test_mortar_patch_test_is_passed(law):
     assert out["slave"] == pytest.approx([0.0, -PRESSURE], abs=1e-12 * PRESSURE)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("law", ["compliance", "signorini"])
 def test_node_to_segment_balances_forces(law):
     """Node to segment: the resultants balance to round-off (every row of Pi sums to 1); its
@@ -189,6 +191,7 @@ def test_hertz_cylinder_on_block(pairing):
     assert resultant == pytest.approx([0.0, -P], abs=1e-10 * P)
 
 
+@pytest.mark.mpi
 def test_creeping_cylinder_restarts_exactly(tmp_path_factory, monkeypatch):
     """A creeping cylinder (its own exponential kernel, [[body]]) on an elastic block: a run
     stopped after its checkpoint of step 3 and restarted reaches the uninterrupted run's
@@ -624,6 +627,7 @@ def test_hertz_two_cylinders(pairing):
     assert out["resultant"][1] == pytest.approx(-P, rel=1e-10)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
 def test_the_first_step_takes_a_free_body_into_the_contact(pairing):
     """The two cylinders at h = 0.01 from rest: no slave node is active at the first

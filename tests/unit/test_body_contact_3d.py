@@ -17,6 +17,8 @@ from contactvisco.fem.problem import build
 from contactvisco.scene import loader
 from contactvisco.solver.newton import create
 
+pytestmark = pytest.mark.mpi
+
 PRESSURE, NU = 0.01, 0.3
 
 

@@ -131,6 +131,7 @@ NODE_BLOCK_SCENES = {     # states with bound, sticking and prescribed contact n
 }
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("label", list(NODE_BLOCK_SCENES))
 def test_node_blocks_are_the_coupled_jacobian(label):
     """B_i, C_i, D_i read from the assembled coupling blocks equal the entries of the coupled
@@ -221,6 +222,7 @@ def _run(name, sets, system, linear_solver="direct", comm=MPI.COMM_WORLD):
     return simulate(scene, comm=comm, progress=False, keep_tables=True)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("name", list(SCENES))
 def test_condensed_equals_coupled(name):
     """Same Newton iteration counts and the same contact values to round-off (every step)."""
@@ -240,6 +242,7 @@ def test_condensed_equals_coupled(name):
 AMG = "gmres/" + solver_module.iterative_options()["pc_type"]
 
 
+@pytest.mark.mpi
 def test_iterative_reaches_the_direct_answer():
     """GMRES + algebraic multigrid on the condensed system: the direct solver's contact values to the
     Newton tolerance, with a Krylov count per Newton step that stays bounded from 16^2 to
@@ -301,6 +304,7 @@ def test_iterative_needs_condensed():
         solver_module.create(problem, MPI.COMM_WORLD)
 
 
+@pytest.mark.mpi
 def test_kept_bulk_matrix_equals_the_whole_assembly():
     """J_uu from the kept cell part plus the facet part of Gamma_C (BulkPart) is J_uu
     assembled whole, pattern and values (to 1e-14 of the largest entry), at a contact state

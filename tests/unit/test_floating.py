@@ -44,6 +44,7 @@ def test_components_of_a_graph():
     assert parts.components(triangles, 10).tolist() == [0, 1, 0, 0, 1, 1, 0, 7, 8, 0]
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("scene, floating", [("two_cylinders", 2), ("patch", 1)])
 def test_parts_and_their_floating_motions(scene, floating):
     """Two parts that share no node, numbered alike on every rank; the floating motions are
@@ -126,6 +127,7 @@ def _solve(raw, kind):
     return out
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("scene", ["two_cylinders", "cylinder_on_block"])
 @pytest.mark.parametrize("pairing", ["mortar", "node_to_segment"])
 def test_iterative_solver_reaches_the_direct_contact_forces(scene, pairing):
@@ -210,6 +212,7 @@ def _vector(values):
     return vec
 
 
+@pytest.mark.mpi
 def test_the_direct_stabilization_moves_a_free_body_along_its_load():
     """Two bodies on a line: nodes 0-1 held at node 0 (its row and column the identity's),
     nodes 2-3 free, f = (0, 0, 1, 1)/sqrt(2) their floating translation. Where no spring

@@ -388,6 +388,7 @@ def _mesh_pairing(comm, method, degrees=0.0, **parameters):
     return V, slave, master, interface.pair(slave, master, method, SEARCH)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", METHODS)
 def test_two_block_mesh_reproduces_a_linear_field_through_the_petsc_matrix(method):
     """The two-block mesh turned by 30 degrees, 13 slave against 10 master segments: the
@@ -417,6 +418,7 @@ def test_two_block_mesh_reproduces_a_linear_field_through_the_petsc_matrix(metho
         assert np.max(np.abs(values - field(slave.coordinates.T).T)) < 1e-13
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", METHODS)
 def test_two_block_mesh_with_matching_traces_gives_the_identity_incidence(method):
     """Both blocks with 10 interface segments: each slave node's row is a single 1 at the
@@ -490,6 +492,7 @@ def _box(lower, upper, cells, comm=MPI.COMM_WORLD):
                                                              values[order])
 
 
+@pytest.mark.mpi
 def test_box_faces_are_gathered_with_outward_normals():
     """3D: the top and bottom faces of a 3 x 3 x 3 box of tetrahedra, gathered on every rank
     (18 triangles each), have outward normals +z and -z whatever the partition, and
@@ -509,6 +512,7 @@ def test_box_faces_are_gathered_with_outward_normals():
     assert max(abs(image[i] - field(points[i] - [0.0, 0.0, 0.01])) for i in image) < 1e-13
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", METHODS)
 def test_two_box_meshes_reproduce_a_linear_field_through_the_petsc_matrix(method):
     """3D, two meshes: a slave box (4 x 4 cells across) on a master box (3 x 3), each

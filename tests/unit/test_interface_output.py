@@ -11,6 +11,8 @@ from mpi4py import MPI
 from contactvisco.scene import loader
 from contactvisco.solver.time_loop import simulate
 
+pytestmark = pytest.mark.mpi
+
 PRESSURE = 0.01
 
 

@@ -46,6 +46,7 @@ def test_weights_of_eq19():
         assert np.allclose(H, expected, atol=1e-15)
 
 
+@pytest.mark.mpi
 def test_history_function_in_a_run():
     """The DG0 history stress Function after n steps of the paper scene equals the direct sum
     of eq (19) over the strains of the converged steps."""

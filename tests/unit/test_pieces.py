@@ -134,6 +134,7 @@ PIECE_SCENES = {     # the scene at whose final state the steps are compared; th
 }
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("label", list(PIECE_SCENES))
 def test_condensed_step_is_the_coupled_step(label):
     """At the end of a run, with u perturbed so that the residual is not small: the condensed
@@ -191,6 +192,7 @@ RANK_KEYS = ("x", "u_nu", "u_tau", "lambda_nu", "reaction_tau", "status")
 RANK_SETS = ["geometry.cells=[48, 6]"]
 
 
+@pytest.mark.processes
 @pytest.mark.mpi
 @pytest.mark.slow
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
@@ -266,6 +268,7 @@ def test_memory_acts_on_its_part_of_the_strain(part):
     assert kept < 1e-10, (shear_change, dilatation_change)
 
 
+@pytest.mark.mpi
 def test_corner_values_are_the_forms_values():
     """At the corner of a contact boundary made of two faces (bottom, left), the forms use
     each face's normal: the contact table reports the law as the forms apply it there, the

@@ -174,6 +174,7 @@ def test_ranks_agree(kernel, rule):
         assert np.array_equal(a["status"], b["status"])
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_checkpoint_restores_the_fitted_history(kernel, tmp_path_factory):
     """A problem restored from the checkpoint after 3 steps continues exactly like the one

@@ -47,6 +47,7 @@ def test_p2_and_dg1_fields_become_p1_and_dg0_exactly():
     assert xdmf_field(u1, {}, convert=True) is u1
 
 
+@pytest.mark.mpi
 def test_degree_two_run_writes_every_step():
     """A P2 run (Gauss contact quadrature) writes u and sigma at every time of the series."""
     comm = MPI.COMM_WORLD
