@@ -312,7 +312,8 @@ def obstacle_record(problem, table) -> dict:
     """The obstacle's entry of a step record ({} without an obstacle): its displacement d and
     the resultant contact force it exerts on the body, sum_i w_i (-(reaction_nu) nu +
     sigma_tau) over the contact nodes (the force obstacle.force prescribes under force
-    control). Another body of the mesh as the obstacle (fem.body_contact) has no position of
+    control); for an axisymmetric body w_i is the node's ring area, so the force is the total
+    over the full circle, and its radial component is zero. Another body of the mesh as the obstacle (fem.body_contact) has no position of
     its own: its entry says so and gives each body's resultant contact force
     (BodyContact.record)."""
     obstacle = problem.contact and problem.contact.obstacle
@@ -323,6 +324,8 @@ def obstacle_record(problem, table) -> dict:
     weight = table["weight"][:, None]
     force = np.sum(weight * (table["sigma_tau_vector"]
                              - table["reaction_nu"][:, None] * table["normal"]), axis=0)
+    if getattr(problem.kinematics, "axisymmetric", False):
+        force[0] = 0.0      # the radial ring forces of a body of revolution cancel
     return {"obstacle": {"displacement": obstacle.displacement().tolist(),
                          "force": force.tolist()}}
 
