@@ -134,3 +134,24 @@ def test_sphere_relaxation_at_a_held_depth_follows_lee_radok(meshes):
     assert closed[-1] / closed[0] < 0.65                 # the memory acts
     assert np.max(np.abs(P / closed - 1.0)) < 7e-3
     assert np.max(np.abs((P / P[0]) / (closed / closed[0]) - 1.0)) < 2e-3
+
+
+def test_sphere_creep_scene_follows_lee_radok():
+    """The built-in scene sphere_creep (a/R = 0.1, h = a/6, the exact sphere under a force
+    held from t = 0): the depth creeps by a factor 1.35 and follows delta(t) = a(t)^2 / R,
+    a(t)^3 = 3 R P C(t) / 4. Its creep ratio delta(t)/delta(0) is within 1 % of the closed
+    form's (measured 0.71 %, from the contact radius growing node by node on this mesh); the
+    depth itself within the exact sphere's departure from Hertz, 0.25 a/R (measured -1.6 %)."""
+    scene = scene_module.load("sphere_creep")
+    result = simulate(scene, comm=COMM, progress=False)
+    t = np.array([step["t"] for step in result.steps])
+    depth = -np.array([step["obstacle"]["displacement"][1] for step in result.steps])
+    P = -scene["obstacle"]["force"][0]
+    mu = scene["viscoelastic"]["shear"]["instantaneous"]
+    fraction = scene["viscoelastic"]["shear"]["fractions"][0]
+    exact = SphereLeeRadok(scene["material"]["E"], scene["material"]["nu"],
+                           -2.0 * fraction * mu, 1.0, R)
+    closed = exact.radius(P, t) ** 2 / R
+    assert closed[-1] / closed[0] > 1.3
+    assert np.max(np.abs((depth / depth[0]) / (closed / closed[0]) - 1.0)) < 1e-2
+    assert np.max(np.abs(depth / closed - 1.0)) < 0.25 * math.sqrt(closed[0] * R) / R

@@ -461,7 +461,7 @@ def test_builtin_scenes_are_held(name):
     coarse = {"paper": ["geometry.cells=[4, 4]"], "block3d": ["geometry.parameters.h=0.25"],
               "ironing": ["geometry.parameters.h=0.1"],
               "creep": ["geometry.parameters.h=0.2", "geometry.parameters.h_bottom=0.2"],
-              "hertz": []}[name]
+              "hertz": [], "sphere_creep": []}[name]
     problem = build(name, coarse)
     from contactvisco.fem.rigid import free_motions
     assert free_motions(problem) == []
