@@ -42,7 +42,8 @@ AXIS_TOLERANCE = 1e-10
 
 class Cartesian:
     """The kinematics of plane strain, plane stress and 3D: eps(u) = sym grad u, d x d, and
-    unweighted integrals.
+    unweighted integrals. :class:`Axisymmetric` changes the strain, the weight, the tensor
+    shape, the contact nodes' weights and the axis.
 
     Parameters
     ----------
@@ -51,6 +52,10 @@ class Cartesian:
     """
 
     axisymmetric = False
+    #: The weight of every integral (None: none; 2 pi r in axisymmetry).
+    weight = None
+    #: The shape of the strain and stress tensors (None: d x d).
+    tensor_shape = None
 
     def __init__(self, mesh):
         self.mesh = mesh
@@ -68,29 +73,32 @@ class Cartesian:
         Returns
         -------
         UFL expression
-            The d x d strain.
+            The strain, tensor_dim x tensor_dim.
         """
         return ufl.sym(ufl.grad(u))
 
     def integral(self, integrand, measure):
-        """integrand * measure: the integral over the body (dx) or a part of its boundary (ds).
+        """The integral over the body (dx) or a part of its boundary (ds): integrand * measure,
+        times the weight when there is one.
 
         Parameters
         ----------
         integrand : UFL expression
-            The scalar integrand.
+            The scalar integrand f.
         measure : ufl.Measure
             dx or ds (restricted, with metadata, as the caller needs).
 
         Returns
         -------
         UFL form
-            int f dx, the form itself with no weight.
+            int f dx (the form itself without a weight), or int f 2 pi r dx.
         """
-        return integrand * measure
+        if self.weight is None:
+            return integrand * measure
+        return self.weight * integrand * measure
 
     def tensor_space(self, family: str, degree: int):
-        """The space of the strain and stress tensors (tensor_dim x tensor_dim).
+        """The space of the strain and stress tensors.
 
         Parameters
         ----------
@@ -102,12 +110,13 @@ class Cartesian:
         Returns
         -------
         dolfinx.fem.FunctionSpace
-            The d x d tensor space.
+            Tensors of tensor_shape (d x d without one).
         """
-        return compat.tensor_space(self.mesh, family, degree)
+        return compat.tensor_space(self.mesh, family, degree, shape=self.tensor_shape)
 
     def contact_weight(self, Q, dsc, shares):
-        """The weight of the contact terms at the contact nodes (none here).
+        """The weight omega of the contact terms (a P1 field) and each node's weight, the
+        area its force acts on; here none and the nodes' shares of Gamma_C.
 
         Parameters
         ----------
@@ -116,17 +125,17 @@ class Cartesian:
         dsc : ufl.Measure
             The contact measure.
         shares : numpy.ndarray
-            Each local P1 node's share of Gamma_C (the vertex rule's lumped weight).
+            Each local P1 node's share of Gamma_C (the vertex rule's lumped weight, 0 off it).
 
         Returns
         -------
         tuple
-            (None, shares): no weight, and the node weights unchanged.
+            (omega or None, the node weights at every local P1 node).
         """
         return None, shares
 
     def axis_dofs(self, V):
-        """The displacement dofs held by the axis (none here).
+        """The dofs of u_r on the axis, where symmetry makes it vanish (None: no axis).
 
         Parameters
         ----------
@@ -135,15 +144,16 @@ class Cartesian:
 
         Returns
         -------
-        None
-            No axis.
+        numpy.ndarray or None
+            Local dof indices of V.sub(0) (unrolled), ghosts included.
         """
         return None
 
 
 class Axisymmetric(Cartesian):
     """The kinematics of a body of revolution meshed in (r, z) (module description): the 3 x 3
-    strain with the hoop component u_r / r, integrals weighted by 2 pi r.
+    strain with the hoop component u_r / r, integrals weighted by 2 pi r, the contact nodes
+    weighted by their ring areas, u_r = 0 on the axis.
 
     Parameters
     ----------
@@ -153,6 +163,7 @@ class Axisymmetric(Cartesian):
     """
 
     axisymmetric = True
+    tensor_shape = (3, 3)
 
     def __init__(self, mesh):
         super().__init__(mesh)
@@ -173,106 +184,35 @@ class Axisymmetric(Cartesian):
                 f"r = {least:.6g}; move or cut the mesh to r >= 0", key="material.model")
         self.tensor_dim = 3
         self.r = ufl.SpatialCoordinate(mesh)[0]
+        self.weight = 2.0 * math.pi * self.r
 
     def strain(self, u):
-        """The 3 x 3 strain in (r, z, theta), hoop strain u_r / r (du_r/dr on the axis, its
-        limit, so that points on the axis give finite values).
-
-        Parameters
-        ----------
-        u : UFL vector
-            (u_r, u_z).
-
-        Returns
-        -------
-        UFL expression
-            eps(u), 3 x 3 (module description).
-        """
+        """The 3 x 3 strain of (u_r, u_z) in (r, z, theta) (module description), the hoop
+        strain u_r / r taking its limit du_r/dr on the axis, so that points on the axis give
+        finite values."""
         e = ufl.sym(ufl.grad(u))
         hoop = ufl.conditional(ufl.gt(self.r, 0.0), u[0] / self.r, u[0].dx(0))
         return ufl.as_matrix([[e[0, 0], e[0, 1], 0.0],
                               [e[1, 0], e[1, 1], 0.0],
                               [0.0, 0.0, hoop]])
 
-    def integral(self, integrand, measure):
-        """int f 2 pi r dx (or ds): the integral over the body of revolution.
-
-        Parameters
-        ----------
-        integrand : UFL expression
-            The scalar integrand.
-        measure : ufl.Measure
-            dx or ds of the meridian mesh.
-
-        Returns
-        -------
-        UFL form
-            integrand * 2 pi r * measure.
-        """
-        return 2.0 * math.pi * self.r * integrand * measure
-
-    def tensor_space(self, family: str, degree: int):
-        """The 3 x 3 tensor space on the meridian mesh (the hoop component included).
-
-        Parameters
-        ----------
-        family : str
-            "CG" or "DG".
-        degree : int
-            The degree.
-
-        Returns
-        -------
-        dolfinx.fem.FunctionSpace
-            Tensors of shape (3, 3).
-        """
-        return compat.tensor_space(self.mesh, family, degree, shape=(3, 3))
-
     def contact_weight(self, Q, dsc, shares):
-        """The contact terms' weight omega, a P1 field with the vertex rule: the contact
-        conditions hold node by node, and a node's force is its pressure times its ring area
-        w_i = int_Gamma_C 2 pi r phi_i ds (exact: the consistent lumping), also on the axis,
-        where 2 pi r itself is zero. omega_i = w_i / m_i, m_i the node's share of Gamma_C
-        (the vertex rule's sum_f |f| / 2), so that the vertex rule of omega f gives
-        sum_i w_i f(x_i).
-
-        Parameters
-        ----------
-        Q : dolfinx.fem.FunctionSpace
-            The scalar P1 space of the contact nodes.
-        dsc : ufl.Measure
-            The contact measure.
-        shares : numpy.ndarray
-            m_i at every local P1 node (0 off Gamma_C).
-
-        Returns
-        -------
-        tuple
-            (omega, w): the P1 Function omega and the ring areas w at every local node.
-        """
+        """Cartesian.contact_weight with the ring areas: the conditions hold node by node (the
+        vertex rule), and a node's force is its pressure times w_i = int_Gamma_C 2 pi r phi_i ds
+        (exact: the consistent lumping), also on the axis, where 2 pi r itself is zero.
+        omega_i = w_i / m_i, m_i the node's share, so that the vertex rule of omega f gives
+        sum_i w_i f(x_i)."""
         from dolfinx import fem
         from contactvisco.fem.problem import assembled_values
         exact = dsc.reconstruct(metadata={"quadrature_degree": 2})
-        areas = assembled_values(fem.form(2.0 * math.pi * self.r * ufl.TestFunction(Q)
-                                          * exact))
+        areas = assembled_values(fem.form(self.weight * ufl.TestFunction(Q) * exact))
         omega = fem.Function(Q, name="ring_weight")
         on = shares > 0
         omega.x.array[on] = areas[on] / shares[on]
         return omega, areas
 
     def axis_dofs(self, V):
-        """The dofs of u_r at the nodes on the axis r = 0, where symmetry makes u_r vanish.
-
-        Parameters
-        ----------
-        V : dolfinx.fem.FunctionSpace
-            The displacement space.
-
-        Returns
-        -------
-        numpy.ndarray
-            Local dof indices of V.sub(0) (unrolled), ghosts included.
-        """
+        """The u_r dofs at the nodes with |r| <= AXIS_TOLERANCE times the mesh's size."""
         blocks = np.flatnonzero(np.abs(V.tabulate_dof_coordinates()[:, 0])
                                 <= AXIS_TOLERANCE * self.scale)
         return (blocks * V.dofmap.index_map_bs).astype(np.int32)

@@ -50,8 +50,9 @@ DEFAULT_FRICTION_LAW = "compliance"
 SLIP_MEASURES = ("total", "increment")
 
 #: Script parameters that are not extents of the body: a refinement distance, an angle in
-#: degrees (the arc of a cylinder's contact boundary).
-NOT_EXTENTS = ("refine", "angle")
+#: degrees (the arc of a cylinder's contact boundary), the growth of a graded mesh's size
+#: with the distance (a ratio).
+NOT_EXTENTS = ("refine", "angle", "growth")
 
 
 def _mesh_dir() -> pathlib.Path:

@@ -229,18 +229,8 @@ class SphereLeeRadok:
         return self.E_inf + self.c_b * np.exp(-self.b * t) + self.c_3 * np.exp(-self.beta3 * t)
 
     def compliance(self, t):
-        """C(t), the creep function of E* (C(0) = 1 / E*_0).
-
-        Parameters
-        ----------
-        t : float or numpy.ndarray
-            Times >= 0.
-
-        Returns
-        -------
-        numpy.ndarray
-            C(t).
-        """
+        """C(t) at the times t >= 0 (numbers or an array), the creep function of E*: the
+        inverse of Er in the sense int_0^t C(t - s) dEr(s) = 1, C(0) = 1 / E*_0."""
         t = np.asarray(t, float)
         b = self.b
         return (1.0 / (4.0 * self.mu) * (b / self.beta1 + (1.0 - b / self.beta1)

@@ -121,3 +121,24 @@ def test_a_mesh_that_crosses_the_axis_is_refused():
     with pytest.raises(SceneError, match="r >= 0.*r = -0.5") as caught:
         simulate(scene, comm=MPI.COMM_WORLD, progress=False)
     assert caught.value.key == "material.model"
+
+
+def test_stress_on_the_axis_is_finite_in_p2():
+    """P2's stress lives at DG1 points, the axis among them, where u_r / r is 0/0: the hoop
+    strain takes its limit du_r/dr there, so a linear field u = (a r, b z) gives the exact
+    stress of eps = diag(a, b, a) at every point."""
+    from dolfinx import fem
+    from contactvisco.fem import geometry, problem as problem_module
+    raw = cylinder("uniaxial", {"kernel": "none"}, steps=1)
+    raw["discretization"] = {"degree": 2}
+    scene = scene_module.resolve(raw)
+    problem = problem_module.build(scene, geometry.build(scene, MPI.COMM_WORLD))
+    problem.u.interpolate(lambda x: np.vstack([0.1 * x[0], 0.2 * x[1]]))
+    sigma = fem.Function(problem.tensor_space)
+    sigma.interpolate(problem.sigma_expression)
+    points = problem.tensor_space.tabulate_dof_coordinates()
+    assert MPI.COMM_WORLD.allreduce(int(np.sum(np.abs(points[:, 0]) < 1e-12))) > 0
+    lam, mu = lame_constants("3d", E, NU)
+    eps = np.diag([0.1, 0.2, 0.1])
+    exact = lam * np.trace(eps) * np.eye(3) + 2 * mu * eps
+    assert np.allclose(sigma.x.array.reshape(-1, 3, 3), exact, rtol=0, atol=1e-12 * E)
