@@ -142,3 +142,34 @@ def test_stress_on_the_axis_is_finite_in_p2():
     eps = np.diag([0.1, 0.2, 0.1])
     exact = lam * np.trace(eps) * np.eye(3) + 2 * mu * eps
     assert np.allclose(sigma.x.array.reshape(-1, 3, 3), exact, rtol=0, atol=1e-12 * E)
+
+
+@pytest.mark.parametrize("q, g, regime", [(2.0, 0.05, "compliance"), (8.0, 0.05, "bound")])
+def test_cylinder_pressed_onto_the_layer(q, g, regime):
+    """The axisymmetric twin of test_block.test_uniform_block: a cylinder in a rigid sleeve
+    (u_r = 0 at r = 1) pressed by q onto the compliant layer (stiffness c, bound g), with
+    friction. Uniaxial strain: u_z = -u_nu - q z / M, M = lambda + 2 mu (3D constants),
+    u_nu = q / c below the bound, g at it; every contact node, the one on the axis included,
+    carries the pressure q, and the ring areas add up to the disk's, so the total force is
+    q pi R^2."""
+    c = 100.0
+    raw = {"name": "cylinder_on_layer",
+           "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [5, 4]},
+           "material": {"model": "axisymmetric", "E": E, "nu": NU},
+           "dirichlet": [{"boundary": "right", "components": [0]}],
+           "traction": [{"boundary": "top", "value": [0.0, -q]}],
+           "contact": {"boundary": "bottom", "stiffness": c, "g": g, "mu": 0.2},
+           "time": {"T": 1.0, "steps": 1},
+           "output": {"probes": [[0.0, 1.0], [0.5, 0.5], [1.0, 0.0], [0.0, 0.0]]}}
+    result = simulate(scene_module.resolve(raw), comm=MPI.COMM_WORLD, progress=False,
+                      keep_tables=True)
+    lam, mu = lame_constants("3d", E, NU)
+    u_nu = q / c if regime == "compliance" else g
+    table = result.tables[-1]
+    assert np.allclose(table["u_nu"], u_nu, rtol=0, atol=1e-12)
+    assert np.allclose(table["reaction_nu"], q, rtol=0, atol=1e-10)
+    assert set(table["status"]) == {1 if regime == "compliance" else 2}
+    assert np.sum(table["weight"]) == pytest.approx(np.pi, rel=1e-12)
+    for probe in result.steps[-1]["probes"]:
+        r, z = probe["x"]
+        assert probe["u"] == pytest.approx([0.0, -u_nu - q * z / (lam + 2 * mu)], abs=1e-12)
