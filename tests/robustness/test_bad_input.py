@@ -138,7 +138,7 @@ SCENE_ERRORS = [  # (scene, overrides, words)
     ("paper", ["material.model='plane_strain'", "material.nu=0.5"],
      "(-1, 0.5) for plane_strain"),
     ("paper", ["material.model='shell'"],
-     "material.model must be plane_stress, plane_strain or 3d"),
+     "material.model must be plane_stress, plane_strain, 3d or axisymmetric"),
     ("paper", ["contact.g=-0.05"], "contact.g must be >= 0 (inf: no bound), got -0.05"),
     ("paper", ["contact.mu=-0.2"], "contact.mu must be a finite number >= 0"),
     ("paper", ["contact.stiffness=-1"], "contact.stiffness must be a finite number >= 0"),
