@@ -19,6 +19,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from contactvisco.errors import SceneError
 from contactvisco.fem import contact_state
 from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.probes import Probes
@@ -372,13 +373,20 @@ def advance(problem, snes, t_to, max_cuts, say, cuts=0, predict=None):
 
 def _solve(problem, snes, saved, predict, t_to) -> int:
     """Newton from the predicted first iterate, and from the last accepted state (`saved`)
-    when that fails or there is no prediction; returns the iterations of both attempts."""
+    when that fails or there is no prediction; returns the iterations of both attempts.
+    Under force control the prediction moves u but holds the obstacle at its last
+    equilibrium, which can part them (a creeping body, large steps): the obstacle's
+    out-of-contact error (key obstacle.force) from a prediction is such a failure too."""
     if predict is None or not predict.apply(t_to):
         return snes.solve()
     try:
         return snes.solve()
     except NewtonFailure as err:
         spent = max(len(err.residuals) - 1, 0)
+    except SceneError as err:
+        if err.key != "obstacle.force":
+            raise
+        spent = 0
     _restore(problem, saved)
     return spent + snes.solve()
 
