@@ -35,12 +35,15 @@ def vector_space(mesh, family: str, degree: int):
     return fem.VectorFunctionSpace(mesh, (family, degree))
 
 
-def tensor_space(mesh, family: str, degree: int):
-    """The gdim x gdim tensor space of a family ("CG" or "DG") and degree."""
+def tensor_space(mesh, family: str, degree: int, shape: tuple | None = None):
+    """The tensor space of a family ("CG" or "DG") and degree: gdim x gdim, or `shape` (the
+    3 x 3 strain of an axisymmetric body on its 2D mesh)."""
     d = mesh.geometry.dim
     if _SHAPED_SPACES:
-        return fem.functionspace(mesh, (_family(family), degree, (d, d)))
-    return fem.TensorFunctionSpace(mesh, (family, degree))
+        return fem.functionspace(mesh, (_family(family), degree, shape or (d, d)))
+    if shape is None:
+        return fem.TensorFunctionSpace(mesh, (family, degree))
+    return fem.TensorFunctionSpace(mesh, (family, degree), shape=shape)
 
 
 def blocked_space(mesh, family: str, degree: int, size: int):

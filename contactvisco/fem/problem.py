@@ -40,8 +40,9 @@ from contactvisco.model import contact_law as law
 from contactvisco.fem import obstacle as obstacle_module
 from contactvisco.fem import rigid
 from contactvisco.fem.geometry import Geometry
+from contactvisco.fem.kinematics import kinematics
 from contactvisco.model.material import (elasticity, energy_stress, hencky_energy,
-                                         invariants, lame_constants, strain)
+                                         invariants, lame_constants)
 from contactvisco.fem.tangent import TangentCheck
 from contactvisco.scene.expressions import Context
 from contactvisco.model.memory import (DirectHistory, FractionalHistory, History,
@@ -204,6 +205,7 @@ class Problem:
     tensor_space: fem.FunctionSpace           # the stress output's tensor space
     sigma_expression: fem.Expression
     length_scale: float
+    kinematics: object = None                 # fem.kinematics: eps(u), weights, tensor size
     memory: MemoryPart | None = None
     contact: ContactPart | None = None
     tangent: object | None = None              # fem.tangent.TangentCheck (nonlinear A)
@@ -300,27 +302,28 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     degree = scene["discretization"]["degree"]
     context = Context(mesh)
     updates = []                               # run at each new time
+    kin = kinematics(scene, mesh)
 
     V = compat.vector_space(mesh, "CG", degree)
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
     if scene.get("body"):
-        sigma, constants, memory = body_stress(scene, geometry, u, context, updates)
+        sigma, constants, memory = body_stress(scene, geometry, u, context, updates, kin)
     else:
-        sigma, constants, memory = _stress(scene, mesh, u, context, updates)
+        sigma, constants, memory = _stress(scene, mesh, u, context, updates, kin)
     constants["t"] = context.t
 
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=geometry.facet_tags)
-    loads = _loads(scene, geometry, context, v, ds)
-    F_u = ufl.inner(sigma, strain(v)) * ufl.dx
+    loads = _loads(scene, geometry, context, v, ds, kin)
+    F_u = kin.integral(ufl.inner(sigma, kin.strain(v)), ufl.dx)
     if loads is not None:
         F_u -= loads
-    bcs, fixed_components = _dirichlet(scene, geometry, V, context, updates)
+    bcs, fixed_components = _dirichlet(scene, geometry, V, context, updates, kin)
 
     unknowns, spaces, F_extra = [u], [V], []
     contact = None
     if scene["contact"] is not None:
         contact, contact_terms, multipliers = _contact(scene, geometry, u, v, ds, context,
-                                                       updates)
+                                                       updates, kin)
         constants.update(contact.constants)
         if contact_terms is not None:
             F_u += contact_terms
@@ -333,8 +336,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
         contact and contact.lambda_tau, fixed_components, d)
 
     F = [F_u] + F_extra
-    tensor_space = memory.tensor_space if memory else compat.tensor_space(mesh, "DG",
-                                                                            degree - 1)
+    tensor_space = memory.tensor_space if memory else kin.tensor_space("DG", degree - 1)
     problem = Problem(
         scene=scene, geometry=geometry, V=V, u=u, F=F, J=_block_jacobian(F, unknowns, spaces),
         bcs=bcs + multiplier_bcs, bcs_u=list(bcs), u_fixed=fixed_components,
@@ -343,18 +345,21 @@ def build(scene: dict, geometry: Geometry) -> Problem:
                        obstacle=contact and contact.obstacle),
         loads=loads, tensor_space=tensor_space,
         sigma_expression=compat.expression(sigma, tensor_space),
-        length_scale=_length_scale(mesh), memory=memory, contact=contact,
+        length_scale=_length_scale(mesh), kinematics=kin, memory=memory, contact=contact,
         tangent=constants.pop("tangent", None))
     rigid.check(problem)
     return problem
 
 
-def _stress(scene, mesh, u, context=None, updates=None):
+def _stress(scene, mesh, u, context=None, updates=None, kin=None):
     """sigma(u) = A eps(u) + H + sum_part w_part P_part eps(u) (eq 19: the elastic stress,
-    the history stress of the memory part and its implicit weights, none without memory).
+    the history stress of the memory part and its implicit weights, none without memory),
+    eps the strain of the kinematics `kin` (fem.kinematics; the scene's when None).
     Returns sigma, the Constants it uses by name (the Lame constants lame_lambda, lame_mu
     and the memory part's; with a nonlinear A also "tangent", its TangentCheck) and the
     MemoryPart (None without memory)."""
+    kin = kin or kinematics(scene, mesh)
+    strain = kin.strain
     mat = scene["material"]
     lame_lambda, lame_mu = lame_constants(mat["model"], mat["E"], mat["nu"])
     constants = {"lame_lambda": _scalar(mesh, lame_lambda), "lame_mu": _scalar(mesh, lame_mu)}
@@ -364,11 +369,11 @@ def _stress(scene, mesh, u, context=None, updates=None):
         energy = material_energy(mat, constants, context or Context(mesh))
         sigma, C = energy_stress(strain(u), energy)
         constants["tangent"] = TangentCheck(C, u, lame_mu)
-    memory = _memory(scene, mesh, u, context, updates)
+    memory = _memory(scene, mesh, u, context, updates, kin)
     if memory is not None:
         sigma = sigma + memory.H
         for constant, part in memory.implicit_terms:
-            sigma = sigma + constant * _strain_part(u, part, mesh.geometry.dim)
+            sigma = sigma + constant * _strain_part(strain(u), part)
         constants.update(memory.constants)
     return sigma, constants, memory
 
@@ -400,9 +405,10 @@ def material_energy(mat: dict, constants: dict, context: Context):
                                       dict(invariants(eps), lmbda=lmbda, mu_lame=mu))
 
 
-def _strain_part(u, part, d):
-    """The part of eps(u) a memory term acts on: full, deviatoric or volumetric."""
-    eps = strain(u)
+def _strain_part(eps, part):
+    """The part of the strain eps a memory term acts on: full, deviatoric or volumetric
+    (tr(eps)/d I, d the dimension of the strain tensor: 3 for an axisymmetric body)."""
+    d = eps.ufl_shape[0]
     if part == "deviatoric":
         return ufl.dev(eps)
     if part == "volumetric":
@@ -420,17 +426,19 @@ def _length_scale(mesh) -> float:
     return float(np.max(upper - lower))
 
 
-def _loads(scene, geometry, context, v, ds):
-    """(f, v) + sum (f_N, v)_Gamma_N: the linear form of the external loads, None without."""
+def _loads(scene, geometry, context, v, ds, kin):
+    """(f, v) + sum (f_N, v)_Gamma_N: the linear form of the external loads, None without
+    (integrals weighted as the kinematics `kin` weighs them: 2 pi r in axisymmetry)."""
     d = geometry.mesh.geometry.dim
     loads = []
     body = scene["body_force"]["value"]
     if body is not None:
-        loads.append(ufl.dot(context.vector(body, "body_force.value", d), v) * ufl.dx)
+        loads.append(kin.integral(ufl.dot(context.vector(body, "body_force.value", d), v),
+                                  ufl.dx))
     for i, traction in enumerate(scene["traction"]):
         geometry.facets(traction["boundary"], f"traction[{i}].boundary")   # checks the name
         fN = context.vector(traction["value"], f"traction[{i}].value", d)
-        loads.append(ufl.dot(fN, v) * ds(geometry.names[traction["boundary"]]))
+        loads.append(kin.integral(ufl.dot(fN, v), ds(geometry.names[traction["boundary"]])))
     return sum(loads[1:], loads[0]) if loads else None
 
 
@@ -452,10 +460,11 @@ def _contact_measure(scene, geometry, ds):
     return ds(tuple(geometry.names[name] for name in names), metadata=metadata)
 
 
-def _contact(scene, geometry, u, v, ds, context, updates):
+def _contact(scene, geometry, u, v, ds, context, updates, kin):
     """The contact part (eqs 20-21): returns the ContactPart, the terms it adds to F_u and
     the (multiplier, its residual F_nu or F_tau) pairs, in the order lambda_nu, lambda_tau.
-    The law itself is contactvisco.model.contact_law.law_terms."""
+    The law itself is contactvisco.model.contact_law.law_terms. The kinematics `kin` weighs
+    the terms node by node (kin.contact_weight: the ring areas in axisymmetry)."""
     mesh = geometry.mesh
     contact = scene["contact"]
     degree = scene["discretization"]["degree"]
@@ -466,6 +475,7 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     # diagonals on space identity, so sharing V would put u's onto lambda_tau's rows.
     W = compat.vector_space(mesh, "CG", 1)
     nodes = _contact_nodes(mesh, Q, W, dsc)
+    omega, nodes.weights = _node_weights(kin, Q, dsc, nodes)
     if degree == 1 and not np.allclose(u.function_space.tabulate_dof_coordinates(),
                                        W.tabulate_dof_coordinates()):
         raise RuntimeError("displacement and multiplier node numberings differ")
@@ -484,18 +494,22 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                           previous, constants, contact["friction_law"], laws=laws)
     F_u = None
     pairs = []
+
+    def weighted(integrand):
+        return (integrand if omega is None else omega * integrand) * dsc
+
     if terms["normal_force"] is not None:
-        F_u = terms["normal_force"] * law.normal_part(v, normal) * dsc
+        F_u = weighted(terms["normal_force"] * law.normal_part(v, normal))
     if lambda_nu is not None:
         r = constants["r"]
-        pairs.append((lambda_nu, -1.0 / r * (lambda_nu + terms["R_nu"])
-                      * ufl.TestFunction(Q) * dsc))
+        pairs.append((lambda_nu, weighted(-1.0 / r * (lambda_nu + terms["R_nu"])
+                                          * ufl.TestFunction(Q))))
     if lambda_tau is not None:
         r, sigma_tau = constants["r"], terms["sigma_tau"]
-        tangential = -ufl.dot(sigma_tau, law.tangential_part(v, normal)) * dsc
+        tangential = weighted(-ufl.dot(sigma_tau, law.tangential_part(v, normal)))
         F_u = tangential if F_u is None else F_u + tangential
-        pairs.append((lambda_tau, -1.0 / r * ufl.dot(lambda_tau - sigma_tau,
-                                                      ufl.TestFunction(W)) * dsc))
+        pairs.append((lambda_tau, weighted(-1.0 / r * ufl.dot(lambda_tau - sigma_tau,
+                                                               ufl.TestFunction(W)))))
     if (scene.get("obstacle") or {}).get("shape") == "body":
         obstacle.contact_form = F_u            # the master's share (fem.body_contact)
     if obstacle is not None and obstacle.controlled:
@@ -510,6 +524,15 @@ def _contact(scene, geometry, u, v, ds, context, updates):
                                                   with_radius="p_tau" in laws)
                        if corners or laws else None, obstacle=obstacle)
     return part, F_u, pairs
+
+
+def _node_weights(kin, Q, dsc, nodes):
+    """The contact terms' weight (None: none) and each contact node's weight, the area its
+    force acts on (kin.contact_weight; the node's share of Gamma_C without a weight)."""
+    shares = np.zeros(Q.dofmap.index_map.size_local + Q.dofmap.index_map.num_ghosts)
+    shares[nodes.nodes] = nodes.weights
+    omega, weights = kin.contact_weight(Q, dsc, shares)
+    return omega, weights[nodes.nodes]
 
 
 def _obstacle(scene, Q, W, nodes, context, updates, geometry=None, V=None):
@@ -687,7 +710,7 @@ def _gap(expression, Q, context, updates):
     return value, function
 
 
-def _memory(scene, mesh, u, context=None, updates=None) -> MemoryPart | None:
+def _memory(scene, mesh, u, context=None, updates=None, kin=None) -> MemoryPart | None:
     """The history of eq (19) (None without memory): H, a known DG field, and for the
     trapezoid rule the implicit weights w of w P eps(u) (w = k/2 R(0), or the
     product-integration weight of the fractional kernel: history.implicit), as Constants
@@ -697,8 +720,9 @@ def _memory(scene, mesh, u, context=None, updates=None) -> MemoryPart | None:
         return None
     time = scene["time"]
     dt = time["T"] / time["steps"]
-    d = mesh.geometry.dim
-    tensor_space = compat.tensor_space(mesh, "DG", scene["discretization"]["degree"] - 1)
+    kin = kin or kinematics(scene, mesh)
+    d = kin.tensor_dim                          # the strain's: 3 in axisymmetry
+    tensor_space = kin.tensor_space("DG", scene["discretization"]["degree"] - 1)
     visco = scene.get("viscoelastic")
     thermal = visco is not None and visco["temperature"] is not None
     if table is not None:
@@ -710,9 +734,10 @@ def _memory(scene, mesh, u, context=None, updates=None) -> MemoryPart | None:
     else:
         history = History(terms, dt, time["rule"], d)
     if thermal:
-        return _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates)
+        return _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates,
+                                    kin)
     weights = {part: _scalar(mesh, 0.0) for part in history.implicit(dt)}
-    return _memory_part(history, weights, u, tensor_space)
+    return _memory_part(history, weights, kin.strain(u), tensor_space)
 
 
 def _temperature_field(scene, mesh, context):
@@ -756,12 +781,12 @@ def _reduced_range(scene, mesh, context) -> tuple[float, float]:
             SPAN_MARGIN * T * mesh.comm.allreduce(largest, op=MPI.MAX))
 
 
-def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates):
+def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates, kin):
     """The memory part of a scene with a temperature: the Prony history advanced in reduced
     time (ReducedTimeHistory), 1/a_T(theta) taken at each point whenever the time moves, and
     the implicit weights as fields (one value per point)."""
     from contactvisco.model.viscoelastic import inverse_shift
-    d = mesh.geometry.dim
+    d = kin.tensor_dim
     fractional = isinstance(history, FractionalHistory)
     reduced = (ReducedFractionalHistory if fractional else ReducedTimeHistory)(history, d * d)
     visco = scene["viscoelastic"]
@@ -792,16 +817,16 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
 
     updates.append(stage)
     weights = {part: fem.Function(scalars) for part in reduced.implicit(0.0)}
-    return _memory_part(reduced, weights, u, tensor_space)
+    return _memory_part(reduced, weights, kin.strain(u), tensor_space)
 
 
-def _memory_part(history, weights, u, tensor_space) -> MemoryPart:
+def _memory_part(history, weights, eps, tensor_space) -> MemoryPart:
     """The MemoryPart of a history whose implicit weights (by part) are the Constants or
-    point fields `weights`."""
+    point fields `weights`, of the strain eps(u) (UFL)."""
     return MemoryPart(
         history=history, H=fem.Function(tensor_space, name="history_stress"),
         eps_function=fem.Function(tensor_space),
-        eps_expression=compat.expression(strain(u), tensor_space),
+        eps_expression=compat.expression(eps, tensor_space),
         tensor_space=tensor_space,
         constants={f"memory_implicit_{part}": c for part, c in weights.items()},
         implicit_terms=[(c, part) for part, c in weights.items()])
@@ -834,9 +859,10 @@ def _interpolator(function, value, space):
     return lambda: function.interpolate(expression)
 
 
-def _dirichlet(scene, geometry, V, context, updates):
+def _dirichlet(scene, geometry, V, context, updates, kin=None):
     """Dirichlet conditions and, per displacement dof, whether it is prescribed (0/1 array,
-    consistent over ranks, ghosts included). Values may depend on x and t."""
+    consistent over ranks, ghosts included). Values may depend on x and t. An axisymmetric
+    body (kin) also gets u_r = 0 at its nodes on the axis (kin.axis_dofs)."""
     mesh = geometry.mesh
     d = mesh.geometry.dim
     fdim = d - 1
@@ -863,6 +889,10 @@ def _dirichlet(scene, geometry, V, context, updates):
             fixed.x.array[(dofs[:, None] * d + np.arange(d)).ravel()] = 1.0
             continue
         bcs += _component_bcs(item, where, comps, facets, V, context, updates, fixed)
+    axis = None if kin is None else kin.axis_dofs(V)
+    if axis is not None:
+        bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), axis, V.sub(0)))
+        fixed.x.array[axis] = 1.0
     # A rank may hold a prescribed node as a ghost without the facet that prescribes it.
     fixed_vector = compat.petsc_vector(fixed)
     fixed_vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
@@ -1087,7 +1117,7 @@ def _tensor_mask(space, cells):
     return mask
 
 
-def body_stress(scene: dict, geometry: Geometry, u, context=None, updates=None):
+def body_stress(scene: dict, geometry: Geometry, u, context=None, updates=None, kin=None):
     """The stress of several bodies, each with its own A and memory kernel:
     sigma = sum_b chi_b sigma_b(u), chi_b the DG0 indicator of body b's cells and sigma_b
     eq (19) with the body's [material] and [memory] (_stress).
@@ -1102,6 +1132,8 @@ def body_stress(scene: dict, geometry: Geometry, u, context=None, updates=None):
         The displacement.
     context, updates
         The expressions' x and t, and the callables run at each new time.
+    kin : Cartesian or Axisymmetric, optional
+        The kinematics (fem.kinematics; the scene's when None).
 
     Returns
     -------
@@ -1117,7 +1149,7 @@ def body_stress(scene: dict, geometry: Geometry, u, context=None, updates=None):
     sigma, constants, parts, masks, owners = 0, {}, [], [], []
     for body, cells in zip(scene["body"], body_cells(scene, geometry)):
         own = dict(scene, material=body["material"], memory=body["memory"])
-        sigma_b, constants_b, memory_b = _stress(own, mesh, u, context, updates)
+        sigma_b, constants_b, memory_b = _stress(own, mesh, u, context, updates, kin)
         sigma = sigma + _indicator(mesh, cells) * sigma_b
         constants.update({f"{body['name']}.{name}": c for name, c in constants_b.items()})
         if memory_b is not None:

@@ -533,10 +533,12 @@ def jsonable(value):
     return value
 
 
-#: The stress components written by output.fields = "stress_components", (i, j) of sigma.
+#: The stress components written by output.fields = "stress_components", (i, j) of sigma;
+#: an axisymmetric body's in (r, z, theta), tt the hoop stress sigma_theta.
 COMPONENTS = {2: (("xx", 0, 0), ("yy", 1, 1), ("xy", 0, 1)),
               3: (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("yz", 1, 2),
-                  ("xz", 0, 2))}
+                  ("xz", 0, 2)),
+              "axisymmetric": (("rr", 0, 0), ("zz", 1, 1), ("rz", 0, 1), ("tt", 2, 2))}
 #: The output.fields computed from sigma.
 STRESS_FIELDS = ("sigma", "stress_components", "von_mises")
 
@@ -544,19 +546,21 @@ STRESS_FIELDS = ("sigma", "stress_components", "von_mises")
 def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
     """The fields of output.fields that are not unknowns of the problem, by field name, each a
     list of Functions named as ParaView shows them:
-    "stress_components": sigma_xx, sigma_yy, sigma_xy (3D: and sigma_zz, sigma_yz, sigma_xz),
-    scalar fields of sigma's (discontinuous) space; "von_mises": sqrt(3/2 s:s) at the same
+    "stress_components": sigma_xx, sigma_yy, sigma_xy (3D: and sigma_zz, sigma_yz, sigma_xz;
+    axisymmetric: sigma_rr, sigma_zz, sigma_rz and the hoop stress sigma_tt), scalar fields of sigma's (discontinuous) space; "von_mises": sqrt(3/2 s:s) at the same
     points (in 2D of the in-plane stress, sigma_zz taken as 0, as the figures);
     "contact_status": a P1 scalar on the vertices, the contact table's status (0 separated,
     1 compliance, 2 bound) on Gamma_C and 0 elsewhere (none without contact).
     `sigma` must hold the stress of the step when a stress field is asked for; `cache`
     keeps the Functions between steps."""
-    d = problem.geometry.mesh.geometry.dim
+    d = sigma.ufl_shape[0]                  # of the stress: 3 for an axisymmetric body
+    kin = getattr(problem, "kinematics", None)
+    components = COMPONENTS["axisymmetric" if getattr(kin, "axisymmetric", False) else d]
     fields = {}
     if "stress_components" in names or "von_mises" in names:
         tensor_space = sigma.function_space
         values = sigma.x.array.reshape(-1, d, d)
-        wanted = ([(f"sigma_{name}", values[:, i, j]) for name, i, j in COMPONENTS[d]]
+        wanted = ([(f"sigma_{name}", values[:, i, j]) for name, i, j in components]
                   if "stress_components" in names else [])
         if "von_mises" in names:
             wanted.append(("von_mises", von_mises(values)))
@@ -568,7 +572,7 @@ def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
             # The same element, so the same nodes cell by cell: copied through the cell dofs.
             target.x.array[compat.cell_dofs(target.function_space.dofmap)] = \
                 value[compat.cell_dofs(tensor_space.dofmap)]
-        fields["stress_components"] = [cache[f"sigma_{name}"] for name, _, _ in COMPONENTS[d]
+        fields["stress_components"] = [cache[f"sigma_{name}"] for name, _, _ in components
                                        if f"sigma_{name}" in cache]
         fields["von_mises"] = [cache["von_mises"]] if "von_mises" in cache else []
     if "contact_status" in names and problem.contact is not None and table is not None:
@@ -676,7 +680,8 @@ def gather_mesh(problem, sigma, comm):
     cell_dofs = compat.cell_dofs(V.dofmap)[:n_cells, :d + 1]
     cells = imap.local_to_global(cell_dofs.ravel()).reshape(-1, d + 1)
     stress_dofs = compat.cell_dofs(sigma.function_space.dofmap)[:n_cells]
-    stress = sigma.x.array.reshape(-1, d, d)[stress_dofs].mean(axis=1)   # cell averages
+    t = sigma.ufl_shape[0]                  # 3 x 3 for an axisymmetric body
+    stress = sigma.x.array.reshape(-1, t, t)[stress_dofs].mean(axis=1)   # cell averages
     parts = comm.gather((global_index, x, u, cells, von_mises(stress)), root=0)
     if comm.rank != 0:
         return None

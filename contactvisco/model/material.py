@@ -30,8 +30,26 @@ def elasticity(eps, lmbda, mu):
 
 
 def dimension(scene: dict) -> int:
-    """The space dimension of a scene: 3 for the 3D model, else 2 (plane stress, plane strain)."""
+    """The space dimension of a scene: 3 for the 3D model, else 2 (plane stress, plane strain,
+    and the meridian half-plane (r, z) of an axisymmetric body)."""
     return 3 if scene["material"]["model"] == "3d" else 2
+
+
+def strain_dimension(model: str) -> int:
+    """The dimension of the strain tensor of a material.model: 3 in 3D and for an
+    axisymmetric body (eps_rr, eps_zz, eps_rz and the hoop strain eps_theta), else 2.
+
+    Parameters
+    ----------
+    model : str
+        material.model.
+
+    Returns
+    -------
+    int
+        d of the d x d strain, the d of the projections tr(eps)/d I.
+    """
+    return 3 if model in ("3d", "axisymmetric") else 2
 
 
 #: material.law: the linear A, a Hencky-type power law, or a strain-energy expression.

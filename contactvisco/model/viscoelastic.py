@@ -186,7 +186,7 @@ def paper_form(model: str, shear: PronySeries, bulk: PronySeries):
             add(g * G0, tau, "deviatoric", 2.0)
             add(g * K2, tau, "volumetric", 2.0)
     else:
-        three = model == "3d"
+        three = model in ("3d", "axisymmetric")     # a 3 x 3 strain (material.strain_dimension)
         for phi, tau in zip(shear.moduli, shear.taus):
             add(phi, tau, "deviatoric", 2.0)
             if not three:

@@ -50,8 +50,9 @@ DEFAULT_FRICTION_LAW = "compliance"
 SLIP_MEASURES = ("total", "increment")
 
 #: Script parameters that are not extents of the body: a refinement distance, an angle in
-#: degrees (the arc of a cylinder's contact boundary).
-NOT_EXTENTS = ("refine", "angle")
+#: degrees (the arc of a cylinder's contact boundary), the growth of a graded mesh's size
+#: with the distance (a ratio).
+NOT_EXTENTS = ("refine", "angle", "growth")
 
 
 def _mesh_dir() -> pathlib.Path:
@@ -84,6 +85,10 @@ class Geometry(Table):
             self._box(scene["material"]["model"], d)
         else:
             self._gmsh(d)
+        self.need(scene["material"]["model"] != "axisymmetric" or self["rotation"] == 0,
+                  "rotation", f"geometry.rotation = {self['rotation']!r} has no meaning for "
+                  "material.model = 'axisymmetric': the mesh lies in the half-plane "
+                  "(r, z) = (x[0], x[1]), r >= 0, about the fixed z axis r = 0")
 
     def _box(self, model: str, d: int) -> None:
         lower, upper, cells = self["lower"], self["upper"], self["cells"]
@@ -165,7 +170,7 @@ def script_signature(name: str) -> dict:
 
 class Material(Table):
     KEYS = {
-        "model": choice("plane_strain", "plane_stress", "plane_strain", "3d"),
+        "model": choice("plane_strain", "plane_stress", "plane_strain", "3d", "axisymmetric"),
         "E": Key(1.0, lambda x: finite(x) and x > 0, "> 0"),
         "nu": Key(0.3),
         "lambda": Key(None),
@@ -245,7 +250,8 @@ def check_material_law(table: Table, scene) -> None:
                "material.law = 'energy' needs material.energy, an expression string in "
                f"{', '.join(ENERGY_NAMES)} (and x, t), e.g. "
                "'0.5 * lmbda * tr_eps**2 + mu_lame * eps2', got " + repr(text))
-    d = 3 if table["model"] == "3d" else 2
+    from contactvisco.model.material import strain_dimension
+    d = 3 if table["model"] == "3d" else 2            # of x
     try:
         parse(text, table.key("energy"), d, ENERGY_NAMES)
     except SceneError as err:
@@ -257,10 +263,10 @@ def check_material_law(table: Table, scene) -> None:
         names = dict(invariants(eps), lmbda=lam, mu_lame=mu)
         return value_at(text, key, d, [0.0] * d, 0.0, names)
 
-    basis = strain_basis(d)
+    basis = strain_basis(strain_dimension(table["model"]))
     directions = basis + [a + b for k, a in enumerate(basis) for b in basis[k + 1:]]
     h = ENERGY_STEP
-    zero = W(np.zeros((d, d)))
+    zero = W(np.zeros_like(basis[0]))
     for e in directions:
         plus, minus = W(h * e), W(-h * e)
         slope = (plus - minus) / (2 * h)
@@ -805,6 +811,32 @@ class Obstacle(Table):
                           "displacement", f"{where} = {value!r}: a rigid translation depends "
                                           "on t only, not on x")
         self._force(scene, d)
+        if scene["material"]["model"] == "axisymmetric":
+            self._axisymmetric()
+
+    def _axisymmetric(self) -> None:
+        """An axisymmetric body meets an obstacle of revolution about the z axis that moves
+        along it: a sphere centred on the axis, a plane or a surface in (r, z); a cylinder
+        (a torus about the axis) and another body (the pairing is 2D) are refused."""
+        shape = self["shape"]
+        self.need(shape not in ("cylinder", "body"), "shape",
+                  f"obstacle.shape = '{shape}' has no axisymmetric version here: with "
+                  "material.model = 'axisymmetric' use 'sphere' (centred on the axis), 'plane' "
+                  "or 'surface' (a distance in (r, z))"
+                  + ("; two deformable bodies in axisymmetry are not supported "
+                     "(docs/limitations.md)" if shape == "body" else ""))
+        centre = self["centre"]
+        self.need(centre is None or centre[0] == 0, "centre",
+                  f"obstacle.centre = {centre!r}: with material.model = 'axisymmetric' a "
+                  "sphere is centred on the axis, centre = [0, z] (r = 0)")
+        motion = self["displacement"]
+        self.need(motion is None or motion[0] in (0, 0.0, "0"), "displacement",
+                  f"obstacle.displacement = {motion!r}: with material.model = 'axisymmetric' "
+                  "the obstacle moves along the axis only; give [0, d_z(t)]")
+        self.need(0 not in self["force_components"], "force_components",
+                  f"obstacle.force_components = {self['force_components']!r}: with "
+                  "material.model = 'axisymmetric' a force acts along the axis only "
+                  "(component 1, z), the radial resultant of a body of revolution being zero")
 
     def _body(self, scene) -> None:
         """shape = "body": the master boundary is a name other than the contact boundary; the

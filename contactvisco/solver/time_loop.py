@@ -19,6 +19,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from contactvisco.errors import SceneError
 from contactvisco.fem import contact_state
 from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.probes import Probes
@@ -312,7 +313,8 @@ def obstacle_record(problem, table) -> dict:
     """The obstacle's entry of a step record ({} without an obstacle): its displacement d and
     the resultant contact force it exerts on the body, sum_i w_i (-(reaction_nu) nu +
     sigma_tau) over the contact nodes (the force obstacle.force prescribes under force
-    control). Another body of the mesh as the obstacle (fem.body_contact) has no position of
+    control); for an axisymmetric body w_i is the node's ring area, so the force is the total
+    over the full circle, and its radial component is zero. Another body of the mesh as the obstacle (fem.body_contact) has no position of
     its own: its entry says so and gives each body's resultant contact force
     (BodyContact.record)."""
     obstacle = problem.contact and problem.contact.obstacle
@@ -323,6 +325,8 @@ def obstacle_record(problem, table) -> dict:
     weight = table["weight"][:, None]
     force = np.sum(weight * (table["sigma_tau_vector"]
                              - table["reaction_nu"][:, None] * table["normal"]), axis=0)
+    if getattr(problem.kinematics, "axisymmetric", False):
+        force[0] = 0.0      # the radial ring forces of a body of revolution cancel
     return {"obstacle": {"displacement": obstacle.displacement().tolist(),
                          "force": force.tolist()}}
 
@@ -369,13 +373,20 @@ def advance(problem, snes, t_to, max_cuts, say, cuts=0, predict=None):
 
 def _solve(problem, snes, saved, predict, t_to) -> int:
     """Newton from the predicted first iterate, and from the last accepted state (`saved`)
-    when that fails or there is no prediction; returns the iterations of both attempts."""
+    when that fails or there is no prediction; returns the iterations of both attempts.
+    Under force control the prediction moves u but holds the obstacle at its last
+    equilibrium, which can part them (a creeping body, large steps): the obstacle's
+    out-of-contact error (key obstacle.force) from a prediction is such a failure too."""
     if predict is None or not predict.apply(t_to):
         return snes.solve()
     try:
         return snes.solve()
     except NewtonFailure as err:
         spent = max(len(err.residuals) - 1, 0)
+    except SceneError as err:
+        if err.key != "obstacle.force":
+            raise
+        spent = 0
     _restore(problem, saved)
     return spent + snes.solve()
 

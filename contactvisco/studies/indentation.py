@@ -1,6 +1,7 @@
-"""Creep indentation: a rigid cylinder (radius R) pressed by a constant force P per unit
-length into a viscoelastic layer (plane strain), against the correspondence principle
-(Lee and Radok 1960, for a contact width that does not decrease).
+"""Creep indentation against the correspondence principle (Lee and Radok 1960, for a contact
+that does not shrink): a rigid sphere on an axisymmetric body (:class:`SphereLeeRadok`), and a
+rigid cylinder (radius R) pressed by a constant force P per unit length into a viscoelastic
+layer (plane strain), below.
 
 The layer's law is the project's: sigma = A eps + int_0^t R(t - s) dev eps(s) ds with one
 exponential term R = alpha exp(-t/tau) on the deviatoric part (dev eps = eps - tr(eps)/2 I in
@@ -156,6 +157,120 @@ class LeeRadok:
         integral = float(trapezoid(self.relaxation(t - s) * rate, s)) if t > 0 else 0.0
         start = float(self.relaxation(t)) * (self.K * float(C[0])) ** 2
         return math.sqrt(math.pi / (4 * self.R * self.P) * (start + integral))
+
+
+class SphereLeeRadok:
+    """The closed forms of a rigid sphere (radius R) on a half-space of the project's law with
+    one deviatoric memory term, R(t) = alpha exp(-t/tau) on dev eps = eps - tr(eps)/3 I
+    (axisymmetric and 3D bodies), under Hertz's assumptions (Lee and Radok 1960, Ting 1966).
+
+    In Laplace variables, with b = 1/tau, the shear modulus becomes G(s) = mu + alpha / (2 (s + b))
+    = mu (s + beta_1) / (s + b) and the bulk modulus K stays; Hertz's contact modulus
+    E* = 4 G (3K + G) / (3K + 4G) becomes
+
+        E*(s) = E*_0 (s + beta_1)(s + beta_2) / ((s + b)(s + beta_3)),
+        beta_1 = b + alpha / (2 mu),  beta_2 = b + alpha / (2 (3K + mu)),
+        beta_3 = b + 2 alpha / (3K + 4 mu),  E*_0 = 4 mu (3K + mu) / (3K + 4 mu).
+
+    Its relaxation function Er = L^-1[E*(s) / s] is, by partial fractions,
+    Er(t) = E_inf + c_b exp(-b t) + c_3 exp(-beta_3 t) with E_inf = E*_0 beta_1 beta_2 / (b beta_3),
+    c_b = E*_0 (beta_1 - b)(beta_2 - b) / (-b (beta_3 - b)),
+    c_3 = E*_0 (beta_1 - beta_3)(beta_2 - beta_3) / (-beta_3 (b - beta_3)); its creep function
+    C = L^-1[1 / (s E*(s))], from 1/E* = 1/(4G) + 3/(4 (3K + G)), is
+
+        C(t) = 1/(4 mu) [b/beta_1 + (1 - b/beta_1) exp(-beta_1 t)]
+               + 3/(4 (3K + mu)) [b/beta_2 + (1 - b/beta_2) exp(-beta_2 t)].
+
+    Under a depth delta held from t = 0 the contact radius stays a = sqrt(R delta) and the force
+    relaxes as P(t) = 4/3 Er(t) R^1/2 delta^3/2; under a force P held from t = 0 (a growing
+    contact: alpha < 0) a(t)^3 = 3 R P C(t) / 4 and delta(t) = a(t)^2 / R. Both need
+    mu + alpha tau / 2 > 0 (a positive long-time shear modulus).
+
+    Parameters
+    ----------
+    E, nu : float
+        The instantaneous Young's modulus and Poisson's ratio (3D constants).
+    alpha, tau : float
+        The deviatoric memory term.
+    R : float
+        The sphere's radius.
+    """
+
+    def __init__(self, E: float, nu: float, alpha: float, tau: float, R: float):
+        lam, mu = lame_constants("3d", E, nu)
+        K = lam + 2.0 * mu / 3.0
+        if not mu + alpha * tau / 2.0 > 0:
+            raise ValueError("the long-time shear modulus mu + alpha tau / 2 must be > 0")
+        b = 1.0 / tau
+        self.b, self.R, self.mu, self.M = b, R, mu, 3.0 * K + mu
+        self.beta1 = b + alpha / (2.0 * mu)
+        self.beta2 = b + alpha / (2.0 * self.M)
+        self.beta3 = b + 2.0 * alpha / (3.0 * K + 4.0 * mu)
+        self.E0 = 4.0 * mu * self.M / (3.0 * K + 4.0 * mu)
+        b1, b2, b3 = self.beta1, self.beta2, self.beta3
+        self.E_inf = self.E0 * b1 * b2 / (b * b3)
+        self.c_b = self.E0 * (b1 - b) * (b2 - b) / (-b * (b3 - b))
+        self.c_3 = self.E0 * (b1 - b3) * (b2 - b3) / (-b3 * (b - b3))
+
+    def relaxation(self, t):
+        """Er(t), the relaxation function of E* (Er(0) = E*_0).
+
+        Parameters
+        ----------
+        t : float or numpy.ndarray
+            Times >= 0.
+
+        Returns
+        -------
+        numpy.ndarray
+            Er(t).
+        """
+        t = np.asarray(t, float)
+        return self.E_inf + self.c_b * np.exp(-self.b * t) + self.c_3 * np.exp(-self.beta3 * t)
+
+    def compliance(self, t):
+        """C(t) at the times t >= 0 (numbers or an array), the creep function of E*: the
+        inverse of Er in the sense int_0^t C(t - s) dEr(s) = 1, C(0) = 1 / E*_0."""
+        t = np.asarray(t, float)
+        b = self.b
+        return (1.0 / (4.0 * self.mu) * (b / self.beta1 + (1.0 - b / self.beta1)
+                                         * np.exp(-self.beta1 * t))
+                + 3.0 / (4.0 * self.M) * (b / self.beta2 + (1.0 - b / self.beta2)
+                                          * np.exp(-self.beta2 * t)))
+
+    def force(self, delta: float, t):
+        """P(t) = 4/3 Er(t) R^1/2 delta^3/2 under the depth delta held from t = 0.
+
+        Parameters
+        ----------
+        delta : float
+            The depth.
+        t : float or numpy.ndarray
+            Times >= 0.
+
+        Returns
+        -------
+        numpy.ndarray
+            P(t), the total force.
+        """
+        return 4.0 / 3.0 * self.relaxation(t) * math.sqrt(self.R) * delta ** 1.5
+
+    def radius(self, P: float, t):
+        """a(t) = (3 R P C(t) / 4)^(1/3) under the force P held from t = 0 (alpha < 0).
+
+        Parameters
+        ----------
+        P : float
+            The total force.
+        t : float or numpy.ndarray
+            Times >= 0.
+
+        Returns
+        -------
+        numpy.ndarray
+            a(t); the depth is a(t)^2 / R.
+        """
+        return (0.75 * self.R * P * self.compliance(t)) ** (1.0 / 3.0)
 
 
 def creep_indentation(h: float, steps: int, T: float = 3.0, E: float = 200.0,
