@@ -19,18 +19,20 @@ from mpi4py import MPI
 
 from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.problem import build
+from contactvisco.model import time_grid
 from contactvisco.model import viscoelastic as ve
 from contactvisco.model.material import lame_constants
 from contactvisco.scene import loader
 from contactvisco.solver.newton import create
 
-#: The strain histories f(t) as scene expressions in t.
-HISTORIES = {"step": "1.0", "ramp": "{rate} * t", "sine": "sin({omega} * t)"}
+#: The strain histories f(t) as scene expressions in t (hold: a ramp to t = hold, then held).
+HISTORIES = {"step": "1.0", "ramp": "{rate} * t", "sine": "sin({omega} * t)",
+             "hold": "{rate} * min(t, {hold})"}
 
 
 def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, steps: int,
                 rule: str = "trapezoid", rate: float = 1.0, omega: float = 1.0,
-                cells: int = 1) -> dict:
+                cells: int = 1, hold: float = 1.0, grid: dict | None = None) -> dict:
     """The raw scene of the homogeneous block (module description).
 
     Parameters
@@ -42,7 +44,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
     strain : array_like
         The d x d strain tensor E.
     history : str
-        ``step``, ``ramp`` or ``sine`` (HISTORIES).
+        ``step``, ``ramp``, ``sine`` or ``hold`` (HISTORIES).
     T : float
         The end time.
     steps : int
@@ -53,6 +55,10 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
         The ramp's rate and the sine's angular frequency.
     cells : int, optional
         Boxes per side.
+    hold : float, optional
+        The end of the ramp of the ``hold`` history.
+    grid : dict, optional
+        More [time] keys: a grid other than `steps` uniform steps (time.grid, first, ...).
 
     Returns
     -------
@@ -61,7 +67,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
     """
     E = np.asarray(strain, float)
     d = E.shape[0]
-    f = HISTORIES[history].format(rate=repr(rate), omega=repr(omega))
+    f = HISTORIES[history].format(rate=repr(rate), omega=repr(omega), hold=repr(hold))
     value = [f"({f}) * (" + " + ".join(f"{float(E[i, j])!r} * x[{j}]" for j in range(d)) + ")"
              for i in range(d)]
     boundaries = ("left", "right", "bottom", "top") + (("front", "back") if d == 3 else ())
@@ -70,7 +76,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
             "material": {"model": model},
             "viscoelastic": viscoelastic,
             "dirichlet": [{"boundary": b, "value": value} for b in boundaries],
-            "time": {"T": T, "steps": steps, "rule": rule},
+            "time": {"T": T, "steps": steps, "rule": rule, **(grid or {})},
             "output": {"xdmf": False, "figures": False, "checkpoint": False}}
 
 
@@ -89,7 +95,7 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     Returns
     -------
     tuple of numpy.ndarray
-        The times t_n = n T / N and the stresses, shape (N + 1, d, d): the mean over the cells
+        The times t_n of the scene's grid and the stresses, shape (N + 1, d, d): the mean over the cells
         of the stress's values (the stress of a homogeneous state); with per_point, shape
         (N + 1, points, d, d), then the points' coordinates (points, 3).
     """
@@ -102,16 +108,15 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     sigma = fem.Function(problem.tensor_space)
     owned = problem.tensor_space.dofmap.index_map.size_local
     bs = problem.tensor_space.dofmap.index_map_bs
-    T, N = scene["time"]["T"], scene["time"]["steps"]
     times, out = [], []
     try:
-        for n in range(N + 1):
-            problem.time.stage(n * T / N)
+        for t in time_grid.times(scene["time"]):
+            problem.time.stage(float(t))
             snes.solve()
             problem.time.commit()
             sigma.interpolate(problem.sigma_expression)
             values = sigma.x.array[:owned * bs].reshape(-1, d, d)
-            times.append(n * T / N)
+            times.append(float(t))
             if per_point:
                 out.append(values.copy())
                 continue
@@ -129,7 +134,8 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
 
 
 def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, strain,
-                   history: str, t, rate: float = 1.0, omega: float = 1.0) -> np.ndarray:
+                   history: str, t, rate: float = 1.0, omega: float = 1.0,
+                   hold: float = 1.0) -> np.ndarray:
     """The closed-form stress of the homogeneous block (module description).
 
     Parameters
@@ -141,10 +147,10 @@ def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, stra
     strain : array_like
         The d x d strain tensor E.
     history : str
-        ``step``, ``ramp`` or ``sine``.
+        ``step``, ``ramp``, ``sine`` or ``hold``.
     t : array_like
         Times.
-    rate, omega : float, optional
+    rate, omega, hold : float, optional
         As in :func:`block_scene`.
 
     Returns
@@ -155,8 +161,7 @@ def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, stra
     E = np.asarray(strain, float)
     d = E.shape[0]
     t = np.atleast_1d(np.asarray(t, float))
-    Gf = ve.response(shear, history, t, rate, omega)
-    Kf = ve.response(bulk, history, t, rate, omega)
+    Gf, Kf = (_response(phi, history, t, rate, omega, hold) for phi in (shear, bulk))
     if model == "plane_stress":
         E0, nu0 = ve.young_poisson(shear.instantaneous, bulk.instantaneous)
         lam, mu = lame_constants(model, E0, nu0)
@@ -169,3 +174,12 @@ def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, stra
     sigma = (2.0 * Gf[:, None, None] * dev
              + Kf[:, None, None] * np.trace(E3) * np.eye(3))
     return sigma[:, :d, :d]
+
+
+def _response(phi, history: str, t, rate: float, omega: float, hold: float):
+    """(phi * f)(t); the ramp-and-hold by superposition: a ramp from 0 minus the same ramp
+    from t = hold, r(t) - r(t - hold) with r(s) = 0 for s <= 0."""
+    if history != "hold":
+        return ve.response(phi, history, t, rate, omega)
+    ramp = ve.response(phi, "ramp", t, rate)
+    return ramp - ve.response(phi, "ramp", np.maximum(t - hold, 0.0), rate)
