@@ -178,12 +178,12 @@ def times(time: dict) -> np.ndarray:
     Parameters
     ----------
     time : dict
-        The [time] table.
+        The checked [time] table (or a dict of its keys).
 
     Returns
     -------
     numpy.ndarray
-        t_0 .. t_N, N + 1 values, t_N = T (uniform: N (T/N)).
+        t_0 .. t_N (read only), N + 1 values, t_N = T (uniform: n (T/N) for every n).
     """
     signature = _signature(time)
     kept = getattr(time, "grid", None)
@@ -246,17 +246,18 @@ def largest_step(time: dict) -> float | None:
 
 
 def steps(time: dict) -> np.ndarray:
-    """The step sizes k_n = t_n - t_{n-1}, n = 1..N, of a [time] table's grid.
+    """The step sizes k_n = t_n - t_{n-1}, n = 1..N.
 
     Parameters
     ----------
     time : dict
-        The [time] table.
+        The [time] table whose grid is stepped.
 
     Returns
     -------
     numpy.ndarray
-        N step sizes (uniform: T/N each, as k has always been computed).
+        k_1 .. k_N; a uniform grid's are T/N each, as k has always been computed (not the
+        differences of its times, which differ from T/N by round-off).
     """
     if time.get("grid", "uniform") == "uniform":
         return np.full(int(time["steps"]), float(time["T"]) / time["steps"])

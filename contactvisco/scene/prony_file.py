@@ -50,8 +50,7 @@ def resolve_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
     pathlib.Path
         The path (an existing regular file).
     """
-    if not isinstance(name, str) or not name:
-        raise SceneError(f"{key} must be the name of a CSV file, got {name!r}", key=key)
+    _need_name(name, key)
     path = pathlib.Path(name)
     if not path.is_absolute() and base is not None:
         path = base / path
@@ -61,6 +60,11 @@ def resolve_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
     return path
 
 
+def _need_name(name, key: str) -> None:
+    if not isinstance(name, str) or not name:
+        raise SceneError(f"{key} must be the name of a CSV file, got {name!r}", key=key)
+
+
 def inside_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
     """The path of a data file named by a scene, inside the scene file's folder `base` (the
     working directory for a scene given as values): a relative name without '..', whose
@@ -68,20 +72,17 @@ def inside_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
 
     Parameters
     ----------
-    name : str
-        The file name the scene gives.
+    name, key : str
+        The file name as the scene gives it, and its dotted key (for errors).
     base : pathlib.Path or None
-        The scene file's folder.
-    key : str
-        The dotted key, for errors.
+        The folder the name is relative to.
 
     Returns
     -------
     pathlib.Path
-        The resolved path.
+        The resolved path, inside the folder.
     """
-    if not isinstance(name, str) or not name:
-        raise SceneError(f"{key} must be the name of a CSV file, got {name!r}", key=key)
+    _need_name(name, key)
     given = pathlib.Path(name)
     if given.is_absolute() or ".." in given.parts:
         raise SceneError(f"{key} = {name!r}: give a path relative to the scene file's folder, "
@@ -104,12 +105,9 @@ def read_times(path: pathlib.Path, key: str, column: str | None, most: int) -> l
 
     Parameters
     ----------
-    path : pathlib.Path
-        The file (see :func:`inside_path`).
-    key : str
-        The dotted key that names it, for errors.
-    column : str or None
-        The header name of the time column (None: the first column).
+    path, key, column : pathlib.Path, str, str or None
+        The file (:func:`inside_path`), the dotted key naming it in errors, and the header
+        name of its time column (None: the first column).
     most : int
         The most rows read (the scene's bound on the number of steps).
 

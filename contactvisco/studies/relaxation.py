@@ -25,9 +25,10 @@ from contactvisco.model.material import lame_constants
 from contactvisco.scene import loader
 from contactvisco.solver.newton import create
 
-#: The strain histories f(t) as scene expressions in t (hold: a ramp to t = hold, then held).
+#: The strain histories f(t) as scene expressions in t (hold: a ramp to t = hold, then held;
+#: smooth: the smooth ramp-and-hold 1 - exp(-t/hold), its rate 1/hold at 0, held at 1).
 HISTORIES = {"step": "1.0", "ramp": "{rate} * t", "sine": "sin({omega} * t)",
-             "hold": "{rate} * min(t, {hold})"}
+             "hold": "{rate} * min(t, {hold})", "smooth": "1.0 - exp(-t / {hold})"}
 
 
 def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, steps: int,
@@ -44,7 +45,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
     strain : array_like
         The d x d strain tensor E.
     history : str
-        ``step``, ``ramp``, ``sine`` or ``hold`` (HISTORIES).
+        ``step``, ``ramp``, ``sine``, ``hold`` or ``smooth`` (HISTORIES).
     T : float
         The end time.
     steps : int
@@ -56,7 +57,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
     cells : int, optional
         Boxes per side.
     hold : float, optional
-        The end of the ramp of the ``hold`` history.
+        The end of the ramp of the ``hold`` history; the time scale of ``smooth``.
     grid : dict, optional
         More [time] keys: a grid other than `steps` uniform steps (time.grid, first, ...).
 
@@ -147,7 +148,7 @@ def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, stra
     strain : array_like
         The d x d strain tensor E.
     history : str
-        ``step``, ``ramp``, ``sine`` or ``hold``.
+        ``step``, ``ramp``, ``sine``, ``hold`` or ``smooth``.
     t : array_like
         Times.
     rate, omega, hold : float, optional
@@ -177,8 +178,23 @@ def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, stra
 
 
 def _response(phi, history: str, t, rate: float, omega: float, hold: float):
-    """(phi * f)(t); the ramp-and-hold by superposition: a ramp from 0 minus the same ramp
-    from t = hold, r(t) - r(t - hold) with r(s) = 0 for s <= 0."""
+    """(phi * f)(t). The ramp-and-hold by superposition: a ramp from 0 minus the same ramp
+    from t = hold, r(t) - r(t - hold) with r(s) = 0 for s <= 0. The smooth one,
+    f = 1 - exp(-t/h) (h = hold), term by term:
+
+        phi_inf f(t) + sum_i phi_i (exp(-t/h) - exp(-t/tau_i)) / (h/tau_i - 1),
+
+    and phi_i (t/h) exp(-t/h) for tau_i = h (the limit)."""
+    if history == "smooth":
+        t = np.asarray(t, float)
+        out = phi.long_term * -np.expm1(-t / hold)
+        for m, tau in zip(phi.moduli, phi.taus):
+            c = hold / tau - 1.0
+            if abs(c) < 1e-6:            # the difference quotient's limit
+                out = out + m * t / hold * np.exp(-t / hold)
+            else:
+                out = out + m * (np.exp(-t / hold) - np.exp(-t / tau)) / c
+        return out
     if history != "hold":
         return ve.response(phi, history, t, rate, omega)
     ramp = ve.response(phi, "ramp", t, rate)

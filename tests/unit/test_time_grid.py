@@ -176,3 +176,27 @@ def test_scene_stability_number_on_a_logarithmic_grid():
     with pytest.raises(SceneError, match="mean of every two consecutive steps less than") as err:
         api.load_scene("paper", time={**time, "rule": "paper"})
     assert err.value.key == "time.grid"
+
+
+def test_fractional_kernel_fit_covers_the_grids_steps():
+    """The fractional kernel's sum of exponentials is fitted on [k_min / 2^max_cuts, T], k_min
+    the grid's smallest step: on a logarithmic grid it holds the kernel to memory.tolerance
+    down to the cut halves of the first step (six decades below T), which a fit from the
+    uniform step T/N would not reach."""
+    from contactvisco.model import kernels
+    memory = {"kernel": "fractional", "alpha": -20.0, "beta": 0.5, "part": "deviatoric"}
+    scene = api.load_scene("paper", memory=memory, time={
+        "T": 1e3, "rule": "trapezoid", "grid": "logarithmic", "first": 1e-3,
+        "per_decade": 10})
+    cuts = scene["solver"]["max_cuts"]
+    history = kernels.history(scene["memory"], scene["time"], cuts, 2)
+    least = time_grid.summary(scene["time"])[1]
+    assert f"[{least / 2 ** cuts:.3g}, 1000]" in history.note
+    s = np.geomspace(least / 2 ** cuts, 1e3, 400)
+    exact = -20.0 * s ** -0.5 / math.gamma(0.5)
+    fitted = np.exp(-np.multiply.outer(s, history.fit.rates)) @ history.fit.weights
+    tolerance = scene["memory"]["tolerance"]
+    assert np.abs(fitted / exact - 1).max() <= tolerance
+    uniform = kernels.history(scene["memory"], {**scene["time"], "grid": "uniform",
+                                                "steps": 60}, cuts, 2)
+    assert uniform.fit.rates.max() < history.fit.rates.max() / 100     # it stops far above
