@@ -199,3 +199,53 @@ def _response(phi, history: str, t, rate: float, omega: float, hold: float):
         return ve.response(phi, history, t, rate, omega)
     ramp = ve.response(phi, "ramp", t, rate)
     return ramp - ve.response(phi, "ramp", np.maximum(t - hold, 0.0), rate)
+
+
+def creep_compliance(phi: ve.PronySeries, t) -> np.ndarray:
+    """The creep compliance J(t) of a relaxation function phi (Prony series, phi_inf > 0): the
+    strain of a unit stress applied at t = 0 and held, (phi * dJ)(t) = 1.
+
+    In Laplace variables s phi~(s) s J~(s) = 1 with
+
+        f(s) = s phi~(s) = phi_inf + sum_i phi_i s / (s + r_i),   r_i = 1/tau_i,
+
+    so J~(s) = 1 / (s f(s)). f increases between its poles -r_i and has one zero lambda_k in
+    each interval between neighbouring poles and in (-r_min, 0), all real and negative (the
+    retardation rates), found by bisection in those brackets; the residues give
+
+        J(t) = 1/phi_inf + sum_k exp(lambda_k t) / (lambda_k f'(lambda_k)),
+        f'(s) = sum_i phi_i r_i / (s + r_i)^2,
+
+    with J(0) = 1/phi(0) and J(inf) = 1/phi_inf.
+
+    Parameters
+    ----------
+    phi : PronySeries
+        The relaxation function (its moduli > 0, distinct relaxation times).
+    t : array_like
+        Times >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        J(t), shaped like t.
+    """
+    t = np.asarray(t, float)
+    moduli = np.asarray(phi.moduli, float)
+    r = 1.0 / np.asarray(phi.taus, float)
+
+    def f(s):
+        return phi.long_term + np.sum(moduli * s / (s + r))
+
+    out = np.full_like(t, 1.0 / phi.long_term)
+    edges = np.concatenate([-np.sort(r)[::-1], [0.0]])     # -r_max < ... < -r_min < 0
+    for lo, hi in zip(edges, edges[1:]):
+        a, b = lo, hi                    # f -> -inf just above a pole, f(hi) > 0
+        for _ in range(200):             # bisection to round-off on the bracket
+            middle = 0.5 * (a + b)
+            if middle in (a, b):
+                break
+            a, b = (middle, b) if f(middle) < 0 else (a, middle)
+        root = 0.5 * (a + b)
+        out = out + np.exp(root * t) / (root * np.sum(moduli * r / (root + r) ** 2))
+    return out
