@@ -201,7 +201,42 @@ def _response(phi, history: str, t, rate: float, omega: float, hold: float):
     return ramp - ve.response(phi, "ramp", np.maximum(t - hold, 0.0), rate)
 
 
-def creep_compliance(phi: ve.PronySeries, t) -> np.ndarray:
+def creep_compliance(scene: dict, t, function: str = "young") -> np.ndarray:
+    """The creep compliance J(t) of a relaxation function of a scene's [viscoelastic] table as
+    entered: the strain of a unit stress applied at t = 0 and held, the solution of
+    int_0-^t phi(t - s) dJ(s) = 1 (Boltzmann's superposition), in closed form from the
+    retardation rates of the Prony series (``studies.relaxation.prony_compliance``).
+
+    Parameters
+    ----------
+    scene : dict
+        A resolved scene with a [viscoelastic] table.
+    t : array_like
+        Times >= 0.
+    function : str, optional
+        ``"young"`` (E(t): the strain of a uniaxial stress), ``"shear"`` or ``"bulk"``.
+
+    Returns
+    -------
+    numpy.ndarray
+        J(t), shaped like t; J(0) = 1/phi(0), J(inf) = 1/phi_inf.
+
+    Raises
+    ------
+    SceneError
+        When the scene has no such relaxation function.
+    """
+    from contactvisco.errors import SceneError
+    table = scene.get("viscoelastic")
+    functions = getattr(table, "functions", None) or {}
+    if function not in functions:
+        raise SceneError(f"the creep compliance of {function!r} needs a scene whose "
+                         f"[viscoelastic] table gives it (it gives {sorted(functions) or 'none'})",
+                         key="viscoelastic")
+    return prony_compliance(functions[function], t)
+
+
+def prony_compliance(phi: ve.PronySeries, t) -> np.ndarray:
     """The creep compliance J(t) of a relaxation function phi (Prony series, phi_inf > 0): the
     strain of a unit stress applied at t = 0 and held, (phi * dJ)(t) = 1.
 

@@ -117,7 +117,7 @@ def uniaxial_creep(time: dict):
     t = np.array([record["t"] for record in result.steps])
     strain = np.array([record["probes"][0]["u"][0] for record in result.steps])
     young = ve.series(instantaneous=100.0, taus=taus, fractions=fractions)
-    return t, strain, rl.creep_compliance(young, t)
+    return t, strain, rl.prony_compliance(young, t)
 
 
 def test_creep_over_seven_decades_on_a_logarithmic_grid():
