@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from contactvisco.errors import SceneError
 from contactvisco.model import time_grid
 from contactvisco.model import viscoelastic as ve
 from contactvisco.scene import loader
@@ -187,3 +188,36 @@ def test_ranks_agree_on_a_logarithmic_grid():
     assert [s["t"] for s in everywhere.steps] == [s["t"] for s in alone.steps]
     a, b = _probes(everywhere), _probes(alone)
     assert np.abs(a - b).max() <= 1e-10 * np.abs(b).max()
+
+
+def test_restart_refuses_a_time_file_whose_times_changed(tmp_path_factory, monkeypatch):
+    """The grid of time.times_file is the file's: a restart continues on it, and after the
+    file changed (it would step on another grid) it is refused naming the file's times."""
+    comm = MPI.COMM_WORLD
+    folder = comm.bcast(str(tmp_path_factory.mktemp("times")) if comm.rank == 0 else None)
+    import pathlib
+    folder = pathlib.Path(folder)
+    scene_file, times_file = folder / "creep.toml", folder / "samples.csv"
+    if comm.rank == 0:
+        times_file.write_text("t,depth\n" + "".join(f"{t!r},0\n"
+                                                    for t in np.geomspace(1e-3, 1e4, 12)))
+        scene_file.write_text(
+            'name = "file_grid"\n[geometry]\ncells = [2, 2]\n[material]\nmodel = '
+            '"plane_strain"\n[memory]\nkernel = "exponential"\nalpha = -20.0\ntau = 10.0\n'
+            '[[dirichlet]]\nboundary = "left"\n[[traction]]\nboundary = "right"\nvalue = '
+            '[0.5, 0.0]\n[time]\nT = 1e4\nrule = "exponential"\ngrid = "times"\n'
+            'times_file = "samples.csv"\n[output]\nxdmf = false\nfigures = false\n')
+    comm.barrier()
+    out = folder / "out"
+    run_stopped_after_checkpoint(monkeypatch, 5, lambda: simulate(
+        loader.load(str(scene_file)), out=out, comm=comm, progress=False))
+    same = simulate(loader.load(str(scene_file)), out=out, comm=comm, progress=False,
+                    restart=True)                  # the same file: it continues
+    assert len(same.steps) == 8 and same.steps[-1]["t"] == 1e4
+    comm.barrier()
+    if comm.rank == 0:
+        times_file.write_text("t\n" + "".join(f"{t!r}\n" for t in np.geomspace(2e-3, 1e4, 12)))
+    comm.barrier()
+    with pytest.raises(SceneError, match=r"time.times_file \(its times\)"):
+        simulate(loader.load(str(scene_file)), out=out, comm=comm, progress=False,
+                 restart=True)
