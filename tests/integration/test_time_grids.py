@@ -221,3 +221,25 @@ def test_restart_refuses_a_time_file_whose_times_changed(tmp_path_factory, monke
     with pytest.raises(SceneError, match=r"time.times_file \(its times\)"):
         simulate(loader.load(str(scene_file)), out=out, comm=comm, progress=False,
                  restart=True)
+
+
+@pytest.mark.parametrize("rule", ["exponential", "trapezoid"])
+def test_a_constant_temperature_is_the_reference_run_on_the_scaled_grid(rule):
+    """Time-temperature superposition on a logarithmic grid: at theta != T_ref each step is
+    the reduced step k_n / a_T, so the block's stresses are those of the T_ref run on the
+    grid scaled by 1/a_T (first step and T divided by a_T, the same growth), step by step."""
+    visco, _, _ = _material(SLOW)
+    wlf = {"shift": "wlf", "T_ref": 50.0, "C1": 17.44, "C2": 51.6}
+    theta = 53.0
+    a_T = 10.0 ** float(ve.log10_shift(wlf, theta))
+    assert a_T < 0.2                                      # about ten times faster
+    runs = []
+    for temperature, scale in ((theta, 1.0), (None, 1.0 / a_T)):
+        grid = {"grid": "logarithmic", "first": 0.01 * scale, "growth": 1.1}
+        material = dict(visco, **wlf, **({"temperature": temperature} if temperature else {}))
+        raw = rl.block_scene(material, "plane_strain", STRAIN, "smooth", 50.0 * scale, 1,
+                             rule=rule, hold=3.0 * scale, grid=grid)
+        runs.append(rl.block_stress(raw))
+    (t, sigma), (t_ref, sigma_ref) = runs
+    assert len(t) == len(t_ref) and np.allclose(t / a_T, t_ref, rtol=1e-12)
+    assert np.abs(sigma - sigma_ref).max() <= 1e-10 * np.abs(sigma_ref).max()
