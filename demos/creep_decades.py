@@ -63,8 +63,12 @@ cells = [2, 2]
 model = "plane_stress"
 
 [viscoelastic]
-young = { instantaneous = 100.0, tau = [1e-2, 1e-1, 1.0, 10.0, 100.0, 1000.0], fractions = [0.14, 0.14, 0.14, 0.14, 0.14, 0.14] }
 nu = 0.3
+
+[viscoelastic.young]
+instantaneous = 100.0
+tau = [1e-2, 1e-1, 1.0, 10.0, 100.0, 1000.0]
+fractions = [0.14, 0.14, 0.14, 0.14, 0.14, 0.14]
 
 [[dirichlet]]
 boundary = "left"

@@ -281,19 +281,26 @@ def summary(time: dict) -> tuple[int, float, float]:
     return len(k), float(k.min()), float(k.max())
 
 
-def nearest(grid: np.ndarray, t: float) -> int:
-    """The index of the grid time nearest to t (the earlier one of two equally near).
+def nearest(time: dict, wanted) -> list[int]:
+    """The indices n of the grid times t_n nearest to each wanted time: round(t/k) clipped to
+    0..N on a uniform grid (as the output schedules have always chosen), the nearest time
+    (the earlier one of two equally near) on the others.
 
     Parameters
     ----------
-    grid : numpy.ndarray
-        Increasing times.
-    t : float
-        A time.
+    time : dict
+        The [time] table.
+    wanted : iterable of float
+        Times.
 
     Returns
     -------
-    int
-        n with |grid[n] - t| smallest.
+    list of int
+        One index per wanted time.
     """
-    return int(np.argmin(np.abs(np.asarray(grid) - t)))
+    if time.get("grid", "uniform") == "uniform":
+        steps = int(time["steps"])
+        k = float(time["T"]) / steps
+        return [min(steps, max(0, round(t / k))) for t in wanted]
+    grid = times(time)
+    return [int(np.argmin(np.abs(grid - t))) for t in wanted]

@@ -78,7 +78,7 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
     two = (scene.get("obstacle") or {}).get("shape") == "body"
     values += cells if scene.get("body") or two else 0    # the cell field "body"
     grid = time_grid.times(scene["time"])
-    schedule = FieldSchedule(opts["field_every"], opts["field_times"], grid)
+    schedule = FieldSchedule(opts["field_every"], opts["field_times"], scene["time"])
     field_steps = sum(schedule.due(n, float(t)) for n, t in enumerate(grid))
     return records + field_steps * (FLOAT * values + XDMF_STEP)
 

@@ -171,7 +171,7 @@ class Run:
                         getattr(self, "output_estimate", None))
         result = Result(problem, linear_system=snes.system_kind,
                         linear_solver=snes.linear_solver())
-        observers = [recorder(result, keep_tables), *self._file_observers(grid),
+        observers = [recorder(result, keep_tables), *self._file_observers(),
                      lambda record, table: self.say(report.progress_line(record, t_end))]
         opts = scene["output"]
         self.checkpoints = checkpoint.Schedule(comm, opts["checkpoint_every"],
@@ -220,15 +220,16 @@ class Run:
                 **thermal_record(self.problem, self.comm),
                 **obstacle_record(self.problem, table)}
 
-    def _file_observers(self, grid) -> list:
+    def _file_observers(self) -> list:
         """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""
         if self.writer is None:
             return []
         opts = self.scene["output"]
         sigma = fem.Function(self.problem.tensor_space, name="sigma")
+        time = self.scene["time"]
         writer = FieldWriter(self.writer, self.problem, sigma, opts["fields"],
-                             FieldSchedule(opts["field_every"], opts["field_times"], grid))
-        snapshots = Snapshots(self.out, self.problem, writer, self.comm, opts, grid,
+                             FieldSchedule(opts["field_every"], opts["field_times"], time))
+        snapshots = Snapshots(self.out, self.problem, writer, self.comm, opts, time,
                               self.writer, self.say, self.resumed)
         return [writer, snapshots]
 
@@ -394,10 +395,11 @@ class FieldSchedule:
     are two) is a multiple of `every`, those at the grid's step times nearest to `times` (as
     for figure_times), and the final state t_N."""
 
-    def __init__(self, every: int, times, grid):
+    def __init__(self, every: int, times, time: dict):
         self.every = every
         # the grid's times as the time loop steps to them: its states land on these floats
-        self.times = {float(grid[time_grid.nearest(grid, t)]) for t in times} | {
+        grid = time_grid.times(time)
+        self.times = {float(grid[n]) for n in time_grid.nearest(time, times)} | {
             float(grid[-1])}
 
     def due(self, step: int, t: float) -> bool:
@@ -411,7 +413,7 @@ class FieldWriter:
     def __init__(self, writer, problem, sigma, names, schedule: FieldSchedule | None = None):
         self.writer, self.problem, self.sigma, self.names = writer, problem, sigma, names
         self.derived = {}                     # the Functions of output.derived_fields
-        self.schedule = schedule or FieldSchedule(1, (), [0.0])
+        self.schedule = schedule or FieldSchedule(1, (), {"T": 1.0, "steps": 1})
         self.sigma_step = None       # the step at which sigma was last interpolated
         self.body = output.body_field(problem) if writer.xdmf is not None else None
 
@@ -437,13 +439,13 @@ class Snapshots:
     """Observer: the whole mesh gathered on rank 0 at the figure times (snapshots.npz), unless
     the mesh is too large for that (a note then says so)."""
 
-    def __init__(self, out, problem, fields: FieldWriter, comm, opts, grid, writer, say,
+    def __init__(self, out, problem, fields: FieldWriter, comm, opts, time, writer, say,
                  resumed):
         self.path = pathlib.Path(out) / "snapshots.npz"
         self.problem, self.comm, self.writer = problem, comm, writer
         self.fields, self.sigma = fields, fields.sigma     # sigma: shared with the XDMF output
-        figure_steps = {time_grid.nearest(grid, t) for t in opts["figure_times"]} | {
-            len(grid) - 1}
+        grid = time_grid.times(time)
+        figure_steps = set(time_grid.nearest(time, opts["figure_times"])) | {len(grid) - 1}
         self.times = {round(float(grid[i]), 12) for i in figure_steps}
         skip = opts["figures"] and output.snapshot_skip_note(
             problem, opts["snapshot_max_nodes"], writer.xdmf is not None)

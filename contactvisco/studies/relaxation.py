@@ -96,8 +96,8 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     Returns
     -------
     tuple of numpy.ndarray
-        The times t_n of the scene's grid and the stresses, shape (N + 1, d, d): the mean over the cells
-        of the stress's values (the stress of a homogeneous state); with per_point, shape
+        The times t_n of the scene's grid and the stresses, shape (N + 1, d, d): the mean
+        over the cells of the stress's values (the stress of a homogeneous state); with per_point, shape
         (N + 1, points, d, d), then the points' coordinates (points, 3).
     """
     scene = loader.resolve(raw)
