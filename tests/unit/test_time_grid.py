@@ -200,3 +200,16 @@ def test_fractional_kernel_fit_covers_the_grids_steps():
     uniform = kernels.history(scene["memory"], {**scene["time"], "grid": "uniform",
                                                 "steps": 60}, cuts, 2)
     assert uniform.fit.rates.max() < history.fit.rates.max() / 100     # it stops far above
+
+
+def test_output_times_land_on_the_nearest_grid_time():
+    """field_times on a logarithmic grid: each lands on the grid time nearest to it, the final
+    time always (step 0 by field_every); a uniform grid keeps round(t / k)."""
+    from contactvisco.solver.time_loop import FieldSchedule
+    time = {"T": 100.0, "grid": "logarithmic", "first": 0.1, "growth": 2.0}
+    grid = time_grid.times(time)
+    schedule = FieldSchedule(1000, [0.25, 10.0, 60.0], time)
+    due = [float(t) for n, t in enumerate(grid) if n and schedule.due(n, float(t))]
+    expected = {float(grid[np.argmin(np.abs(grid - t))]) for t in (0.25, 10.0, 60.0)}
+    assert due == sorted(expected | {100.0}) and 0.25 < due[0] < 0.5
+    assert time_grid.nearest({"T": 1.0, "steps": 10}, [0.25, 0.36, 2.0, -1.0]) == [2, 4, 10, 0]
