@@ -4,7 +4,8 @@ a foundation with normal compliance and a unilateral constraint (Ouafik 2024), i
 The public interface (docs/api.md): load_scene, solve, check, scene_toml, Result, read_results,
 builtin_scenes, pyvista_grid, SceneError, NewtonFailure, the module tradeoff; for the demos also
 hertz, cattaneo_mindlin, cattaneo_traction, cattaneo_obstacle_scene, cattaneo_mindlin_figure,
-creep_indentation, elastic_indentation, LeeRadok, quick, show_images, show_figure.
+creep_indentation, elastic_indentation, LeeRadok, creep_compliance, quick, show_images,
+show_figure.
 
 Layers, each importing only those below it (docs/architecture.md):
 
@@ -62,6 +63,7 @@ _PUBLIC = {
     "LeeRadok": "studies.indentation",
     "quick": "post.notebook", "show_images": "post.notebook", "show_figure": "post.notebook",
     "cattaneo_mindlin_figure": "post.figures", "relaxation_figure": "post.figures",
+    "creep_compliance": "studies.relaxation",
 }
 #: Public modules, by the name they are reached under: the speed-accuracy trade of a scene
 #: (contactvisco tradeoff).

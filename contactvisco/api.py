@@ -303,7 +303,8 @@ def check(scene: dict, mesh=None, facet_tags=None, boundaries=None, comm=None) -
     Returns
     -------
     dict
-        ``cells``, ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
+        ``steps``, ``smallest_step`` and ``largest_step`` (the time grid), ``cells``,
+        ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
         ``linear_system``, ``linear_solver``, ``stability_number``, ``unstable``,
         ``implicit_stiffness`` (per mode, the smallest stiffness of a step A + w P of the
         trapezoid and exponential rules, and the elastic one), ``unconditionally_stable``,

@@ -232,10 +232,19 @@ def _main(argv=None):
             return 0
         scene = api.load_scene(args.scene, sets=args.set)
         print(api.scene_toml(scene, every_value=args.all), end="")
+        print(_grid_comment(scene))
         return 0
     except SceneError as err:
         print(f"contactvisco: scene error: {err}", file=sys.stderr)
         return 2
+
+
+def _grid_comment(scene) -> str:
+    """A TOML comment that says what the time grid makes: its steps and their extremes."""
+    from contactvisco.model import time_grid
+    steps, least, largest = time_grid.summary(scene["time"])
+    return (f"\n# time grid ({scene['time']['grid']}): {steps} steps, k from {least:.4g} to "
+            f"{largest:.4g}")
 
 
 def _size(n: float) -> str:
@@ -270,7 +279,9 @@ def _check(args) -> int:
               f"{report['contact_nodes']} contact nodes\n"
               f"  unknowns: {unknowns}\n"
               f"  linear system: {report['linear_system']}, {report['linear_solver']}\n"
-              f"  time rule: {scene['time']['rule']}, {scene['time']['steps']} steps, "
+              f"  time grid: {scene['time']['grid']}, {report['steps']} steps, k from "
+              f"{report['smallest_step']:.4g} to {report['largest_step']:.4g}\n"
+              f"  time rule: {scene['time']['rule']}, "
               + _rule_stability(scene, report, b) + "\n"
               f"  memory of the history at the last step: {_size(report['history_bytes'])}\n"
               f"  output (estimate, figures left out): {_size(report['output_bytes'])}"

@@ -51,6 +51,7 @@ from contactvisco.model.memory import (DirectHistory, FractionalHistory, History
 from contactvisco.errors import SceneError
 from contactvisco.model.memory_kernel import memory_power, memory_table, memory_terms
 from contactvisco.model import kernels
+from contactvisco.model import time_grid
 
 
 def nodal_rule(d: int) -> dict:
@@ -719,7 +720,7 @@ def _memory(scene, mesh, u, context=None, updates=None, kin=None) -> MemoryPart 
     if not terms and table is None and power is None:
         return None
     time = scene["time"]
-    dt = time["T"] / time["steps"]
+    dt = float(time_grid.steps(time).max())      # the uniform step of `advance` (tests)
     kin = kin or kinematics(scene, mesh)
     d = kin.tensor_dim                          # the strain's: 3 in axisymmetry
     tensor_space = kin.tensor_space("DG", scene["discretization"]["degree"] - 1)
@@ -759,18 +760,18 @@ def _reduced_range(scene, mesh, context) -> tuple[float, float]:
     the reduced end time xi(T) (the span) and the least 1/a_T, which scales the shortest
     reduced step (least k / 2^max_cuts). At a constant temperature, 1/a_T and T / a_T (exactly
     the T_ref run of T / a_T); for an expression, over the points and the step times
-    t_n = n T / N, min(1, 1/a_T) / SPAN_MARGIN and SPAN_MARGIN T max(1, 1/a_T) (xi(T) <=
+    t_n of the grid, min(1, 1/a_T) / SPAN_MARGIN and SPAN_MARGIN T max(1, 1/a_T) (xi(T) <=
     T max 1/a_T; the run stops if a step would pass the span)."""
     from contactvisco.model.viscoelastic import inverse_shift, log10_shift
-    visco, T, N = scene["viscoelastic"], scene["time"]["T"], scene["time"]["steps"]
+    visco, T = scene["viscoelastic"], scene["time"]["T"]
     theta = visco["temperature"]
     if isinstance(theta, (int, float)) and not isinstance(theta, bool):
         inverse = 10.0 ** -float(log10_shift(visco, theta))
         return inverse, T * inverse
     _, field, follow = _temperature_field(scene, mesh, context)
     start, least, largest = float(context.t.value), 1.0, 1.0
-    for n in range(N + 1):
-        context.t.value = n * T / N
+    for t in time_grid.times(scene["time"]):
+        context.t.value = t
         follow()
         inverse, error = inverse_shift(visco, field.x.array)
         if error is None and inverse.size:     # an error stops the run at its step
@@ -792,7 +793,8 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
     visco = scene["viscoelastic"]
     scalars, theta, follow = _temperature_field(scene, mesh, context)
     reduced.owned = scalars.dofmap.index_map.size_local    # points of this rank (then ghosts)
-    span, dt = getattr(history, "span", None), scene["time"]["T"] / scene["time"]["steps"]
+    span = getattr(history, "span", None)
+    dt = float(time_grid.steps(scene["time"]).max())     # the largest step of the grid
 
     def stage():
         follow()

@@ -55,7 +55,8 @@ FREE = ("output",)
 
 
 def scene_values(scene: dict) -> dict:
-    """The scene as flat {"table.key": value} (JSON values), without the FREE tables."""
+    """The scene as flat {"table.key": value} (JSON values), without the FREE tables; with
+    time.times_file, a digest of the grid its times make."""
     from contactvisco.io.output import jsonable
     flat = {}
 
@@ -66,6 +67,12 @@ def scene_values(scene: dict) -> dict:
         else:
             flat[prefix] = value
     walk("", jsonable({k: v for k, v in scene.items() if k not in FREE}))
+    time = scene.get("time")
+    if isinstance(time, dict) and time.get("times_file") is not None:
+        # the file's times make the grid: a restart steps on the same grid or is refused
+        from contactvisco.model import time_grid
+        grid = np.asarray(time_grid.times(time), dtype="<f8").tobytes()
+        flat["time.times_file (its times)"] = _digest(grid)[:16]
     return json.loads(json.dumps(flat))         # tuples as lists, as read back from JSON
 
 

@@ -193,8 +193,8 @@ def mittag_leffler(gamma: float, x) -> np.ndarray:
 def history(mem: dict, time: dict, max_cuts: int, d: int, span: float | None = None,
             least: float = 1.0):
     """The history of a power or fractional kernel (the resolved memory and time tables):
-    the sum of exponentials over [k / 2^max_cuts, T] (the smallest step a cut may take) run
-    by the Prony recursion, or the direct O(n) sum. Its `note` says which, with the number of
+    the sum of exponentials over [k / 2^max_cuts, T] (k the grid's smallest step: the smallest
+    step a cut may take, so the fit covers every step of any grid) run by the Prony recursion, or the direct O(n) sum. Its `note` says which, with the number of
     exponentials and the measured error of the fit.
 
     Parameters
@@ -202,7 +202,7 @@ def history(mem: dict, time: dict, max_cuts: int, d: int, span: float | None = N
     mem, time : dict
         The [memory] and [time] tables.
     max_cuts : int
-        The most step cuts (the smallest step k / 2^max_cuts).
+        The most step cuts (the smallest step k / 2^max_cuts, k the grid's smallest).
     d : int
         The dimension of the strain.
     span : float, optional
@@ -222,8 +222,11 @@ def history(mem: dict, time: dict, max_cuts: int, d: int, span: float | None = N
     from contactvisco.model.memory import (DirectFractionalHistory, DirectHistory,
         FractionalHistory, History)
     alpha, beta, part = float(mem["alpha"]), float(mem["beta"]), mem["part"]
+    from contactvisco.model import time_grid
     T, rule = float(time["T"]), time["rule"]
-    k = T / time["steps"]
+    # the grid's smallest step: older steps of the product integration start there (or at
+    # its halves, once cut), whatever the grid's kind
+    k = float(time_grid.steps(time).min())
     if mem["kernel"] == "power":
         tau = float(mem["tau"])
         if mem["summation"] == "direct":

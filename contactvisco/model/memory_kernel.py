@@ -44,12 +44,13 @@ def memory_power(scene: dict) -> dict | None:
 
 def memory_R0(scene: dict) -> dict[str, float]:
     """R(0) per part: the instantaneous stiffness the memory adds (for the fractional kernel,
-    infinite, the mean (1/k) int_0^k R of a step k instead)."""
+    infinite, the mean (1/k) int_0^k R of the grid's largest step k instead)."""
     power = memory_power(scene)
     if power is not None:
         alpha = float(power["alpha"])
         if power["kernel"] == "fractional":
-            k = scene["time"]["T"] / scene["time"]["steps"]
+            from contactvisco.model import time_grid
+            k = float(time_grid.steps(scene["time"]).max())
             alpha *= k ** -power["beta"] / math.gamma(2.0 - power["beta"])
         return {power["part"]: alpha}
     table = memory_table(scene)

@@ -2,12 +2,25 @@
 
 The paper's rule puts the weight 3k/2 on u_{n-1}; its scalar analogue
 u_{n+1} = (1 - 3b/2) u_n + b/2 u_{n-1} has a root of modulus > 1 once b > 1.
+
+On a variable grid, with b_n = k_n R(0) / 2mu per step, subtracting consecutive steps of
+m u_n + alpha (trapezoid on [t_0, t_{n-1}] + k_n u_{n-1}) = f gives
+
+    u_{n+1} = (1 - b_n/2 - b_{n+1}) u_n + b_n/2 u_{n-1},
+
+whose characteristic polynomial (coefficients frozen at step n) has the root -1 exactly when
+(b_n + b_{n+1})/2 = 1: the rule is stable step by step while the mean of two consecutive
+numbers stays below 1 (b < 1 for uniform steps), and its first step (forward Euler,
+u_1 = (1 - b_1) u_0) while b_1 < 2.
 """
 from __future__ import annotations
 
 import math
 
-from contactvisco.model.memory_kernel import memory_R0
+import numpy as np
+
+from contactvisco.model import time_grid
+from contactvisco.model.memory_kernel import memory_power, memory_R0
 
 
 def amplifies(b: float, steps: int) -> bool:
@@ -24,7 +37,8 @@ def steps_for_stability(steps: int, b: float) -> str:
 def stability_number(scene: dict) -> float:
     """b = k |R(0)| / (2 mu): the paper's rule is stable for b < 1 (NOTES: the scalar analogue
     u_{n+1} = (1 - 3b/2) u_n + b/2 u_{n-1}); 2 mu = E / (1 + nu) is the deviatoric modulus.
-    With [[body]] tables, the largest b of the bodies (worst_body).
+    On a variable grid, the largest mean (b_n + b_{n+1})/2 of two consecutive steps
+    (:func:`grid_number`). With [[body]] tables, the largest b of the bodies (worst_body).
 
     Parameters
     ----------
@@ -40,14 +54,56 @@ def stability_number(scene: dict) -> float:
     return worst_body(scene)[0]
 
 
-def _own_number(scene: dict) -> float:
-    """b of one material and memory (the scene's [material] and [memory])."""
-    R0 = sum(abs(a) for a in memory_R0(scene).values())
-    if R0 == 0.0:
-        return 0.0
-    k = scene["time"]["T"] / scene["time"]["steps"]
+def step_numbers(scene: dict) -> np.ndarray:
+    """b_n = k_n |R(0)| (1 + nu) / E for each step k_n of the grid (one material and memory:
+    the scene's [material] and [memory]); for the fractional kernel R(0) is the mean
+    (1/k_n) int_0^{k_n} R of each step (memory_R0).
+
+    Parameters
+    ----------
+    scene : dict
+        The scene: its [time] grid, [material] and [memory].
+
+    Returns
+    -------
+    numpy.ndarray
+        b_1 .. b_N (zeros without memory).
+    """
+    k = time_grid.steps(scene["time"])
+    power = memory_power(scene)
+    if power is not None and power["kernel"] == "fractional":
+        R0 = abs(float(power["alpha"])) * k ** -power["beta"] / math.gamma(2.0 - power["beta"])
+    else:
+        R0 = sum(abs(a) for a in memory_R0(scene).values())
     mat = scene["material"]
     return k * R0 * (1.0 + mat["nu"]) / mat["E"]
+
+
+def grid_number(numbers: np.ndarray) -> float:
+    """The number that bounds the paper's rule on a grid of step numbers b_n: the largest
+    mean (b_n + b_{n+1})/2 of two consecutive steps (the frozen-coefficient root -1 of the
+    module description), b_1 alone for a single step; b for uniform steps.
+
+    Parameters
+    ----------
+    numbers : numpy.ndarray
+        b_1 .. b_N.
+
+    Returns
+    -------
+    float
+        The bound's number (stable below 1; a single step below 2, see :func:`amplifies`).
+    """
+    if len(numbers) == 1:
+        return float(numbers[0])
+    return float(np.max(0.5 * (numbers[:-1] + numbers[1:])))
+
+
+def _own_number(scene: dict) -> float:
+    """b of one material and memory (the scene's [material] and [memory])."""
+    if not memory_R0(scene):
+        return 0.0
+    return grid_number(step_numbers(scene))
 
 
 def worst_body(scene: dict) -> tuple[float, str | None]:

@@ -8,6 +8,10 @@ module; every cell must be a finite number. An empty table, a row of the wrong l
 value that is not a finite number, a relaxation time <= 0, a negative modulus, times that do
 not increase (unsorted or duplicated rows) and more than :data:`MAX_TERMS` rows are refused,
 naming the file and the row (its line in the file).
+
+A column of sample times (:func:`read_times`, time.times_file) is read the same way; its path
+must stay inside the scene file's folder (:func:`inside_path`): no absolute path, no '..',
+no link that leads out.
 """
 from __future__ import annotations
 
@@ -46,8 +50,7 @@ def resolve_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
     pathlib.Path
         The path (an existing regular file).
     """
-    if not isinstance(name, str) or not name:
-        raise SceneError(f"{key} must be the name of a CSV file, got {name!r}", key=key)
+    _need_name(name, key)
     path = pathlib.Path(name)
     if not path.is_absolute() and base is not None:
         path = base / path
@@ -55,6 +58,89 @@ def resolve_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
         raise SceneError(f"{key}: no Prony file '{path}' (a path relative to the scene file's "
                          "folder, or absolute)", key=key)
     return path
+
+
+def _need_name(name, key: str) -> None:
+    if not isinstance(name, str) or not name:
+        raise SceneError(f"{key} must be the name of a CSV file, got {name!r}", key=key)
+
+
+def inside_path(name, base: pathlib.Path | None, key: str) -> pathlib.Path:
+    """The path of a data file named by a scene, inside the scene file's folder `base` (the
+    working directory for a scene given as values): a relative name without '..', whose
+    resolved path (links followed) stays inside that folder, naming an existing regular file.
+
+    Parameters
+    ----------
+    name, key : str
+        The file name as the scene gives it, and its dotted key (for errors).
+    base : pathlib.Path or None
+        The folder the name is relative to.
+
+    Returns
+    -------
+    pathlib.Path
+        The resolved path, inside the folder.
+    """
+    _need_name(name, key)
+    given = pathlib.Path(name)
+    if given.is_absolute() or ".." in given.parts:
+        raise SceneError(f"{key} = {name!r}: give a path relative to the scene file's folder, "
+                         "without '..' (scene input names files beside it, not elsewhere)",
+                         key=key)
+    folder = (base if base is not None else pathlib.Path.cwd()).resolve()
+    path = (folder / given).resolve()
+    if not path.is_relative_to(folder):
+        raise SceneError(f"{key} = {name!r} leads out of the scene file's folder {folder} "
+                         "(through a link)", key=key)
+    if not path.is_file():          # a device or a pipe could be read for ever
+        raise SceneError(f"{key}: no file '{folder / given}' (a path relative to the scene "
+                         "file's folder)", key=key)
+    return path
+
+
+def read_times(path: pathlib.Path, key: str, column: str | None, most: int) -> list[float]:
+    """The sample times of one column of a CSV file: a header row of column names, then one
+    row per sample, the times finite, >= 0 and strictly increasing.
+
+    Parameters
+    ----------
+    path, key, column : pathlib.Path, str, str or None
+        The file (:func:`inside_path`), the dotted key naming it in errors, and the header
+        name of its time column (None: the first column).
+    most : int
+        The most rows read (the scene's bound on the number of steps).
+
+    Returns
+    -------
+    list of float
+        The times, in the file's order.
+    """
+    fail = _failure(path, key, "time file")
+
+    rows = _rows(path, fail, "a table of sample times")
+    if len(rows) < 2:
+        fail("needs a header row of column names and at least one row of times")
+    number, header = rows[0]
+    names = [cell.strip() for cell in header]
+    if any(_number(cell) is not None for cell in names):
+        fail(f"the first row must be a header of column names, got {header!r}", number)
+    if column is not None and column not in names:
+        fail(f"no column {column!r} in the header {names!r}", number)
+    j = 0 if column is None else names.index(column)
+    if len(rows) - 1 > most:
+        fail(f"more than {most} rows of times (the most steps of a run)", rows[most + 1][0])
+    out = []
+    for number, row in rows[1:]:
+        value = _number(row[j]) if j < len(row) else None
+        if value is None:
+            fail(f"the time (column {names[j]!r}) must be a finite number, got {row!r}",
+                 number)
+        if value < 0 or (out and value <= out[-1]):
+            fail(f"the time {value!r} must be >= 0 and above the previous row's "
+                 f"{out[-1] if out else 0!r}: the times must increase", number)
+        out.append(value)
+    return out
 
 
 def read(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
@@ -73,9 +159,7 @@ def read(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
         (taus, values): the first and second column of every row after the header, taus
         increasing.
     """
-    def fail(message, line=None):
-        where = f"{path}, row {line}" if line is not None else f"{path}"
-        raise SceneError(f"{key}: Prony file {where}: {message}", key=key)
+    fail = _failure(path, key, "Prony file")
 
     taus, values, lines = _columns(
         path, fail, "a Prony table", "the relaxation time, then the modulus", "tau, modulus",
@@ -105,9 +189,7 @@ def read_shift(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
         (theta_j, log10 a_T(theta_j)), theta_j strictly increasing, at most
         :data:`MAX_SHIFT_ROWS` rows, |log10 a_T| <= 300 (a_T positive and finite).
     """
-    def fail(message, line=None):
-        where = f"{path}, row {line}" if line is not None else f"{path}"
-        raise SceneError(f"{key}: shift file {where}: {message}", key=key)
+    fail = _failure(path, key, "shift file")
 
     temps, logs, lines = _columns(
         path, fail, "a shift table", "the temperature, then log10 a_T", "temperature, log10 a_T",
@@ -117,6 +199,14 @@ def read_shift(path: pathlib.Path, key: str) -> tuple[list[float], list[float]]:
             fail(f"|log10 a_T| = {abs(value)!r} is above 300 (a_T would be 0 or infinite)",
                  line)
     return temps, logs
+
+
+def _failure(path: pathlib.Path, key: str, what: str):
+    """fail(message, line=None): raise the SceneError of `key` naming the file and row."""
+    def fail(message, line=None):
+        where = f"{path}, row {line}" if line is not None else f"{path}"
+        raise SceneError(f"{key}: {what} {where}: {message}", key=key)
+    return fail
 
 
 def _columns(path, fail, what, header_words, row_words, first, at_least, at_most, items):

@@ -19,6 +19,7 @@ import numpy as np
 from contactvisco.errors import SceneError
 from contactvisco.model.material import LAWS, dimension
 from contactvisco.model.memory import PARTS, RULES
+from contactvisco.model import time_grid
 from contactvisco.model.memory_kernel import as_list
 from contactvisco.scene.viscoelastic_table import Viscoelastic
 from contactvisco.scene.table import (MODULUS_RANGE, Key, Provenance, Table, boolean, choice,
@@ -38,8 +39,11 @@ MAX_PROBES = 1000
 #: Default of output.max_bytes: the most a run may write (estimated before its first step).
 MAX_OUTPUT_BYTES = 10e9
 
-#: Most time steps of time.steps (the memory of eq 19 is summed over all earlier steps).
-MAX_STEPS = 1_000_000
+#: Most time steps of a grid (the memory of eq 19 is summed over all earlier steps).
+MAX_STEPS = time_grid.MAX_STEPS
+
+#: Largest growth of consecutive steps of a logarithmic grid (a decade per step).
+MAX_GROWTH = 10.0
 
 
 #: contact.friction_law: the friction ball's radius is mu p_nu(u_nu) or mu (p_nu(u_nu) + R_nu).
@@ -894,36 +898,192 @@ def _uses_position(text: str) -> bool:
     return "x" in _names(text)
 
 
+def _positive_or_none(x) -> bool:
+    return x is None or (finite(x) and x > 0)
+
+
+#: Keys of a segment of a piecewise grid (time.segments) and what each allows.
+SEGMENT_KEYS = {
+    "end": "a finite number > 0 (the segment's end time; the last one is time.T)",
+    "grid": "uniform or logarithmic",
+    "steps": "an integer >= 1 (the segment's uniform steps)",
+    "first": "a number > 0 (the segment's first step)",
+    "growth": f"a number > 1 and <= {MAX_GROWTH:g} (the ratio of consecutive steps)",
+    "per_decade": "a number >= 1 (steps per decade of time)",
+}
+
+
 class Time(Table):
+    """The time grid (contactvisco.model.time_grid), the rule of eq (19) and its stability."""
+
     KEYS = {
         "T": Key(1.0, lambda x: finite(x) and x > 0, "> 0"),
         "steps": Key(10, lambda x: integer(x) and x >= 1, "an integer >= 1"),
         "rule": choice("paper", *RULES),
         "allow_unstable": Key(False, boolean, "true or false"),
+        "grid": choice("uniform", *time_grid.GRIDS),
+        "first": Key(None, _positive_or_none, "a number > 0 (the first step, t_1)"),
+        "growth": Key(None, lambda x: x is None or (finite(x) and 1 < x <= MAX_GROWTH),
+                      f"a number > 1 and <= {MAX_GROWTH:g} (the ratio of consecutive steps)"),
+        "per_decade": Key(None, lambda x: x is None or (finite(x) and x >= 1),
+                          "a number >= 1 (steps per decade of time)"),
+        "segments": Key(None, lambda x: x is None or (isinstance(x, list) and x and all(
+            isinstance(v, dict) for v in x)), "a non-empty list of tables"),
+        "times": Key(None, lambda x: x is None or (number_list(x) and x),
+                     "a non-empty list of finite numbers"),
+        "times_file": Key(None, lambda x: x is None or (isinstance(x, str) and x != ""),
+                          "the name of a CSV file beside the scene file"),
+        "times_column": Key(None, lambda x: x is None or (isinstance(x, str) and x != ""),
+                            "the header name of the time column of time.times_file"),
     }
 
+    #: The keys of each grid kind besides T (a key of another kind is refused, not ignored).
+    GRID_KEYS = {"uniform": (), "logarithmic": ("first", "growth", "per_decade"),
+                 "piecewise": ("segments",), "times": ("times", "times_file", "times_column")}
+
     def rules(self, scene):
-        steps = self["steps"]
-        self.need(steps <= MAX_STEPS, "steps",
-                  f"time.steps = {steps} is more than {MAX_STEPS} steps (the memory of eq 19 "
-                  "sums over every earlier step and each step writes its records): take fewer, "
-                  "larger steps (time.rule = 'trapezoid' is second order)")
+        kind = self["grid"]
+        for other, names in self.GRID_KEYS.items():
+            for name in names:
+                self.need(other == kind or self[name] is None, name,
+                          f"time.{name} belongs to time.grid = '{other}', not '{kind}'")
+        if kind == "logarithmic":
+            self._geometric(self, "time.grid = 'logarithmic'", "time.", self.need)
+        elif kind == "piecewise":
+            self._segments()
+        elif kind == "times":
+            self._times(scene)
+        count = time_grid.count(self)
+        name = {"uniform": "steps", "logarithmic": "first", "piecewise": "segments",
+                "times": "times" if self["times"] is not None else "times_file"}[kind]
+        what = (f"time.steps = {self['steps']}" if kind == "uniform" else
+                f"time.{name}: the grid has {count:.4g} steps, which")
+        self.need(count <= MAX_STEPS, name,
+                  f"{what} is more than {MAX_STEPS} steps (the memory of eq 19 sums over "
+                  "every earlier step and each step writes its records): take fewer, larger "
+                  "steps (time.rule = 'trapezoid' is second order)")
+        self.grid_summary = time_grid.summary(self)
+        least = self.grid_summary[1]
+        self.need(least >= time_grid.LEAST_STEP * self["T"], name,
+                  f"time.{name}: the grid's smallest step {least:.3g} is below "
+                  f"{time_grid.LEAST_STEP:g} T = {time_grid.LEAST_STEP * self['T']:.3g} (two "
+                  "step times that close are one time to the loop)")
         if not scene.get("body"):       # bodies: once their tables are checked (Scene)
             self.stable(scene)
         self._exponential_rule(scene)
 
+    @staticmethod
+    def _geometric(spec, what: str, prefix: str, need) -> None:
+        """A logarithmic grid or segment: its first step and one of growth, per_decade."""
+        need(spec.get("first") is not None, "first",
+             f"{what} needs {prefix}first (the first step, > 0)")
+        given = [n for n in ("growth", "per_decade") if spec.get(n) is not None]
+        need(len(given) == 1, given[1] if len(given) == 2 else "growth",
+             f"{what} needs one of {prefix}growth (the ratio of consecutive steps) or "
+             f"{prefix}per_decade (steps per decade: growth 10^(1/per_decade)), got "
+             + (" and ".join(given) or "neither"))
+
+    def _segments(self) -> None:
+        """Each segment a table of SEGMENT_KEYS, ends increasing, the last one T."""
+        segments, start = self["segments"], 0.0
+        self.need(segments is not None, "segments",
+                  "time.grid = 'piecewise' needs time.segments, a list of tables {end, steps} "
+                  "or {end, grid = 'logarithmic', first, growth or per_decade}")
+        for i, segment in enumerate(segments):
+            where = f"time.segments[{i}]"
+
+            def need(ok, name, message, i=i):
+                self.need(ok, f"segments[{i}].{name}", message)
+            for name in segment:
+                need(name in SEGMENT_KEYS, name,
+                     f"{where}.{name}: unknown key; a segment has {', '.join(SEGMENT_KEYS)}")
+            end = segment.get("end")
+            need(finite(end) and end > start, "end",
+                 f"{where}.end must be a finite number above the segment's start {start:g} "
+                 f"(the ends increase), got {end!r}")
+            kind = segment.get("grid", "uniform")
+            need(kind in time_grid.SEGMENT_GRIDS, "grid",
+                 f"{where}.grid must be uniform or logarithmic, got {kind!r}")
+            if kind == "uniform":
+                need(integer(segment.get("steps")) and segment["steps"] >= 1, "steps",
+                     f"{where} is uniform: it needs steps, an integer >= 1, got "
+                     f"{segment.get('steps')!r}")
+                for name in ("first", "growth", "per_decade"):
+                    need(name not in segment, name,
+                         f"{where}.{name} belongs to a logarithmic segment (grid = "
+                         "'logarithmic'), not a uniform one")
+            else:
+                need("steps" not in segment, "steps",
+                     f"{where}.steps belongs to a uniform segment, not a logarithmic one")
+                self._geometric(segment, f"{where} is logarithmic:", f"{where}.", need)
+                for name, test in (("first", _positive_or_none),
+                                   ("growth", self.KEYS["growth"].test),
+                                   ("per_decade", self.KEYS["per_decade"].test)):
+                    need(test(segment.get(name)), name,
+                         f"{where}.{name} must be {self.KEYS[name].allowed}, got "
+                         f"{segment.get(name)!r}")
+            start = end
+        self.need(start == self["T"], f"segments[{len(segments) - 1}].end",
+                  f"time.segments: the last segment ends at {start!r}, not at time.T = "
+                  f"{self['T']!r} (the segments make the whole grid)")
+
+    def _times(self, scene) -> None:
+        """time.times or time.times_file (read here, relative to the scene file's folder):
+        increasing, >= 0, at most T."""
+        given = [n for n in ("times", "times_file") if self[n] is not None]
+        self.need(len(given) == 1, given[-1] if given else "times",
+                  "time.grid = 'times' needs one of time.times (a list) or time.times_file (a "
+                  "CSV file beside the scene file), got " + (" and ".join(given) or "neither"))
+        self.need(self["times_column"] is None or self["times_file"] is not None,
+                  "times_column", "time.times_column names a column of time.times_file")
+        if self["times_file"] is not None:
+            from contactvisco.scene import prony_file
+            base = getattr(self.provenance, "path", None)
+            key = self.key("times_file")
+            try:
+                path = prony_file.inside_path(self["times_file"],
+                                              base.parent if base is not None else None, key)
+                self.file_times = prony_file.read_times(path, key, self["times_column"],
+                                                        MAX_STEPS + 1)
+            except SceneError as err:
+                self.fail("times_file", str(err))
+            values, name = self.file_times, "times_file"
+        else:
+            values, name = self["times"], "times"
+            self.need(len(values) <= MAX_STEPS + 1, name,
+                      f"time.times: more than {MAX_STEPS} times")
+        bad = next((i for i, t in enumerate(values)
+                    if t < 0 or (i and t <= values[i - 1])), None)
+        self.need(bad is None, name,
+                  f"time.{name}: the times must be >= 0 and increase; entry {bad} is "
+                  f"{values[bad] if bad is not None else 0!r}")
+        self.need(values[-1] <= self["T"], name,
+                  f"time.{name}: the last time {values[-1]!r} is after time.T = "
+                  f"{self['T']!r} (T ends the run: set it to the last time or later)")
+
     def stable(self, scene) -> None:
-        """The paper's rule only where it is stable (model.stability: b < 1, b of the worst
-        [[body]] when the scene has some), unless time.allow_unstable."""
+        """The paper's rule only where it is stable (model.stability: b < 1 step by step, b
+        of the worst [[body]] when the scene has some), unless time.allow_unstable."""
         from contactvisco.model.stability import amplifies, steps_for_stability, worst_body
-        steps = self["steps"]
+        steps = len(time_grid.steps(self))
         b, body = worst_body(scene)
+        if self["rule"] != "paper" or not amplifies(b, steps) or self["allow_unstable"]:
+            return
         where = "" if body is None else f" in body {body!r} (its material and memory)"
-        self.need(self["rule"] != "paper" or not amplifies(b, steps) or self["allow_unstable"],
-                  "steps",
-                  f"time.steps = {steps}: the paper's time rule (time.rule = 'paper') is "
+        if self["grid"] == "uniform":
+            what, name = f"time.steps = {steps}", "steps"
+            instead = f"use time.steps > {steps_for_stability(steps, b)}"
+        else:
+            k = time_grid.steps(self)
+            mean = float(np.max(0.5 * (k[:-1] + k[1:]))) if len(k) > 1 else float(k[0])
+            what, name = f"time.grid = '{self['grid']}' ({steps} steps)", "grid"
+            instead = (f"make the mean of every two consecutive steps less than "
+                       f"{mean / b:.3g} (b is the largest such mean's number; the largest "
+                       f"mean is {mean:.3g} now)")
+        self.fail(name,
+                  f"{what}: the paper's time rule (time.rule = 'paper') is "
                   f"unstable here{where} (b = k R(0) (1 + nu) / E = {b:.3g} >= 1, the solution "
-                  f"grows without bound); use time.steps > {steps_for_stability(steps, b)}, "
+                  f"grows without bound); {instead}, "
                   "time.rule = 'trapezoid' or 'exponential', or set time.allow_unstable = "
                   "true to run it anyway")
 

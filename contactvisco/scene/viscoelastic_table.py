@@ -16,6 +16,7 @@ import math
 import pathlib
 
 from contactvisco.errors import SceneError
+from contactvisco.model import time_grid
 from contactvisco.model import viscoelastic as ve
 from contactvisco.scene import prony_file
 from contactvisco.scene.table import (MODULUS_RANGE, Key, Table, finite, modulus, number_list,
@@ -90,8 +91,10 @@ class Viscoelastic(Table):
         lam, mu = lame_constants(mat["model"], mat["E"], mat["nu"])
         d = scene.dimension
         A = {"deviatoric": 2 * mu, "volumetric": d * lam + 2 * mu}
-        k = time["T"] / time["steps"]
+        k = time_grid.largest_step(time)     # [time] is checked after this table
         theta = self["temperature"]
+        if k is None:
+            return                                  # [time] refuses its grid itself
         if finite(theta) and self["shift"] != "none":
             k /= 10.0 ** float(ve.log10_shift(self, theta))
         elif theta is not None:
@@ -104,7 +107,9 @@ class Viscoelastic(Table):
             name = ("young" if self["young"] is not None else
                     "shear" if part == "deviatoric" else "bulk")
             self.need(k < k_max, name,
-                      f"time.steps = {time['steps']}: the step k = {k:.4g}"
+                      (f"time.steps = {time['steps']}: the step k = {k:.4g}"
+                       if time["grid"] == "uniform" else
+                       f"time.grid = '{time['grid']}': its largest step k = {k:.4g}")
                       + (" (in reduced time, k / a_T)" if theta is not None else "")
                       + f" makes the {part} stiffness of the trapezoid rule, A + k/2 R(0) = "
                       f"{A[part]:.4g} - {k / 2 * -r:.4g}, <= 0 (the relaxation terms are too "

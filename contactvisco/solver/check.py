@@ -13,6 +13,7 @@ from mpi4py import MPI
 from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.problem import build
 from contactvisco.model.material import lame_constants
+from contactvisco.model import time_grid
 from contactvisco.model.memory import History
 from contactvisco.model.stability import amplifies, worst_body
 from contactvisco.solver import newton
@@ -56,7 +57,7 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
     d = mesh.geometry.dim
     tdim = mesh.topology.dim
     opts = scene["output"]
-    steps = scene["time"]["steps"]
+    steps = len(time_grid.steps(scene["time"]))
     records = (steps + 1) * (STEP_RECORD + problem.count_contact_nodes() * CSV_NUMBER * (d + 10))
     body = problem.contact and problem.contact.obstacle
     if getattr(body, "master_nodes", None) is not None:    # two bodies: the interface tables
@@ -76,9 +77,9 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
     values = cells * (tdim + 1) + vertices * d + sum(written[name] for name in opts["fields"])
     two = (scene.get("obstacle") or {}).get("shape") == "body"
     values += cells if scene.get("body") or two else 0    # the cell field "body"
-    k = scene["time"]["T"] / steps
-    schedule = FieldSchedule(opts["field_every"], opts["field_times"], k, steps)
-    field_steps = sum(schedule.due(n, n * k) for n in range(steps + 1))
+    grid = time_grid.times(scene["time"])
+    schedule = FieldSchedule(opts["field_every"], opts["field_times"], scene["time"])
+    field_steps = sum(schedule.due(n, float(t)) for n, t in enumerate(grid))
     return records + field_steps * (FLOAT * values + XDMF_STEP)
 
 
@@ -190,13 +191,15 @@ def implicit_stiffness(scene: dict, problem, comm=MPI.COMM_WORLD) -> dict[str, f
 def _stiffness(scene: dict, problem, history, comm) -> dict[str, tuple[float, float]]:
     """implicit_stiffness of one material and history."""
     import numpy as np
-    steps, k = scene["time"]["steps"], scene["time"]["T"] / scene["time"]["steps"]
+    grid = time_grid.times(scene["time"])
+    steps = time_grid.steps(scene["time"])
     if getattr(history, "staged", False) is False:            # isothermal: numbers
-        samples = [history.implicit(k)]
+        # the weights are monotone in k: the least stiffness is at one end of the steps
+        samples = [history.implicit(float(steps.min())), history.implicit(float(steps.max()))]
     else:                                                     # reduced time: fields
         samples = []
-        for n in range(steps + 1):
-            problem.time.move_to(n * k)
+        for t, k in zip(grid, [steps[0], *steps]):
+            problem.time.move_to(float(t))
             samples.append(history.history.implicit(k * history.staged[:history.owned]))
         problem.time.move_to(0.0)
     d = problem.geometry.mesh.geometry.dim
@@ -236,7 +239,8 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     Returns
     -------
     dict
-        ``cells``, ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
+        ``steps``, ``smallest_step`` and ``largest_step`` (the time grid), ``cells``,
+        ``vertices``, ``unknowns`` (by field), ``contact_nodes``,
         ``linear_system``, ``linear_solver``, ``stability_number`` (b, the worst [[body]]'s
         with bodies), ``stability_body`` (that body's name, or None) and ``unstable`` (the
         paper's rule at b >= 1), ``implicit_stiffness`` (the trapezoid and exponential rules:
@@ -266,8 +270,9 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     tensor = _global_dofs(problem.tensor_space)
     history = problem.memory.history if problem.memory is not None else None
     b, body = worst_body(scene)
-    steps = scene["time"]["steps"]
+    steps, least, largest = time_grid.summary(scene["time"])
     report = {
+        "steps": steps, "smallest_step": least, "largest_step": largest,
         "cells": mesh.topology.index_map(tdim).size_global,
         "vertices": mesh.topology.index_map(0).size_global,
         "unknowns": counts, "contact_nodes": problem.count_contact_nodes(),

@@ -91,9 +91,10 @@ def time_rule_warning(scene) -> str | None:
         return None
     steps = scene["time"]["steps"]
     where = "" if body is None else f" in body {body!r}"
+    more = (f"time.steps > {math.ceil(steps * b)}" if scene["time"]["grid"] == "uniform" else
+            "smaller steps where the grid's are largest")
     return (f"warning: the paper's time rule is unstable here{where}: k R(0) (1 + nu) / E "
-            f"= {b:.3g} >= 1; use more steps (time.steps > {math.ceil(steps * b)}) "
-            "or time.rule = 'trapezoid'")
+            f"= {b:.3g} >= 1; use more steps ({more}) or time.rule = 'trapezoid'")
 
 
 def progress_line(record: dict, t_end: float) -> str:

@@ -1,4 +1,6 @@
-"""The time loop of eqs (20)-(21): t_0 = 0 (no history yet), then n = 1..N with k = t_end/N.
+"""The time loop of eqs (20)-(21): t_0 = 0 (no history yet), then the step times t_1 .. t_N
+of the scene's grid (contactvisco.model.time_grid: uniform, logarithmic, piecewise or given
+times), each step of its own size k_n = t_n - t_{n-1}.
 
 The loop is plain: `advance` solves one step and yields the accepted states (more than one
 when the step had to be cut), and every accepted state goes to the observers in turn: the
@@ -26,6 +28,7 @@ from contactvisco.fem.probes import Probes
 from contactvisco.fem.problem import Problem, build
 from contactvisco.io import checkpoint, output, parallel
 from contactvisco.io.lock import FolderLock
+from contactvisco.model import time_grid
 from contactvisco.solver import diagnosis, predictor, report
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure, SlidingLimit
@@ -164,13 +167,12 @@ class Run:
         """Steps n = 0..N (those after a restart point only); every accepted state goes to
         the observers."""
         scene, problem, snes, comm = self.scene, self.problem, self.snes, self.comm
-        t_end, steps = scene["time"]["T"], scene["time"]["steps"]
-        k = t_end / steps
+        t_end, grid = scene["time"]["T"], time_grid.times(scene["time"])
         report.announce(scene, problem, snes, comm, self.setup_s, self.say, self.writer,
                         getattr(self, "output_estimate", None))
         result = Result(problem, linear_system=snes.system_kind,
                         linear_solver=snes.linear_solver())
-        observers = [recorder(result, keep_tables), *self._file_observers(k),
+        observers = [recorder(result, keep_tables), *self._file_observers(),
                      lambda record, table: self.say(report.progress_line(record, t_end))]
         opts = scene["output"]
         self.checkpoints = checkpoint.Schedule(comm, opts["checkpoint_every"],
@@ -182,11 +184,13 @@ class Run:
         if self.resumed:
             t, count = self.resumed["t"], self.resumed["count"]
             self.say(f"restarting from the checkpoint at t = {t:g} (step {count - 1})")
-        for n in range(steps + 1):
-            if self.resumed and n * k <= t + 1e-12 * t_end:
+        last = len(grid) - 1
+        for n, t_n in enumerate(grid):
+            t_n = float(t_n)
+            if self.resumed and t_n <= t + 1e-12 * t_end:
                 continue                      # done before the restart
             try:
-                for state in advance(problem, snes, n * k, scene["solver"]["max_cuts"],
+                for state in advance(problem, snes, t_n, scene["solver"]["max_cuts"],
                                      self.say, predict=self.predictor):
                     check_sliding(problem, state.t, count)
                     table = contact_state.contact_table(problem, comm)
@@ -196,7 +200,7 @@ class Run:
                     for observe in observers:
                         observe(record, table)
                     t, count = state.t, count + 1
-                    self._checkpoint(state, count, final=n == steps and state.t == n * k)
+                    self._checkpoint(state, count, final=n == last and state.t == t_n)
             except StepFailed as failed:
                 raise diagnosis.step_failure(problem, comm, failed.t_from, failed.t_to,
                                              failed.cuts, failed.failure, table,
@@ -217,16 +221,16 @@ class Run:
                 **thermal_record(self.problem, self.comm),
                 **obstacle_record(self.problem, table)}
 
-    def _file_observers(self, k) -> list:
+    def _file_observers(self) -> list:
         """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""
         if self.writer is None:
             return []
         opts = self.scene["output"]
-        steps = self.scene["time"]["steps"]
         sigma = fem.Function(self.problem.tensor_space, name="sigma")
+        time = self.scene["time"]
         writer = FieldWriter(self.writer, self.problem, sigma, opts["fields"],
-                             FieldSchedule(opts["field_every"], opts["field_times"], k, steps))
-        snapshots = Snapshots(self.out, self.problem, writer, self.comm, opts, k, steps,
+                             FieldSchedule(opts["field_every"], opts["field_times"], time))
+        snapshots = Snapshots(self.out, self.problem, writer, self.comm, opts, time,
                               self.writer, self.say, self.resumed)
         return [writer, snapshots]
 
@@ -399,13 +403,15 @@ def _restore(problem, saved):
 class FieldSchedule:
     """Which accepted states get their XDMF fields ([output] field_every, field_times): those
     whose step number (the record's "step", counting accepted states: the halves of a cut step
-    are two) is a multiple of `every`, those at the step times n k nearest to `times` (as for
-    figure_times), and the final state t = N k."""
+    are two) is a multiple of `every`, those at the grid's step times nearest to `times` (as
+    for figure_times), and the final state t_N."""
 
-    def __init__(self, every: int, times, k: float, steps: int):
+    def __init__(self, every: int, times, time: dict):
         self.every = every
-        # n * k as the time loop computes it: its states land on these floats exactly.
-        self.times = {min(steps, max(0, round(t / k))) * k for t in times} | {steps * k}
+        # the grid's times as the time loop steps to them: its states land on these floats
+        grid = time_grid.times(time)
+        self.times = {float(grid[n]) for n in time_grid.nearest(time, times)} | {
+            float(grid[-1])}
 
     def due(self, step: int, t: float) -> bool:
         return step % self.every == 0 or t in self.times
@@ -418,7 +424,7 @@ class FieldWriter:
     def __init__(self, writer, problem, sigma, names, schedule: FieldSchedule | None = None):
         self.writer, self.problem, self.sigma, self.names = writer, problem, sigma, names
         self.derived = {}                     # the Functions of output.derived_fields
-        self.schedule = schedule or FieldSchedule(1, (), 1.0, 0)
+        self.schedule = schedule or FieldSchedule(1, (), {"T": 1.0, "steps": 1})
         self.sigma_step = None       # the step at which sigma was last interpolated
         self.body = output.body_field(problem) if writer.xdmf is not None else None
 
@@ -444,13 +450,14 @@ class Snapshots:
     """Observer: the whole mesh gathered on rank 0 at the figure times (snapshots.npz), unless
     the mesh is too large for that (a note then says so)."""
 
-    def __init__(self, out, problem, fields: FieldWriter, comm, opts, k, steps, writer, say,
+    def __init__(self, out, problem, fields: FieldWriter, comm, opts, time, writer, say,
                  resumed):
         self.path = pathlib.Path(out) / "snapshots.npz"
         self.problem, self.comm, self.writer = problem, comm, writer
         self.fields, self.sigma = fields, fields.sigma     # sigma: shared with the XDMF output
-        figure_steps = {min(steps, max(0, round(t / k))) for t in opts["figure_times"]} | {steps}
-        self.times = {round(i * k, 12) for i in figure_steps}
+        grid = time_grid.times(time)
+        figure_steps = set(time_grid.nearest(time, opts["figure_times"])) | {len(grid) - 1}
+        self.times = {round(float(grid[i]), 12) for i in figure_steps}
         skip = opts["figures"] and output.snapshot_skip_note(
             problem, opts["snapshot_max_nodes"], writer.xdmf is not None)
         if skip:

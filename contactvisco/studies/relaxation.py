@@ -19,18 +19,21 @@ from mpi4py import MPI
 
 from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.problem import build
+from contactvisco.model import time_grid
 from contactvisco.model import viscoelastic as ve
 from contactvisco.model.material import lame_constants
 from contactvisco.scene import loader
 from contactvisco.solver.newton import create
 
-#: The strain histories f(t) as scene expressions in t.
-HISTORIES = {"step": "1.0", "ramp": "{rate} * t", "sine": "sin({omega} * t)"}
+#: The strain histories f(t) as scene expressions in t (hold: a ramp to t = hold, then held;
+#: smooth: the smooth ramp-and-hold 1 - exp(-t/hold), its rate 1/hold at 0, held at 1).
+HISTORIES = {"step": "1.0", "ramp": "{rate} * t", "sine": "sin({omega} * t)",
+             "hold": "{rate} * min(t, {hold})", "smooth": "1.0 - exp(-t / {hold})"}
 
 
 def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, steps: int,
                 rule: str = "trapezoid", rate: float = 1.0, omega: float = 1.0,
-                cells: int = 1) -> dict:
+                cells: int = 1, hold: float = 1.0, grid: dict | None = None) -> dict:
     """The raw scene of the homogeneous block (module description).
 
     Parameters
@@ -42,7 +45,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
     strain : array_like
         The d x d strain tensor E.
     history : str
-        ``step``, ``ramp`` or ``sine`` (HISTORIES).
+        ``step``, ``ramp``, ``sine``, ``hold`` or ``smooth`` (HISTORIES).
     T : float
         The end time.
     steps : int
@@ -53,6 +56,10 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
         The ramp's rate and the sine's angular frequency.
     cells : int, optional
         Boxes per side.
+    hold : float, optional
+        The end of the ramp of the ``hold`` history; the time scale of ``smooth``.
+    grid : dict, optional
+        More [time] keys: a grid other than `steps` uniform steps (time.grid, first, ...).
 
     Returns
     -------
@@ -61,7 +68,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
     """
     E = np.asarray(strain, float)
     d = E.shape[0]
-    f = HISTORIES[history].format(rate=repr(rate), omega=repr(omega))
+    f = HISTORIES[history].format(rate=repr(rate), omega=repr(omega), hold=repr(hold))
     value = [f"({f}) * (" + " + ".join(f"{float(E[i, j])!r} * x[{j}]" for j in range(d)) + ")"
              for i in range(d)]
     boundaries = ("left", "right", "bottom", "top") + (("front", "back") if d == 3 else ())
@@ -70,7 +77,7 @@ def block_scene(viscoelastic: dict, model: str, strain, history: str, T: float, 
             "material": {"model": model},
             "viscoelastic": viscoelastic,
             "dirichlet": [{"boundary": b, "value": value} for b in boundaries],
-            "time": {"T": T, "steps": steps, "rule": rule},
+            "time": {"T": T, "steps": steps, "rule": rule, **(grid or {})},
             "output": {"xdmf": False, "figures": False, "checkpoint": False}}
 
 
@@ -89,8 +96,8 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     Returns
     -------
     tuple of numpy.ndarray
-        The times t_n = n T / N and the stresses, shape (N + 1, d, d): the mean over the cells
-        of the stress's values (the stress of a homogeneous state); with per_point, shape
+        The times t_n of the scene's grid and the stresses, shape (N + 1, d, d): the mean
+        over the cells of the stress's values (the stress of a homogeneous state); with per_point, shape
         (N + 1, points, d, d), then the points' coordinates (points, 3).
     """
     scene = loader.resolve(raw)
@@ -102,16 +109,15 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     sigma = fem.Function(problem.tensor_space)
     owned = problem.tensor_space.dofmap.index_map.size_local
     bs = problem.tensor_space.dofmap.index_map_bs
-    T, N = scene["time"]["T"], scene["time"]["steps"]
     times, out = [], []
     try:
-        for n in range(N + 1):
-            problem.time.stage(n * T / N)
+        for t in time_grid.times(scene["time"]):
+            problem.time.stage(float(t))
             snes.solve()
             problem.time.commit()
             sigma.interpolate(problem.sigma_expression)
             values = sigma.x.array[:owned * bs].reshape(-1, d, d)
-            times.append(n * T / N)
+            times.append(float(t))
             if per_point:
                 out.append(values.copy())
                 continue
@@ -129,7 +135,8 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
 
 
 def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, strain,
-                   history: str, t, rate: float = 1.0, omega: float = 1.0) -> np.ndarray:
+                   history: str, t, rate: float = 1.0, omega: float = 1.0,
+                   hold: float = 1.0) -> np.ndarray:
     """The closed-form stress of the homogeneous block (module description).
 
     Parameters
@@ -141,10 +148,10 @@ def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, stra
     strain : array_like
         The d x d strain tensor E.
     history : str
-        ``step``, ``ramp`` or ``sine``.
+        ``step``, ``ramp``, ``sine``, ``hold`` or ``smooth``.
     t : array_like
         Times.
-    rate, omega : float, optional
+    rate, omega, hold : float, optional
         As in :func:`block_scene`.
 
     Returns
@@ -155,8 +162,7 @@ def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, stra
     E = np.asarray(strain, float)
     d = E.shape[0]
     t = np.atleast_1d(np.asarray(t, float))
-    Gf = ve.response(shear, history, t, rate, omega)
-    Kf = ve.response(bulk, history, t, rate, omega)
+    Gf, Kf = (_response(phi, history, t, rate, omega, hold) for phi in (shear, bulk))
     if model == "plane_stress":
         E0, nu0 = ve.young_poisson(shear.instantaneous, bulk.instantaneous)
         lam, mu = lame_constants(model, E0, nu0)
@@ -169,3 +175,112 @@ def maxwell_stress(model: str, shear: ve.PronySeries, bulk: ve.PronySeries, stra
     sigma = (2.0 * Gf[:, None, None] * dev
              + Kf[:, None, None] * np.trace(E3) * np.eye(3))
     return sigma[:, :d, :d]
+
+
+def _response(phi, history: str, t, rate: float, omega: float, hold: float):
+    """(phi * f)(t). The ramp-and-hold by superposition: a ramp from 0 minus the same ramp
+    from t = hold, r(t) - r(t - hold) with r(s) = 0 for s <= 0. The smooth one,
+    f = 1 - exp(-t/h) (h = hold), term by term:
+
+        phi_inf f(t) + sum_i phi_i (exp(-t/h) - exp(-t/tau_i)) / (h/tau_i - 1),
+
+    and phi_i (t/h) exp(-t/h) for tau_i = h (the limit)."""
+    if history == "smooth":
+        t = np.asarray(t, float)
+        out = phi.long_term * -np.expm1(-t / hold)
+        for m, tau in zip(phi.moduli, phi.taus):
+            c = hold / tau - 1.0
+            if abs(c) < 1e-6:            # the difference quotient's limit
+                out = out + m * t / hold * np.exp(-t / hold)
+            else:
+                out = out + m * (np.exp(-t / hold) - np.exp(-t / tau)) / c
+        return out
+    if history != "hold":
+        return ve.response(phi, history, t, rate, omega)
+    ramp = ve.response(phi, "ramp", t, rate)
+    return ramp - ve.response(phi, "ramp", np.maximum(t - hold, 0.0), rate)
+
+
+def creep_compliance(scene: dict, t, function: str = "young") -> np.ndarray:
+    """The creep compliance J(t) of a relaxation function of a scene's [viscoelastic] table as
+    entered: the strain of a unit stress applied at t = 0 and held, the solution of
+    int_0-^t phi(t - s) dJ(s) = 1 (Boltzmann's superposition), in closed form from the
+    retardation rates of the Prony series (``studies.relaxation.prony_compliance``).
+
+    Parameters
+    ----------
+    scene : dict
+        A resolved scene with a [viscoelastic] table.
+    t : array_like
+        Times >= 0.
+    function : str, optional
+        ``"young"`` (E(t): the strain of a uniaxial stress), ``"shear"`` or ``"bulk"``.
+
+    Returns
+    -------
+    numpy.ndarray
+        J(t), shaped like t; J(0) = 1/phi(0), J(inf) = 1/phi_inf.
+
+    Raises
+    ------
+    SceneError
+        When the scene has no such relaxation function.
+    """
+    from contactvisco.errors import SceneError
+    table = scene.get("viscoelastic")
+    functions = getattr(table, "functions", None) or {}
+    if function not in functions:
+        raise SceneError(f"the creep compliance of {function!r} needs a scene whose "
+                         f"[viscoelastic] table gives it (it gives {sorted(functions) or 'none'})",
+                         key="viscoelastic")
+    return prony_compliance(functions[function], t)
+
+
+def prony_compliance(phi: ve.PronySeries, t) -> np.ndarray:
+    """The creep compliance J(t) of a relaxation function phi (Prony series, phi_inf > 0): the
+    strain of a unit stress applied at t = 0 and held, (phi * dJ)(t) = 1.
+
+    In Laplace variables s phi~(s) s J~(s) = 1 with
+
+        f(s) = s phi~(s) = phi_inf + sum_i phi_i s / (s + r_i),   r_i = 1/tau_i,
+
+    so J~(s) = 1 / (s f(s)). f increases between its poles -r_i and has one zero lambda_k in
+    each interval between neighbouring poles and in (-r_min, 0), all real and negative (the
+    retardation rates), found by bisection in those brackets; the residues give
+
+        J(t) = 1/phi_inf + sum_k exp(lambda_k t) / (lambda_k f'(lambda_k)),
+        f'(s) = sum_i phi_i r_i / (s + r_i)^2,
+
+    with J(0) = 1/phi(0) and J(inf) = 1/phi_inf.
+
+    Parameters
+    ----------
+    phi : PronySeries
+        The relaxation function (its moduli > 0, distinct relaxation times).
+    t : array_like
+        Times >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        J(t), shaped like t.
+    """
+    t = np.asarray(t, float)
+    moduli = np.asarray(phi.moduli, float)
+    r = 1.0 / np.asarray(phi.taus, float)
+
+    def f(s):
+        return phi.long_term + np.sum(moduli * s / (s + r))
+
+    out = np.full_like(t, 1.0 / phi.long_term)
+    edges = np.concatenate([-np.sort(r)[::-1], [0.0]])     # -r_max < ... < -r_min < 0
+    for lo, hi in zip(edges, edges[1:]):
+        a, b = lo, hi                    # f -> -inf just above a pole, f(hi) > 0
+        for _ in range(200):             # bisection to round-off on the bracket
+            middle = 0.5 * (a + b)
+            if middle in (a, b):
+                break
+            a, b = (middle, b) if f(middle) < 0 else (a, middle)
+        root = 0.5 * (a + b)
+        out = out + np.exp(root * t) / (root * np.sum(moduli * r / (root + r) ** 2))
+    return out

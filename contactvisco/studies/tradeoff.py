@@ -136,13 +136,17 @@ def rungs(scene: dict, levels: int, coarsest: float, degrees=(1, 2)) -> list[dic
     ------
     TradeoffError
         When the scene's mesh cannot be refined (a .msh file, or a gmsh script without mesh
-        size parameters).
+        size parameters), or its time grid is not uniform.
     """
     if scene["geometry"]["type"] != "box" and not any(
             scene_module.is_mesh_size(key) for key in scene["geometry"]["parameters"]):
         raise TradeoffError("geometry: the mesh cannot be refined (a .msh file, or a gmsh "
                             "script without mesh size parameters h or h_*); give a box or a gmsh "
                             "script with them")
+    if scene["time"]["grid"] != "uniform":
+        raise TradeoffError(f"time.grid = '{scene['time']['grid']}': the ladder's time knob is "
+                            "time.steps of a uniform grid; give a uniform grid (the trade-off "
+                            "does not scale other grids yet)")
     N = scene["time"]["steps"]
     step_counts = sorted({max(1, round(N / 2)), N, 2 * N}) if N > 1 else [N]
     base_degree = scene["discretization"]["degree"]

@@ -272,7 +272,7 @@ def uniaxial_exact(kernel: str, t: float, q: float = 10.0, E: float = 100.0, nu:
 
 
 def uniaxial(kernel: str, rule: str, T: float, steps: int, q: float = 10.0,
-             comm=MPI.COMM_WORLD, memory: dict = None) -> np.ndarray:
+             comm=MPI.COMM_WORLD, memory: dict = None, time: dict = None) -> np.ndarray:
     """The uniaxial block under constant pressure, solved (module description).
 
     Parameters
@@ -293,6 +293,9 @@ def uniaxial(kernel: str, rule: str, T: float, steps: int, q: float = 10.0,
         The communicator (collective).
     memory : dict, optional
         Extra keys of the memory table, e.g. ``{"tolerance": 1e-8}``.
+    time : dict, optional
+        Extra keys of the time table: another grid than `steps` uniform steps, e.g.
+        ``{"grid": "logarithmic", "first": 1e-3, "per_decade": 10}``.
 
     Returns
     -------
@@ -308,7 +311,8 @@ def uniaxial(kernel: str, rule: str, T: float, steps: int, q: float = 10.0,
                          {"boundary": "right", "components": [0]}],
            "traction": [{"boundary": "top", "value": [0.0, -q]}],
            # the stability study runs the paper's rule past its limit on purpose
-           "time": {"T": T, "steps": steps, "rule": rule, "allow_unstable": True},
+           "time": {"T": T, "steps": steps, "rule": rule, "allow_unstable": True,
+                    **(time or {})},
            "output": {"probes": [[0.5, 1.0]]}}
     result = simulate(scene_module.resolve(raw), comm=comm, progress=False)
     return np.array([s["probes"][0]["u"][1] for s in result.steps])

@@ -114,6 +114,26 @@ def test_show_prints_toml_that_run_reads():
     assert tomllib.loads(proc.stdout)["time"]["steps"] == 3
 
 
+def test_show_and_check_state_the_time_grid():
+    """A logarithmic grid: `show` ends with a comment and `check` prints a line with its
+    number of steps and its smallest and largest step (those of the grid itself)."""
+    from contactvisco import load_scene
+    from contactvisco.model import time_grid
+    sets = ["time.grid='logarithmic'", "time.first=0.01", "time.growth=1.5",
+            "time.rule='trapezoid'"]
+    steps, least, largest = time_grid.summary(load_scene("paper", sets=sets)["time"])
+    words = f"{steps} steps, k from {least:.4g} to {largest:.4g}"
+    args = [a for m in sets for a in ("--set", m)]
+    shown = cli("show", "paper", *args)
+    assert shown.returncode == 0, shown.stderr
+    assert shown.stdout.rstrip().splitlines()[-1] == f"# time grid (logarithmic): {words}"
+    checked = cli("check", "paper", "--set", "geometry.cells=[4, 4]", "--set",
+                  "output.probes=[]", *args)
+    assert checked.returncode == 0, checked.stderr
+    assert f"  time grid: logarithmic, {words}" in checked.stdout.splitlines()
+    assert steps == 10 and largest > 30 * least
+
+
 def test_check_states_what_bounds_the_step_of_each_rule():
     """The paper's rule: its number b; the trapezoid rule: the smallest stiffness of a step
     per mode (lost at k = 1 with alpha = -500); the exponential rule of relaxing terms:

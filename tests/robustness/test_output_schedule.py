@@ -206,7 +206,7 @@ def test_wall_time_schedule_with_a_clock():
 
 def test_field_times_land_on_the_nearest_step_and_the_final_one():
     k = 1.0 / 10
-    schedule = FieldSchedule(4, [0.23, 0.5, 1.0], k, 10)
+    schedule = FieldSchedule(4, [0.23, 0.5, 1.0], {"T": 1.0, "steps": 10})
     due = [n for n in range(11) if schedule.due(n, n * k)]
     assert due == [0, 2, 4, 5, 8, 10]
     assert not schedule.due(3, 0.25)          # a time between steps (a cut step's half)

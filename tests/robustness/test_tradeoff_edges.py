@@ -59,3 +59,13 @@ def test_the_command_line_exits_2_with_one_line(tmp_path, args):
     proc = run_cli("tradeoff", "paper", "--out", tmp_path / "t", *args, timeout=120)
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_a_grid_other_than_uniform_is_refused_before_any_run(tmp_path):
+    """The ladder scales time.steps: a logarithmic grid would run every rung on the same
+    grid without a word, so it is refused naming the key."""
+    overrides = ["time.grid='logarithmic'", "time.first=0.01", "time.growth=1.5",
+                 "time.rule='trapezoid'"]
+    with pytest.raises(tradeoff.TradeoffError, match="time.grid = 'logarithmic'"):
+        tradeoff.tradeoff("paper", overrides=overrides, out=tmp_path / "t", **GOOD)
+    assert not (tmp_path / "t").exists()

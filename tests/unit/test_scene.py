@@ -23,7 +23,10 @@ def test_paper_scene_values():
     assert scene["contact"]["g"] == 0.05 and scene["contact"]["mu"] == 0.2
     assert scene["contact"]["augmentation"] == 100.0       # defaults to the stiffness
     assert memory_terms(scene) == [(100.0, math.inf, "full")]
-    assert scene["time"] == {"T": 1.0, "steps": 10, "rule": "paper", "allow_unstable": False}
+    assert scene["time"] == {"T": 1.0, "steps": 10, "rule": "paper", "allow_unstable": False,
+                             "grid": "uniform", "first": None, "growth": None,
+                             "per_decade": None, "segments": None, "times": None,
+                             "times_file": None, "times_column": None}
 
 
 def test_set_overrides():
