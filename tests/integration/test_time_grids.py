@@ -199,7 +199,7 @@ def test_restart_refuses_a_time_file_whose_times_changed(tmp_path_factory, monke
     folder = pathlib.Path(folder)
     scene_file, times_file = folder / "creep.toml", folder / "samples.csv"
     if comm.rank == 0:
-        times_file.write_text("t,depth\n" + "".join(f"{t!r},0\n"
+        times_file.write_text("t,depth\n" + "".join(f"{float(t)!r},0\n"
                                                     for t in np.geomspace(1e-3, 1e4, 12)))
         scene_file.write_text(
             'name = "file_grid"\n[geometry]\ncells = [2, 2]\n[material]\nmodel = '
