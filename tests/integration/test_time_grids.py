@@ -216,7 +216,8 @@ def test_restart_refuses_a_time_file_whose_times_changed(tmp_path_factory, monke
     assert len(same.steps) == 8 and same.steps[-1]["t"] == 1e4
     comm.barrier()
     if comm.rank == 0:
-        times_file.write_text("t\n" + "".join(f"{t!r}\n" for t in np.geomspace(2e-3, 1e4, 12)))
+        times_file.write_text("t\n" + "".join(f"{float(t)!r}\n"
+                                             for t in np.geomspace(2e-3, 1e4, 12)))
     comm.barrier()
     with pytest.raises(SceneError, match=r"time.times_file \(its times\)"):
         simulate(loader.load(str(scene_file)), out=out, comm=comm, progress=False,
