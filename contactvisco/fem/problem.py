@@ -39,6 +39,7 @@ from contactvisco.fem import compat
 from contactvisco.model import contact_law as law
 from contactvisco.fem import obstacle as obstacle_module
 from contactvisco.fem import rigid
+from contactvisco.fem import prescribed
 from contactvisco.fem.geometry import Geometry
 from contactvisco.model.material import (elasticity, energy_stress, hencky_energy,
                                          invariants, lame_constants, strain)
@@ -479,6 +480,10 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W,
                                                                       context, updates)
     laws = contact_laws(contact, context)
+    check = prescribed.node_check(contact, Q, nodes.nodes, context)
+    if check is not None:                       # at every staged time, before its solve
+        check()
+        updates.append(check)
     relative, previous = _relative_motion(u, u_previous, obstacle)
     terms = law.law_terms(law.UFL, relative, normal, gap_value, lambda_nu, lambda_tau,
                           previous, constants, contact["friction_law"], laws=laws)

@@ -1,0 +1,84 @@
+"""Prescribed functions checked where the forms use them (issue 35): an obstacle's distance
+and its gradient, contact.p_nu, contact.p_tau and an expression contact.mu at the contact nodes
+and at every staged time. A violation stops the run with the key, the node and the time, on
+every rank alike, and the steps before it are kept."""
+import json
+import pathlib
+
+import pytest
+from mpi4py import MPI
+
+from contactvisco.errors import SceneError
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver.time_loop import simulate
+
+COMM = MPI.COMM_WORLD
+SMALL = ["geometry.cells=[8, 4]", "time.steps=4"]
+
+
+def layer_on_surface(distance: str) -> dict:
+    """A layer [0, 2] x [0, 1] (its top held) on a surface obstacle that rises by 1e-3."""
+    return {"name": "layer_on_surface",
+            "geometry": {"type": "gmsh", "script": "rectangle",
+                         "parameters": {"length": 2.0, "height": 1.0, "h": 0.25,
+                                        "h_bottom": 0.1}},
+            "material": {"model": "plane_strain", "E": 200.0, "nu": 0.3},
+            "dirichlet": [{"boundary": "top", "components": "all"}],
+            "contact": {"boundary": "bottom", "g": 0.0, "mu": 0.0, "augmentation": 200.0},
+            "obstacle": {"shape": "surface", "distance": distance,
+                         "displacement": [0.0, "1e-3 * t"]},
+            "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("distance, value", [
+    ("abs(x[1])", "|grad phi| = 0"),          # a true distance, its gradient 0 on the surface
+    ("x[1]**2", "|grad phi| = 0"),
+    ("1.0", "|grad phi| = 0"),                # constant: no direction at all
+    ("sqrt(x[1] - 0.5)", "nan"),              # undefined below 0.5
+    ("1e-4 * x[1]", "|grad phi| = 0.0001"),   # a level set too flat to give a distance
+])
+def test_surface_without_a_direction_is_refused(distance, value):
+    with pytest.raises(SceneError, match="obstacle's distance is not defined") as err:
+        simulate(scene_module.resolve(layer_on_surface(distance), []), comm=COMM,
+                 progress=False)
+    assert err.value.key == "obstacle.distance"
+    assert value in str(err.value) and "x = (" in str(err.value) and "t = 0" in str(err.value)
+
+
+def test_level_set_that_is_not_a_distance_still_runs():
+    """A scaled, curved level set keeps |grad phi| within the bounds: solved, in contact."""
+    result = simulate(scene_module.resolve(
+        layer_on_surface("2 * x[1] + 0.01 * (x[0] - 1)**2"), []), comm=COMM, progress=False,
+        keep_tables=True)
+    assert (result.tables[-1]["status"] == 2).sum() >= 1
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("sets, key, words, t", [
+    # negative away from x = 0 once t > 0: the scene check at x = 0 cannot see it
+    (["contact.stiffness=0", "contact.g=0.01", "contact.p_nu='2e3 * s * (1 - 6 * x[0] * t)'"],
+     "contact.p_nu", "must be >= 0", "t = 0.25:"),
+    (["contact.stiffness=0", "contact.g=0.01", "contact.mu=0",
+      "contact.p_nu='2e3 * s'", "contact.p_tau='0.3 * p_nu * (1 - 6 * x[0] * t)'"],
+     "contact.p_tau", "must be >= 0", "t = 0.25:"),
+    # decreasing in s at x > 0.5 only
+    (["contact.stiffness=0", "contact.g=0.01",
+      "contact.p_nu='conditional(x[0] > 0.5, 2e3 * s * (1.1 - 100 * s), 2e3 * s)'"],
+     "contact.p_nu", "non-decreasing", "t = 0:"),
+    (["contact.mu='0.2 / (t - 0.5)'"], "contact.mu", "must be finite", "t = 0.5:"),
+    (["contact.mu='0.2 / (x[0] - 0.5)'"], "contact.mu", "must be finite", "t = 0:"),
+])
+def test_prescribed_law_checked_at_the_nodes_and_times(tmp_path_factory, sets, key, words, t):
+    out = tmp_path_factory.mktemp("law") if COMM.rank == 0 else None
+    out = COMM.bcast(out, root=0)
+    scene = scene_module.load("paper", SMALL + sets)
+    with pytest.raises(SceneError, match=words) as err:
+        simulate(scene, comm=COMM, progress=False, out=out)
+    assert err.value.key == key
+    assert t in str(err.value) and "contact node x = (" in str(err.value)
+    if t != "t = 0:":
+        # the states before the refused time are kept: t = 0 (and 0.25)
+        records = (pathlib.Path(out) / "steps.jsonl").read_text().splitlines()
+        times = [json.loads(line)["t"] for line in records]
+        assert times and max(times) < float(t[4:-1])
