@@ -82,3 +82,28 @@ def test_prescribed_law_checked_at_the_nodes_and_times(tmp_path_factory, sets, k
         records = (pathlib.Path(out) / "steps.jsonl").read_text().splitlines()
         times = [json.loads(line)["t"] for line in records]
         assert times and max(times) < float(t[4:-1])
+
+
+@pytest.mark.mpi
+def test_wlf_pole_between_two_step_times_is_refused(tmp_path_factory):
+    """C2 + T - T_ref > 0 at every step time (0.5 and 1.0 here) but < 0 at t = 0.75: the
+    reduced time of that step would integrate through the WLF pole."""
+    folder = COMM.bcast(tmp_path_factory.mktemp("wlf") if COMM.rank == 0 else None, root=0)
+    raw = {"name": "wlf_dip",
+           "geometry": {"lower": [0.0, 0.0], "upper": [2.0, 1.0], "cells": [4, 2]},
+           "material": {"model": "plane_strain"},
+           "viscoelastic": {"shear": {"instantaneous": 30.0, "tau": [1.0], "moduli": [10.0]},
+                            "bulk": {"long_term": 50.0}, "shift": "wlf", "T_ref": 50.0,
+                            "C1": 17.44, "C2": 51.6,
+                            "temperature": "50 - 60 * exp(-((t - 0.75) / 0.05)**2)"},
+           "dirichlet": [{"boundary": "left", "components": [0]}],
+           "traction": [{"boundary": "top", "value": [0.0, -1.0]}],
+           "contact": {"boundary": "bottom", "stiffness": 100.0, "g": 0.03},
+           "time": {"T": 4.0, "steps": 8}, "output": {"probes": []}}
+    with pytest.raises(SceneError, match="between the step times 0.5 and 1") as err:
+        simulate(scene_module.resolve(raw, []), comm=COMM, progress=False, out=folder)
+    assert err.value.key == "viscoelastic.temperature"
+    assert "C2 + T - T_ref" in str(err.value) and "x = (" in str(err.value)
+    times = [json.loads(line)["t"]
+             for line in (pathlib.Path(folder) / "steps.jsonl").read_text().splitlines()]
+    assert times == [0.0, 0.5]
