@@ -176,6 +176,9 @@ class Material(Table):
         "hencky_exponent": Key(1.0, finite, "a finite number"),
         "hencky_strain": Key(0.01, lambda x: finite(x) and x > 0, "> 0 (and finite)"),
     }
+    MEANINGFUL_WHEN = {
+        name: (lambda table, scene: table["law"] == "hencky", "with material.law = 'hencky'")
+        for name in ("hencky_exponent", "hencky_strain")}
 
     def normalize(self) -> None:
         """lambda and mu given: E and nu from them (E = mu (3 lambda + 2 mu) / (lambda + mu),
@@ -508,6 +511,12 @@ def nonnegative(x) -> bool:
 PAIRINGS = ("mortar", "node_to_segment")
 
 
+def _shape(scene) -> str:
+    """obstacle.shape of a scene ("none" without an [obstacle] table)."""
+    obstacle = scene.get("obstacle") if hasattr(scene, "get") else None
+    return (obstacle or {}).get("shape") or "none"
+
+
 class Contact(Table):
     """Normal compliance p_nu(s) = c_nu max(0, s) up to a layer g, then a rigid bound; friction
     bound mu p_nu (or mu times the total pressure); augmented-Lagrangian parameter r."""
@@ -538,6 +547,10 @@ class Contact(Table):
         "sliding_limit": Key(0.5, lambda x: (finite(x) and x > 0) or x == math.inf,
                              "a number > 0 (a fraction of the master facet), or inf"),
     }
+    MEANINGFUL_WHEN = {
+        name: (lambda table, scene: _shape(scene) == "body",
+               "with a second body: obstacle.shape = 'body' and its obstacle.boundary")
+        for name in ("pairing", "search_distance", "sliding_limit")}
 
     def normalize(self, material: dict) -> None:
         """g given as a text ("inf") read as a number; augmentation r defaults to the
@@ -724,6 +737,11 @@ def _vector(x, d) -> bool:
     return number_list(x) and len(x) == d
 
 
+def _takes(shape: str, d: int, name: str) -> bool:
+    """Whether obstacle.shape = shape in d dimensions takes the key `name` (Obstacle.NEEDS)."""
+    return name in Obstacle.NEEDS[shape] or (name == "axis" and shape == "cylinder" and d == 3)
+
+
 class Obstacle(Table):
     """The rigid obstacle the contact boundary meets: its shape (a signed distance phi, > 0 on
     the body's side) and its prescribed rigid translation d(t). At a contact node x the gap is
@@ -748,6 +766,15 @@ class Obstacle(Table):
     NEEDS = {"none": (), "plane": ("point", "normal"), "cylinder": ("centre", "radius"),
              "sphere": ("centre", "radius"), "surface": ("distance",), "body": ("boundary",)}
 
+    #: The shape's keys mean something only for the shapes that take them (NEEDS).
+    MEANINGFUL_WHEN = {
+        name: ((lambda table, scene, name=name: _takes(table["shape"], scene.dimension, name)),
+               (lambda table, name=name: "with obstacle.shape = " + " or ".join(
+                   f"'{s}'" for s in OBSTACLE_SHAPES if _takes(s, 2, name) or _takes(s, 3, name))
+                + (" in 3D" if name == "axis" else "")
+                + f" (this scene's obstacle.shape is '{table['shape']}')"))
+        for name in ("point", "normal", "centre", "radius", "axis", "distance", "boundary")}
+
     def rules(self, scene):
         shape, d = self["shape"], scene.dimension
         if shape == "none":
@@ -765,11 +792,6 @@ class Obstacle(Table):
         for name in needs:
             self.need(self[name] is not None, name,
                       f"obstacle.shape = '{shape}' needs obstacle.{name}")
-        extra = [k for k in ("point", "normal", "centre", "radius", "axis", "distance",
-                             "boundary") if self[k] is not None and k not in needs]
-        self.need(not extra, extra[0] if extra else "shape",
-                  f"obstacle.{extra[0] if extra else ''} has no meaning for obstacle.shape = "
-                  f"'{shape}' (it takes {', '.join(needs)})")
         for name in ("point", "normal", "centre", "axis"):
             if self[name] is not None:
                 self.need(_vector(self[name], d), name,

@@ -107,3 +107,41 @@ def test_wlf_pole_between_two_step_times_is_refused(tmp_path_factory):
     times = [json.loads(line)["t"]
              for line in (pathlib.Path(folder) / "steps.jsonl").read_text().splitlines()]
     assert times == [0.0, 0.5]
+
+
+@pytest.mark.parametrize("scene, sets, key, meaning", [
+    ("paper", ["material.hencky_exponent=0.5"], "material.hencky_exponent", "law = 'hencky'"),
+    ("paper", ["material.hencky_strain=1e-300"], "material.hencky_strain", "law = 'hencky'"),
+    ("paper", ["contact.pairing='node_to_segment'"], "contact.pairing", "shape = 'body'"),
+    ("paper", ["contact.sliding_limit=0.2"], "contact.sliding_limit", "shape = 'body'"),
+    ("paper", ["contact.search_distance=0.1"], "contact.search_distance", "shape = 'body'"),
+    ("hertz", ["contact.gap=0", "obstacle.shape='cylinder'", "obstacle.centre=[0.0, -1.0]",
+               "obstacle.radius=1.0", "obstacle.axis=[0.0, 1.0]"], "obstacle.axis",
+     "'cylinder' in 3D"),
+    ("hertz", ["contact.gap=0", "obstacle.shape='plane'", "obstacle.point=[0.0, 0.0]",
+               "obstacle.normal=[0.0, 1.0]", "obstacle.radius=1.0"], "obstacle.radius",
+     "'cylinder' or 'sphere'"),
+])
+def test_key_without_a_meaning_is_refused(scene, sets, key, meaning):
+    """One rule (Table.MEANINGFUL_WHEN): the key, 'no meaning' and what would give it one,
+    through the loader (the CLI's and check's route) and the API's load_scene."""
+    from contactvisco import api
+    with pytest.raises(SceneError, match="has no meaning in this scene") as err:
+        scene_module.load(scene, sets)
+    assert err.value.key == key and meaning in str(err.value)
+    with pytest.raises(SceneError, match="has no meaning in this scene") as err:
+        api.load_scene(scene, sets=sets)
+    assert err.value.key == key and meaning in str(err.value)
+
+
+def test_key_without_a_meaning_is_refused_from_keyword_overrides():
+    from contactvisco import api
+    with pytest.raises(SceneError, match="law = 'hencky'") as err:
+        api.load_scene("paper", material={"hencky_strain": 1e-300})
+    assert err.value.key == "material.hencky_strain"
+
+
+@pytest.mark.parametrize("sets", [["material.law='hencky'", "material.hencky_exponent=0.5"],
+                                  ["material.hencky_exponent=1.0"]])
+def test_key_with_its_meaning_or_its_default_is_accepted(sets):
+    assert scene_module.load("paper", sets)["material"]["hencky_exponent"] in (0.5, 1.0)
