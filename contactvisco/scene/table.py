@@ -75,13 +75,16 @@ def choices(*names) -> str:
 
 
 class Key:
-    """One scene key: its default, a test of its values (None: checked by the table's rules)
-    and the words saying what the test allows."""
+    """One scene key: its default, a test of its values (None: checked by the table's rules),
+    the words saying what the test allows, and for a list whose entries must differ, the words
+    (what an entry is, what to do instead of repeating one: Table.no_repeats); empty: repeats
+    are the rules' business."""
 
-    __slots__ = ("default", "test", "allowed")
+    __slots__ = ("default", "test", "allowed", "distinct")
 
-    def __init__(self, default, test=None, allowed: str = ""):
+    def __init__(self, default, test=None, allowed: str = "", distinct: tuple = ()):
         self.default, self.test, self.allowed = default, test, allowed
+        self.distinct = distinct
 
 
 def choice(default: str, *names: str) -> Key:
@@ -192,6 +195,8 @@ class Table(dict):
         for name, key in self.KEYS.items():
             if key.test is not None and name in self and not key.test(self[name]):
                 self.fail(name, f"{self.key(name)} must be {key.allowed}, got {self[name]!r}")
+            if key.distinct and name in self:
+                self.no_repeats(name, self[name], *key.distinct)
         for name, (test, meaning) in self.MEANINGFUL_WHEN.items():
             if self.get(name, self.KEYS[name].default) != self.KEYS[name].default \
                     and not test(self, scene):

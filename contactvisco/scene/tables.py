@@ -442,7 +442,8 @@ class Dirichlet(Table):
 
     KEYS = {
         "boundary": Key(None),
-        "components": Key("all"),
+        "components": Key("all", distinct=("the component", "a component prescribed twice "
+                                          "leaves unsaid which value holds; list each once")),
         "value": Key(0.0),
     }
     REQUIRED = ("boundary",)
@@ -522,7 +523,8 @@ class Contact(Table):
     bound mu p_nu (or mu times the total pressure); augmented-Lagrangian parameter r."""
 
     KEYS = {
-        "boundary": Key("bottom"),
+        "boundary": Key("bottom", distinct=("the boundary", "a contact boundary listed twice "
+                                           "would get the compliance twice; list each once")),
         "gap": Key(0.0),
         "stiffness": Key(0.0, nonnegative, "a finite number >= 0"),
         "g": Key(math.inf),
@@ -586,9 +588,6 @@ class Contact(Table):
                                              and all(isinstance(b, str) for b in names)),
                   "boundary", f"contact.boundary must be a boundary name or a list of names, "
                               f"got {names!r}")
-        self.no_repeats("boundary", names, "the boundary",
-                        "a contact boundary listed twice would get the compliance twice; list "
-                        "each once")
         g = self["g"]
         self.need(isinstance(g, (int, float)) and not isinstance(g, bool) and g >= 0, "g",
                   f"contact.g must be >= 0 (inf: no bound), got {g}")
@@ -756,7 +755,9 @@ class Obstacle(Table):
         "axis": Key(None),
         "distance": Key(None),
         "displacement": Key(None),
-        "force_components": Key([], lambda x: isinstance(x, list), "a list of components"),
+        "force_components": Key([], lambda x: isinstance(x, list), "a list of components",
+                                distinct=("the component", "a component controlled twice "
+                                         "would get two forces; list each once")),
         "force": Key([], lambda x: isinstance(x, list), "a list of expressions in t"),
         # shape = "body": the master boundary, a facet tag name of the mesh.
         "boundary": Key(None),

@@ -145,3 +145,48 @@ def test_key_without_a_meaning_is_refused_from_keyword_overrides():
                                   ["material.hencky_exponent=1.0"]])
 def test_key_with_its_meaning_or_its_default_is_accepted(sets):
     assert scene_module.load("paper", sets)["material"]["hencky_exponent"] in (0.5, 1.0)
+
+
+# ---- duplicates and contradictions in list-valued keys; a master on the slave's body ----
+
+@pytest.mark.parametrize("sets, key, words", [
+    (["dirichlet.0.components=[0, 0]", "dirichlet.0.value=[0.0, 1.0]"],
+     "dirichlet[0].components", "the component 0 twice"),
+    (["contact.boundary=['bottom', 'bottom']"], "contact.boundary", "'bottom' twice"),
+])
+def test_repeated_entry_is_refused(sets, key, words):
+    from contactvisco import api
+    for load in (scene_module.load, lambda name, s: api.load_scene(name, sets=s)):
+        with pytest.raises(SceneError, match=words) as err:
+            load("paper", sets)
+        assert err.value.key == key
+
+
+def test_repeated_force_component_is_refused():
+    with pytest.raises(SceneError, match="the component 1 twice") as err:
+        scene_module.load("hertz", [
+            "contact.gap=0", "obstacle.shape='plane'", "obstacle.point=[0.0, 0.0]",
+            "obstacle.normal=[0.0, 1.0]", "obstacle.force_components=[1, 1]",
+            "obstacle.force=[-0.1, -0.1]"])
+    assert err.value.key == "obstacle.force_components"
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("master", ["top", "slave_sides"])
+def test_master_on_the_slave_body_is_refused(master):
+    """obstacle.boundary names a face of the slave's own block (two_blocks: the slave block's
+    top and sides): refused naming obstacle.boundary before anything is solved."""
+    from contactvisco.fem import geometry as geometry_module
+    from contactvisco.fem.problem import build
+    raw = {"name": "patch",
+           "geometry": {"type": "gmsh", "script": "two_blocks",
+                        "parameters": {"h_slave": 0.077, "h_master": 0.1}},
+           "material": {"model": "plane_strain", "E": 1.0, "nu": 0.3},
+           "dirichlet": [{"boundary": "bottom", "components": [1]}],
+           "contact": {"boundary": "slave", "stiffness": 100.0},
+           "obstacle": {"shape": "body", "boundary": master},
+           "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
+    scene = scene_module.resolve(raw)
+    with pytest.raises(SceneError, match="same body") as err:
+        build(scene, geometry_module.build(scene, COMM))
+    assert err.value.key == "obstacle.boundary"
