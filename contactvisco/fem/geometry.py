@@ -78,6 +78,30 @@ def build(scene: dict, comm=MPI.COMM_WORLD) -> Geometry:
     return geometry
 
 
+def check_ranks(mesh) -> None:
+    """Refuse, once and on every rank, a mesh with a rank that owns no cell: a scene's checks
+    take the extent, the boundaries and the contact nodes on every rank.
+
+    Parameters
+    ----------
+    mesh : dolfinx.mesh.Mesh
+        The distributed mesh (collective).
+
+    Raises
+    ------
+    SceneError
+        Naming the mesh's cell count and the rank count.
+    """
+    comm = mesh.comm
+    tdim = mesh.topology.dim
+    owned = mesh.topology.index_map(tdim).size_local
+    counts = comm.allgather(int(owned))
+    if min(counts) == 0:
+        raise SceneError(f"geometry: the mesh has {sum(counts)} cell(s) for {comm.size} MPI "
+                         f"ranks, and {counts.count(0)} rank(s) would hold none; run on fewer "
+                         "ranks, or refine the mesh")
+
+
 def check_probes(mesh, points) -> None:
     """Every probe point lies in a cell of the mesh (on some rank), else a scene error naming
     the point and the mesh's bounding box."""

@@ -40,6 +40,7 @@ from contactvisco.model import contact_law as law
 from contactvisco.fem import obstacle as obstacle_module
 from contactvisco.fem import rigid
 from contactvisco.fem import prescribed
+from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.geometry import Geometry
 from contactvisco.model.material import (elasticity, energy_stress, hencky_energy,
                                          invariants, lame_constants, strain)
@@ -296,6 +297,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     memory part (eq 19), the external loads, the Dirichlet conditions, and the contact part
     (eqs 20-21) with its multipliers, residual blocks F and Jacobian blocks J."""
     mesh = geometry.mesh
+    geometry_module.check_ranks(mesh)
     compat.settle_coordinate_element(mesh)
     d = mesh.geometry.dim
     degree = scene["discretization"]["degree"]

@@ -174,7 +174,8 @@ class Material(Table):
         "law": choice("linear", *LAWS),
         "energy": Key(None),
         "hencky_exponent": Key(1.0, finite, "a finite number"),
-        "hencky_strain": Key(0.01, lambda x: finite(x) and x > 0, "> 0 (and finite)"),
+        "hencky_strain": Key(0.01, lambda x: modulus(x) and x > 0,
+                             f"> 0, in [{1 / MODULUS_RANGE:g}, {MODULUS_RANGE:g}]"),
     }
     MEANINGFUL_WHEN = {
         name: (lambda table, scene: table["law"] == "hencky", "with material.law = 'hencky'")

@@ -72,3 +72,13 @@ def test_docs_shift_table_runs_from_another_folder(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert len((tmp_path / "out" / "steps.jsonl").read_text().splitlines()) == 3
     assert not os.path.exists(folder / "out")
+
+
+def test_more_ranks_than_cells_is_refused_once(tmp_path):
+    """3 ranks for a mesh of 2 cells: run and check exit 2 with one scene error naming the
+    counts, not an internal error."""
+    for args in (["check", "paper"], ["run", "paper", "--out", tmp_path / "out"]):
+        proc = run_cli(*args, "--set", "geometry.cells=[1, 1]", ranks=3, cwd=tmp_path)
+        assert proc.returncode == 2, proc.stderr
+        assert "2 cell(s) for 3 MPI ranks" in proc.stderr, proc.stderr
+        assert "Traceback" not in proc.stderr and "ValueError" not in proc.stderr
