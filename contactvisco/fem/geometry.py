@@ -245,12 +245,18 @@ def mesh_file(geo) -> pathlib.Path:
     """The .msh file of a gmsh geometry; a script's mesh is made on first use (rank 0 only,
     written atomically) and cached under a hash of the script and its parameters."""
     if geo["file"] is not None:
+        # One path rule for every file a scene names: relative to the scene file's folder.
         path = pathlib.Path(geo["file"])
+        scene_path = getattr(getattr(geo, "provenance", None), "path", None)
+        if not path.is_absolute() and scene_path is not None:
+            path = scene_path.parent / path
         if path.suffix != ".msh":
             raise SceneError(f"geometry.file must be a gmsh .msh file, got '{path}' (a .geo "
                              "file is a gmsh script, which can run commands)", key="geometry.file")
         if not path.is_file():
-            raise SceneError(f"geometry.file: no mesh file '{path}'", key="geometry.file")
+            raise SceneError(f"geometry.file: no mesh file '{path.absolute()}' (a path "
+                             "relative to the scene file's folder, or absolute)",
+                             key="geometry.file")
         return path
     name = geo["script"]
     script = MESH_DIR / f"{name}.py"

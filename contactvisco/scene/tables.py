@@ -109,6 +109,11 @@ class Geometry(Table):
         if self["script"] is not None:
             self._script(d)
             return
+        self.need(not (isinstance(self["file"], str)
+                       and self["file"].endswith((".xdmf", ".h5", ".bp"))), "file",
+                  f"geometry.file = {self['file']!r} is not a gmsh .msh file; a mesh of another "
+                  "format is given through the Python interface: read it with DOLFINx and call "
+                  "solve(scene, mesh=mesh, facet_tags=tags, boundaries={name: tag})")
         self.need(isinstance(self["file"], str) and self["file"].endswith(".msh"), "file",
                   f"geometry.file must be a gmsh .msh file, got {self['file']!r} (a .geo file "
                   "is a gmsh script, which can run commands: mesh it into a .msh first)")
