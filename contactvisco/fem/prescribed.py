@@ -147,26 +147,3 @@ class NodeCheck:
             f"{float(self.t.value):g}: it {rule} at every contact node and time (the "
             "forms evaluate it there); the steps before this time are kept", key=key)
 
-
-def node_check(contact: dict, Q, nodes, context):
-    """The check of the [contact] table's prescribed functions at the contact nodes, or None
-    when the table has none (NodeCheck).
-
-    Parameters
-    ----------
-    contact : dict
-        The resolved [contact] table.
-    Q : fem.FunctionSpace
-        The scalar P1 space of the contact part.
-    nodes : numpy.ndarray
-        The local P1 indices of the contact nodes.
-    context : contactvisco.scene.expressions.Context
-        The position and time symbols.
-
-    Returns
-    -------
-    NodeCheck or None
-        A callable that checks them at the current time.
-    """
-    check = NodeCheck(contact, Q, nodes, context)
-    return check if check else None

@@ -482,8 +482,8 @@ def _contact(scene, geometry, u, v, ds, context, updates):
     constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W,
                                                                       context, updates)
     laws = contact_laws(contact, context)
-    check = prescribed.node_check(contact, Q, nodes.nodes, context)
-    if check is not None:                       # at every staged time, before its solve
+    check = prescribed.NodeCheck(contact, Q, nodes.nodes, context)
+    if check:                                   # at every staged time, before its solve
         check()
         updates.append(check)
     relative, previous = _relative_motion(u, u_previous, obstacle)
