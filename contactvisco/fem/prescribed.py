@@ -116,8 +116,9 @@ class NodeCheck:
         tol = 1e-12 * scale
         rules = [(~np.isfinite(values), "must be finite")]
         if kind == "law":
-            rules += [(np.abs(values[0]) > tol, "must vanish at s = 0"),
-                      (values < -tol, "must be >= 0")]
+            at_zero = np.zeros_like(values, dtype=bool)     # (samples, nodes) as the others
+            at_zero[0] = np.abs(values[0]) > tol
+            rules += [(at_zero, "must vanish at s = 0"), (values < -tol, "must be >= 0")]
             if key == "contact.p_nu":
                 drops = np.zeros_like(values, dtype=bool)
                 drops[1:] = values[1:] < values[:-1] - tol

@@ -66,6 +66,9 @@ def test_level_set_that_is_not_a_distance_still_runs():
     (["contact.stiffness=0", "contact.g=0.01",
       "contact.p_nu='conditional(x[0] > 0.5, 2e3 * s * (1.1 - 100 * s), 2e3 * s)'"],
      "contact.p_nu", "non-decreasing", "t = 0:"),
+    # not zero at s = 0 away from x = 0
+    (["contact.stiffness=0", "contact.g=0.01", "contact.p_nu='2e3 * s + 1e-3 * x[0]'"],
+     "contact.p_nu", "must vanish at s = 0", "t = 0:"),
     (["contact.mu='0.2 / (t - 0.5)'"], "contact.mu", "must be finite", "t = 0.5:"),
     (["contact.mu='0.2 / (x[0] - 0.5)'"], "contact.mu", "must be finite", "t = 0:"),
 ])
