@@ -35,7 +35,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contactvisco.errors import SceneError
-from contactvisco.fem import compat, interface
+from contactvisco.fem import compat, interface, parts
 
 _INSERT, _FORWARD = PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD
 
@@ -321,6 +321,40 @@ def overlap(comm, slave, master, found, reach: float, slave_name: str, master_na
                      "initial penetration that is accepted)", key="contact.search_distance")
 
 
+def separate_bodies(geometry, V, slave_name: str, master_name: str) -> None:
+    """Refuse a master boundary on the slave's own body (one connected part of the mesh): the
+    contact force would then pass through that body itself, from one of its faces to another.
+
+    Parameters
+    ----------
+    geometry : contactvisco.fem.geometry.Geometry
+        The mesh and its named boundaries.
+    V : dolfinx.fem.FunctionSpace
+        The P1 displacement space.
+    slave_name, master_name : str
+        contact.boundary and obstacle.boundary.
+
+    Raises
+    ------
+    SceneError
+        Naming obstacle.boundary (collective: every rank alike).
+    """
+    labels, _ = parts.part_labels(V)
+    fdim = geometry.mesh.topology.dim - 1
+    found = {}
+    for name, key in ((slave_name, "contact.boundary"), (master_name, "obstacle.boundary")):
+        dofs = fem.locate_dofs_topological(V, fdim, geometry.facets(name, key))
+        mine = np.unique(labels[dofs]).tolist()
+        found[key] = set().union(*geometry.mesh.comm.allgather(mine))
+    shared = found["contact.boundary"] & found["obstacle.boundary"]
+    if shared:
+        raise SceneError(f"obstacle.boundary = '{master_name}' is a face of the same body as "
+                         f"contact.boundary = '{slave_name}' (one connected part of the mesh): "
+                         "the contact force would pass through that body itself; give the "
+                         "boundary of another body (a part of the mesh not joined to the "
+                         "slave's)", key="obstacle.boundary")
+
+
 def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyContact:
     """The pairing of the contact boundary (slave) with obstacle.boundary (master), and the
     fields nu, h and D at the slave nodes (module description).
@@ -367,8 +401,7 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
                          "'total'", key="contact.slip")
     slave_name, master_name = contact["boundary"], obstacle["boundary"]
     slave_name = slave_name if isinstance(slave_name, str) else slave_name[0]
-    geometry.facets(slave_name, "contact.boundary")
-    geometry.facets(master_name, "obstacle.boundary")
+    separate_bodies(geometry, V, slave_name, master_name)
     reach = search_distance(scene, length_scale)
     slave = interface.slave_side(V, geometry.facet_tags, geometry.names[slave_name])
     master = interface.boundary_surface(V, geometry.facet_tags, geometry.names[master_name],

@@ -78,6 +78,30 @@ def build(scene: dict, comm=MPI.COMM_WORLD) -> Geometry:
     return geometry
 
 
+def check_ranks(mesh) -> None:
+    """Refuse, once and on every rank, a mesh with a rank that owns no cell: a scene's checks
+    take the extent, the boundaries and the contact nodes on every rank.
+
+    Parameters
+    ----------
+    mesh : dolfinx.mesh.Mesh
+        The distributed mesh (collective).
+
+    Raises
+    ------
+    SceneError
+        Naming the mesh's cell count and the rank count.
+    """
+    comm = mesh.comm
+    tdim = mesh.topology.dim
+    owned = mesh.topology.index_map(tdim).size_local
+    counts = comm.allgather(int(owned))
+    if min(counts) == 0:
+        raise SceneError(f"geometry: the mesh has {sum(counts)} cell(s) for {comm.size} MPI "
+                         f"ranks, and {counts.count(0)} rank(s) would hold none; run on fewer "
+                         "ranks, or refine the mesh")
+
+
 def check_probes(mesh, points) -> None:
     """Every probe point lies in a cell of the mesh (on some rank), else a scene error naming
     the point and the mesh's bounding box."""
@@ -221,12 +245,18 @@ def mesh_file(geo) -> pathlib.Path:
     """The .msh file of a gmsh geometry; a script's mesh is made on first use (rank 0 only,
     written atomically) and cached under a hash of the script and its parameters."""
     if geo["file"] is not None:
+        # One path rule for every file a scene names: relative to the scene file's folder.
         path = pathlib.Path(geo["file"])
+        scene_path = getattr(getattr(geo, "provenance", None), "path", None)
+        if not path.is_absolute() and scene_path is not None:
+            path = scene_path.parent / path
         if path.suffix != ".msh":
             raise SceneError(f"geometry.file must be a gmsh .msh file, got '{path}' (a .geo "
                              "file is a gmsh script, which can run commands)", key="geometry.file")
         if not path.is_file():
-            raise SceneError(f"geometry.file: no mesh file '{path}'", key="geometry.file")
+            raise SceneError(f"geometry.file: no mesh file '{path.absolute()}' (a path "
+                             "relative to the scene file's folder, or absolute)",
+                             key="geometry.file")
         return path
     name = geo["script"]
     script = MESH_DIR / f"{name}.py"

@@ -24,6 +24,16 @@ set, and the exact one for a signed distance (|grad phi| = 1).
 
 nu and h are P1 fields (interpolated at the nodes), so the conditions hold node by node as with
 the body's own normal; the obstacle's displacement d is a P1 vector field of uniform value.
+
+The contact direction is taken from grad phi, so it must be defined where it is used: at every
+contact node and every position of the obstacle (each step, and each Newton update of a
+force-controlled obstacle), phi must be finite and |grad phi| must lie in
+[GRADIENT_BOUNDS[0], GRADIENT_BOUNDS[1]]. A signed distance has |grad phi| = 1; a level set
+that is not a distance keeps a defined first-order distance phi / |grad phi| as long as its
+gradient stays within three orders of magnitude of that. A gradient that vanishes at a node
+(abs(x[1]) or x[1]**2 on their zero set, a node at a cylinder's centre) gives no direction:
+the run would see every such node "separated" and the body pass through the obstacle, so it is
+refused instead, naming the key, the node, the time and the value.
 """
 from __future__ import annotations
 
@@ -34,12 +44,21 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
+from contactvisco.errors import SceneError
 from contactvisco.fem import compat
+from contactvisco.fem.prescribed import first_violation
 from contactvisco.scene import expressions
 
 #: Added under the square root of a distance to a centre or an axis: keeps the closest-point
 #: normal finite at the centre itself (a point deep inside the obstacle, never a contact node).
 _TINY = 1e-300
+
+#: The range of |grad phi| accepted at a contact node (module description): a distance has 1.
+GRADIENT_BOUNDS = (1e-3, 1e3)
+
+#: The key that gives each shape's distance, named when it is not defined at a contact node.
+_DISTANCE_KEY = {"plane": "obstacle.normal", "cylinder": "obstacle.centre",
+                 "sphere": "obstacle.centre", "surface": "obstacle.distance"}
 
 
 def signed_distance(obstacle: dict, y, t, d: int):
@@ -124,6 +143,7 @@ class ObstaclePart:
     t: fem.Constant
     _normal_expression: fem.Expression
     _gap_expression: fem.Expression
+    _size_expression: fem.Expression | None = None   # |grad phi_0(y)|, checked at the nodes
     committed: np.ndarray | None = None    # d at the last committed state
     force_forms: dict | None = None        # force_forms() (force control only)
     rigid: bool = True                     # a position d of its own, kept in checkpoints
@@ -151,10 +171,46 @@ class ObstaclePart:
         self.reference.value[:] = d
         self.normal.interpolate(self._normal_expression)
         self.gap.interpolate(self._gap_expression)
+        self._check_defined()
         nodes, dim = self.nodes, self.dim
         nodes.normals[:] = self.normal.x.array.reshape(-1, dim)[nodes.nodes]
         if nodes.tangents is not None:
             nodes.tangents[:] = np.column_stack([-nodes.normals[:, 1], nodes.normals[:, 0]])
+
+    def _check_defined(self):
+        """Refuse, on every rank alike, an obstacle whose distance or gradient is not defined
+        at a contact node (module description): the first such node of the lowest rank."""
+        if self._size_expression is None:
+            return
+        Q = self.gap.function_space
+        size = fem.Function(Q)
+        size.interpolate(self._size_expression)
+        nodes = self.nodes.nodes
+        gap, length = self.gap.x.array[nodes], size.x.array[nodes]
+        low, high = GRADIENT_BOUNDS
+        with np.errstate(invalid="ignore"):
+            bad = ~(np.isfinite(gap) & np.isfinite(length) & (length >= low) & (length <= high))
+        found = None
+        if np.any(bad):
+            k = int(np.flatnonzero(bad)[0])
+            x = Q.tabulate_dof_coordinates()[nodes[k], :self.dim]
+            found = ([float(v) for v in x], float(gap[k]), float(length[k]))
+        report = first_violation(Q.mesh.comm, found)
+        if report is None:
+            return
+        x, gap_value, length_value = report
+        obstacle = self.scene["obstacle"]
+        key = _DISTANCE_KEY.get(obstacle["shape"], "obstacle.shape")
+        point = ", ".join(f"{v:g}" for v in x)
+        raise SceneError(
+            f"{key}: the obstacle's distance is not defined at the contact node x = ({point}) "
+            f"at t = {float(self.t.value):g} (obstacle at d = "
+            f"{np.round(np.asarray(self.reference.value, float), 12).tolist()}): "
+            f"phi / |grad phi| = {gap_value:g}, |grad phi| = {length_value:g}; the contact direction is "
+            f"-grad phi / |grad phi|, so at every contact node phi must be finite and |grad phi| "
+            f"between {low:g} and {high:g} (1 for a signed distance). Give a signed distance "
+            f"whose gradient does not vanish on the contact boundary (e.g. 'x[1]', not "
+            f"'abs(x[1])' or 'x[1]**2')", key=key)
 
     @property
     def controlled(self) -> list[int]:
@@ -215,12 +271,12 @@ def build(scene: dict, Q, W, nodes, t) -> ObstaclePart:
     reference = fem.Constant(mesh, PETSc.ScalarType((0.0,) * d))
     x = ufl.SpatialCoordinate(mesh)
     y = x - reference
-    phi = signed_distance(scene["obstacle"], y, t, d)
+    # A zero Constant times x keeps the mesh in expressions that end up constant in space (a
+    # plane's normal, a constant distance): fem.Expression and ufl.grad need one.
+    zero = fem.Constant(mesh, PETSc.ScalarType(0.0))
+    phi = signed_distance(scene["obstacle"], y, t, d) + zero * x[0]
     gradient = ufl.grad(phi)
     size = ufl.sqrt(ufl.dot(gradient, gradient) + _TINY)
-    # A zero Constant times x keeps the mesh in expressions that end up constant in space (a
-    # plane's normal): fem.Expression needs one.
-    zero = fem.Constant(mesh, PETSc.ScalarType(0.0))
     nu = -gradient / size + zero * x
     h = phi / size - ufl.dot(nu, reference) + zero * x[0]
     part = ObstaclePart(
@@ -228,7 +284,9 @@ def build(scene: dict, Q, W, nodes, t) -> ObstaclePart:
         gap=fem.Function(Q, name="gap"), D=fem.Function(W, name="obstacle_displacement"),
         D_previous=fem.Function(W), reference=reference, nodes=nodes, t=t,
         _normal_expression=compat.expression(nu, W),
-        _gap_expression=compat.expression(h, Q))
+        _gap_expression=compat.expression(h, Q),
+        _size_expression=compat.expression(
+            ufl.sqrt(ufl.dot(gradient, gradient)) + zero * x[0], Q))
     part.move_to()
     return part
 

@@ -39,6 +39,8 @@ from contactvisco.fem import compat
 from contactvisco.model import contact_law as law
 from contactvisco.fem import obstacle as obstacle_module
 from contactvisco.fem import rigid
+from contactvisco.fem import prescribed
+from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.geometry import Geometry
 from contactvisco.fem.kinematics import kinematics
 from contactvisco.model.material import (elasticity, energy_stress, hencky_energy,
@@ -298,6 +300,7 @@ def build(scene: dict, geometry: Geometry) -> Problem:
     memory part (eq 19), the external loads, the Dirichlet conditions, and the contact part
     (eqs 20-21) with its multipliers, residual blocks F and Jacobian blocks J."""
     mesh = geometry.mesh
+    geometry_module.check_ranks(mesh)
     compat.settle_coordinate_element(mesh)
     d = mesh.geometry.dim
     degree = scene["discretization"]["degree"]
@@ -490,6 +493,10 @@ def _contact(scene, geometry, u, v, ds, context, updates, kin):
     constants, lambda_nu, lambda_tau, u_previous = _contact_unknowns(contact, u, Q, W,
                                                                       context, updates)
     laws = contact_laws(contact, context)
+    check = prescribed.NodeCheck(contact, Q, nodes.nodes, context)
+    if check:                                   # at every staged time, before its solve
+        check()
+        updates.append(check)
     relative, previous = _relative_motion(u, u_previous, obstacle)
     terms = law.law_terms(law.UFL, relative, normal, gap_value, lambda_nu, lambda_tau,
                           previous, constants, contact["friction_law"], laws=laws)
@@ -795,26 +802,32 @@ def _reduced_time_memory(scene, mesh, u, history, tensor_space, context, updates
     reduced.owned = scalars.dofmap.index_map.size_local    # points of this rank (then ghosts)
     span = getattr(history, "span", None)
     dt = float(time_grid.steps(scene["time"]).max())     # the largest step of the grid
+    staged = []                                 # the last staged time (none yet)
+    moving = context.depends_on_time(visco["temperature"])
 
     def stage():
-        follow()
         owned = reduced.owned                   # ghosts: taken along, never an error
-        inverse, error = inverse_shift(visco, theta.x.array[:owned])
-        if error:
-            error = _at_point(error, visco, theta.x.array[:owned], scalars)
-        elif span is not None and reduced.reduced_time is not None and owned:
+        now = float(context.t.value)
+        error = (_between_steps(visco, theta, follow, context, staged[0], now, owned)
+                 if moving and staged else None)
+        staged[:] = [now]
+        follow()
+        inverse, at_time = inverse_shift(visco, theta.x.array[:owned])
+        if error is None and at_time:
+            error = (f"{_at_point(at_time, visco, theta.x.array[:owned], scalars)} "
+                     f"(at t = {now:g})")
+        elif error is None and span is not None and reduced.reduced_time is not None and owned:
             # a step (at most dt) from the committed state: xi_n + dt max 1/a_T bounds xi_n+1
             reach = float(np.max(reduced.reduced_time[:owned]
                                  + dt * np.maximum(reduced.committed[:owned], inverse)))
             if reach > span * (1.0 + 1e-9):
                 error = (f"viscoelastic.temperature: the reduced time would reach {reach:.6g}, "
                          f"beyond {span:.6g}, the span of the kernel's sum of exponentials "
-                         "(fitted from the temperature at the step times)")
+                         f"(fitted from the temperature at the step times) (at t = {now:g})")
         inverse = np.concatenate([inverse, inverse_shift(visco, theta.x.array[owned:])[0]])
         error = next((e for e in mesh.comm.allgather(error) if e), None)   # every rank stops
         if error:
-            raise SceneError(f"{error} (at t = {float(context.t.value):g})",
-                             key="viscoelastic.temperature")
+            raise SceneError(error, key="viscoelastic.temperature")
         reduced.stage(inverse, theta.x.array)
 
     updates.append(stage)
@@ -832,6 +845,30 @@ def _memory_part(history, weights, eps, tensor_space) -> MemoryPart:
         tensor_space=tensor_space,
         constants={f"memory_implicit_{part}": c for part, c in weights.items()},
         implicit_terms=[(c, part) for part, c in weights.items()])
+
+
+#: The times inside a step at which a temperature in t is checked against its shift's range.
+BETWEEN_STEPS = 16
+
+
+def _between_steps(visco, theta, follow, context, before: float, now: float, owned: int):
+    """Why the shift cannot be taken at a time strictly between two staged times (WLF's
+    C2 + T - T_ref crossing zero inside a step, which the step times alone do not see): the
+    temperature at BETWEEN_STEPS times inside the interval, at this rank's points; None if
+    none. The reduced time integrates 1/a_T over the whole step."""
+    from contactvisco.model.viscoelastic import inverse_shift
+    error = None
+    for j in range(1, BETWEEN_STEPS + 1):
+        context.t.value = before + (now - before) * j / (BETWEEN_STEPS + 1)
+        follow()
+        _, error = inverse_shift(visco, theta.x.array[:owned])
+        if error:
+            error = (f"{_at_point(error, visco, theta.x.array[:owned], theta.function_space)}"
+                     f" (at t = {float(context.t.value):g}, between the step times "
+                     f"{before:g} and {now:g})")
+            break
+    context.t.value = now
+    return error
 
 
 def _at_point(error: str, visco, values, space) -> str:

@@ -15,6 +15,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from contactvisco.fem import compat
 from contactvisco.model.material import strain_basis
@@ -40,11 +41,14 @@ class TangentCheck:
         basis = strain_basis(d)
         n = len(basis)
         i, j, k, l = ufl.indices(4)
+        # A zero Constant times x keeps the mesh in a tangent that is constant (an energy
+        # written with numbers, quadratic in eps): fem.Expression needs one.
+        zero = fem.Constant(mesh, PETSc.ScalarType(0.0)) * ufl.SpatialCoordinate(mesh)[0]
         entries = []
         for A in basis:
             for B in basis:
                 Ea, Eb = ufl.as_matrix(A.tolist()), ufl.as_matrix(B.tolist())
-                entries.append(Ea[i, j] * C[i, j, k, l] * Eb[k, l])
+                entries.append(Ea[i, j] * C[i, j, k, l] * Eb[k, l] + zero)
         self.n, self.mu = n, mu
         self.space = compat.blocked_space(mesh, "DG", degree, n * n)
         self.values = fem.Function(self.space)

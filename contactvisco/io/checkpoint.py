@@ -338,7 +338,11 @@ def _checked_meta(path: pathlib.Path) -> dict:
         raise bad(f"not valid JSON ({type(err).__name__})") from None
     if not isinstance(meta, dict):
         raise bad("not a JSON object")
-    if "sha256" in meta and meta["sha256"] != _meta_digest(meta):
+    # A checkpoint without its checksum cannot be told from an edited one: refused alike.
+    if not isinstance(meta.get("sha256"), str):
+        raise bad("no checksum ('sha256'): the file was edited or damaged, or written without "
+                  "one; restart from another checkpoint or run again without --restart")
+    if meta["sha256"] != _meta_digest(meta):
         raise bad("checksum mismatch: the file was edited or damaged")
     types = {"t": (int, float), "count": int, "ranks": int, "fields": list, "parts": list}
     for key, kind in types.items():
@@ -372,7 +376,10 @@ def _checked_part(root: pathlib.Path, entry: dict, meta: dict):
         data = files.read_bytes(path)
     except OSError as err:
         raise bad(f"cannot be read ({err.strerror})") from None
-    if "sha256" in entry and _digest(data) != entry["sha256"]:
+    if not isinstance(entry.get("sha256"), str):
+        raise bad("no checksum in meta.json for this part: the checkpoint was edited or "
+                  "damaged, or written without one")
+    if _digest(data) != entry["sha256"]:
         raise bad(f"checksum mismatch ({len(data)} bytes, {entry.get('bytes')} written): "
                   "the file was edited or damaged")
     try:

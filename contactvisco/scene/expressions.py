@@ -29,6 +29,7 @@ import operator
 import ufl
 
 from contactvisco.errors import SceneError
+from contactvisco.scene.table import MODULUS_RANGE
 
 #: UFL's two-argument arctangent (ufl.atan_2 before UFL 2023).
 _ATAN2 = getattr(ufl, "atan2", None) or getattr(ufl, "atan_2")
@@ -134,7 +135,15 @@ class _Walker:
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
                 self.refuse(f"the constant {node.value!r}")
-            return self.finite(float(node.value))
+            value = self.finite(float(node.value))
+            if abs(value) > MODULUS_RANGE:
+                # A form squares and multiplies its constants (a gradient's length): beyond
+                # this the compiled code holds inf, and the C compiler refuses it.
+                raise SceneError(f"{self.where} = '{self.text}': the number {value:g} is too "
+                                 f"large; numbers in an expression lie within +-"
+                                 f"{MODULUS_RANGE:g}, so that no product or square of them "
+                                 "overflows (change the units)", key=self.where)
+            return value
         if isinstance(node, ast.Name):
             if node.id == "t":
                 return self.symbols[1] if build else None

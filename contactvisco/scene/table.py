@@ -75,13 +75,16 @@ def choices(*names) -> str:
 
 
 class Key:
-    """One scene key: its default, a test of its values (None: checked by the table's rules)
-    and the words saying what the test allows."""
+    """One scene key: its default, a test of its values (None: checked by the table's rules),
+    the words saying what the test allows, and for a list whose entries must differ, the words
+    (what an entry is, what to do instead of repeating one: Table.no_repeats); empty: repeats
+    are the rules' business."""
 
-    __slots__ = ("default", "test", "allowed")
+    __slots__ = ("default", "test", "allowed", "distinct")
 
-    def __init__(self, default, test=None, allowed: str = ""):
+    def __init__(self, default, test=None, allowed: str = "", distinct: tuple = ()):
         self.default, self.test, self.allowed = default, test, allowed
+        self.distinct = distinct
 
 
 def choice(default: str, *names: str) -> Key:
@@ -150,6 +153,12 @@ class Table(dict):
 
     KEYS: dict[str, Key] = {}
 
+    #: Keys that mean something only in some scenes: name -> (test(table, scene), the words
+    #: for what gives the key a meaning, or a callable(table) giving them). A key set to another value than its default where
+    #: its test fails is refused, naming the key and what would give it a meaning: one rule
+    #: for every such key, in every route (a scene file, --set, the Python interface).
+    MEANINGFUL_WHEN: dict = {}
+
     def __init__(self, values=(), path: str = "", provenance: Provenance | None = None):
         super().__init__(values)
         self.path = path
@@ -186,6 +195,15 @@ class Table(dict):
         for name, key in self.KEYS.items():
             if key.test is not None and name in self and not key.test(self[name]):
                 self.fail(name, f"{self.key(name)} must be {key.allowed}, got {self[name]!r}")
+            if key.distinct and name in self:
+                self.no_repeats(name, self[name], *key.distinct)
+        for name, (test, meaning) in self.MEANINGFUL_WHEN.items():
+            if self.get(name, self.KEYS[name].default) != self.KEYS[name].default \
+                    and not test(self, scene):
+                meaning = meaning if isinstance(meaning, str) else meaning(self)
+                self.fail(name, f"{self.key(name)} = {self[name]!r} has no meaning in this "
+                                f"scene: it takes effect only {meaning}; drop it, or give it "
+                                "that meaning")
         self.rules(scene)
 
     def rules(self, scene: dict) -> None:

@@ -118,6 +118,11 @@ class Geometry(Table):
         if self["script"] is not None:
             self._script(d)
             return
+        self.need(not (isinstance(self["file"], str)
+                       and self["file"].endswith((".xdmf", ".h5", ".bp"))), "file",
+                  f"geometry.file = {self['file']!r} is not a gmsh .msh file; a mesh of another "
+                  "format is given through the Python interface: read it with DOLFINx and call "
+                  "solve(scene, mesh=mesh, facet_tags=tags, boundaries={name: tag})")
         self.need(isinstance(self["file"], str) and self["file"].endswith(".msh"), "file",
                   f"geometry.file must be a gmsh .msh file, got {self['file']!r} (a .geo file "
                   "is a gmsh script, which can run commands: mesh it into a .msh first)")
@@ -183,8 +188,12 @@ class Material(Table):
         "law": choice("linear", *LAWS),
         "energy": Key(None),
         "hencky_exponent": Key(1.0, finite, "a finite number"),
-        "hencky_strain": Key(0.01, lambda x: finite(x) and x > 0, "> 0 (and finite)"),
+        "hencky_strain": Key(0.01, lambda x: modulus(x) and x > 0,
+                             f"> 0, in [{1 / MODULUS_RANGE:g}, {MODULUS_RANGE:g}]"),
     }
+    MEANINGFUL_WHEN = {
+        name: (lambda table, scene: table["law"] == "hencky", "with material.law = 'hencky'")
+        for name in ("hencky_exponent", "hencky_strain")}
 
     def normalize(self) -> None:
         """lambda and mu given: E and nu from them (E = mu (3 lambda + 2 mu) / (lambda + mu),
@@ -449,7 +458,8 @@ class Dirichlet(Table):
 
     KEYS = {
         "boundary": Key(None),
-        "components": Key("all"),
+        "components": Key("all", distinct=("the component", "a component prescribed twice "
+                                          "leaves unsaid which value holds; list each once")),
         "value": Key(0.0),
     }
     REQUIRED = ("boundary",)
@@ -518,12 +528,19 @@ def nonnegative(x) -> bool:
 PAIRINGS = ("mortar", "node_to_segment")
 
 
+def _shape(scene) -> str:
+    """obstacle.shape of a scene ("none" without an [obstacle] table)."""
+    obstacle = scene.get("obstacle") if hasattr(scene, "get") else None
+    return (obstacle or {}).get("shape") or "none"
+
+
 class Contact(Table):
     """Normal compliance p_nu(s) = c_nu max(0, s) up to a layer g, then a rigid bound; friction
     bound mu p_nu (or mu times the total pressure); augmented-Lagrangian parameter r."""
 
     KEYS = {
-        "boundary": Key("bottom"),
+        "boundary": Key("bottom", distinct=("the boundary", "a contact boundary listed twice "
+                                           "would get the compliance twice; list each once")),
         "gap": Key(0.0),
         "stiffness": Key(0.0, nonnegative, "a finite number >= 0"),
         "g": Key(math.inf),
@@ -548,6 +565,10 @@ class Contact(Table):
         "sliding_limit": Key(0.5, lambda x: (finite(x) and x > 0) or x == math.inf,
                              "a number > 0 (a fraction of the master facet), or inf"),
     }
+    MEANINGFUL_WHEN = {
+        name: (lambda table, scene: _shape(scene) == "body",
+               "with a second body: obstacle.shape = 'body' and its obstacle.boundary")
+        for name in ("pairing", "search_distance", "sliding_limit")}
 
     def normalize(self, material: dict) -> None:
         """g given as a text ("inf") read as a number; augmentation r defaults to the
@@ -583,9 +604,6 @@ class Contact(Table):
                                              and all(isinstance(b, str) for b in names)),
                   "boundary", f"contact.boundary must be a boundary name or a list of names, "
                               f"got {names!r}")
-        self.no_repeats("boundary", names, "the boundary",
-                        "a contact boundary listed twice would get the compliance twice; list "
-                        "each once")
         g = self["g"]
         self.need(isinstance(g, (int, float)) and not isinstance(g, bool) and g >= 0, "g",
                   f"contact.g must be >= 0 (inf: no bound), got {g}")
@@ -734,6 +752,11 @@ def _vector(x, d) -> bool:
     return number_list(x) and len(x) == d
 
 
+def _takes(shape: str, d: int, name: str) -> bool:
+    """Whether obstacle.shape = shape in d dimensions takes the key `name` (Obstacle.NEEDS)."""
+    return name in Obstacle.NEEDS[shape] or (name == "axis" and shape == "cylinder" and d == 3)
+
+
 class Obstacle(Table):
     """The rigid obstacle the contact boundary meets: its shape (a signed distance phi, > 0 on
     the body's side) and its prescribed rigid translation d(t). At a contact node x the gap is
@@ -748,7 +771,9 @@ class Obstacle(Table):
         "axis": Key(None),
         "distance": Key(None),
         "displacement": Key(None),
-        "force_components": Key([], lambda x: isinstance(x, list), "a list of components"),
+        "force_components": Key([], lambda x: isinstance(x, list), "a list of components",
+                                distinct=("the component", "a component controlled twice "
+                                         "would get two forces; list each once")),
         "force": Key([], lambda x: isinstance(x, list), "a list of expressions in t"),
         # shape = "body": the master boundary, a facet tag name of the mesh.
         "boundary": Key(None),
@@ -757,6 +782,15 @@ class Obstacle(Table):
     #: The keys each shape needs (axis: a cylinder in 3D).
     NEEDS = {"none": (), "plane": ("point", "normal"), "cylinder": ("centre", "radius"),
              "sphere": ("centre", "radius"), "surface": ("distance",), "body": ("boundary",)}
+
+    #: The shape's keys mean something only for the shapes that take them (NEEDS).
+    MEANINGFUL_WHEN = {
+        name: ((lambda table, scene, name=name: _takes(table["shape"], scene.dimension, name)),
+               (lambda table, name=name: "with obstacle.shape = " + " or ".join(
+                   f"'{s}'" for s in OBSTACLE_SHAPES if _takes(s, 2, name) or _takes(s, 3, name))
+                + (" in 3D" if name == "axis" else "")
+                + f" (this scene's obstacle.shape is '{table['shape']}')"))
+        for name in ("point", "normal", "centre", "radius", "axis", "distance", "boundary")}
 
     def rules(self, scene):
         shape, d = self["shape"], scene.dimension
@@ -775,11 +809,6 @@ class Obstacle(Table):
         for name in needs:
             self.need(self[name] is not None, name,
                       f"obstacle.shape = '{shape}' needs obstacle.{name}")
-        extra = [k for k in ("point", "normal", "centre", "radius", "axis", "distance",
-                             "boundary") if self[k] is not None and k not in needs]
-        self.need(not extra, extra[0] if extra else "shape",
-                  f"obstacle.{extra[0] if extra else ''} has no meaning for obstacle.shape = "
-                  f"'{shape}' (it takes {', '.join(needs)})")
         for name in ("point", "normal", "centre", "axis"):
             if self[name] is not None:
                 self.need(_vector(self[name], d), name,

@@ -135,6 +135,11 @@ class Viscoelastic(Table):
                   f"interpolates a shift table (viscoelastic.shift = 'table'), not "
                   f"viscoelastic.shift = '{shift}'")
         if shift == "table":
+            if getattr(self, "shift_points", None) is None:
+                # A table built again from a loaded scene (check, solve, run) reads its points
+                # as load did: the file relative to the scene file's folder.
+                path = getattr(self.provenance, "path", None)
+                self.read_shift_table(path.parent if path is not None else None)
             self._shift_table_rules()
         if shift == "arrhenius":
             self.need(self["T_ref"] > 0, "T_ref", "viscoelastic.T_ref must be > 0 (kelvin) "

@@ -111,7 +111,29 @@ def _forged_history(folder):
     _resign(folder, part_arrays=arrays)
 
 
+def _unsigned_history(folder):
+    """The checksums removed (meta's and the part's) and the history edited."""
+    arrays = _part_arrays(folder)
+    name = next(n for n in arrays if n.startswith("history_") and not n.endswith(".keys"))
+    arrays[name] = 2 * arrays[name]
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    _part(folder).write_bytes(buffer.getvalue())
+    meta = json.loads(_meta(folder).read_text())
+    del meta["sha256"]
+    for entry in meta["parts"]:
+        del entry["sha256"]
+    _meta(folder).write_text(json.dumps(meta))
+
+
+def _unsigned_part(folder):
+    """Only the part's checksum removed, meta's recomputed: the part is not vouched for."""
+    _resign(folder, edit_meta=lambda meta: meta["parts"][0].pop("sha256"))
+
+
 CASES = {
+    "checksums removed, history edited": (_unsigned_history, "meta.json", "no checksum"),
+    "part's checksum removed": (_unsigned_part, "part-0.npz", "no checksum"),
     "t edited": (_edit_json("t", 0.5), "meta.json", "checksum mismatch"),
     "count edited": (_edit_json("count", 2), "meta.json", "checksum mismatch"),
     "meta cut": (lambda f: _meta(f).write_text(_meta(f).read_text()[:40]), "meta.json",

@@ -2,6 +2,8 @@
 wrong dimension is refused with the reason and the file named; a gmsh or caller's mesh with
 degenerate or inverted (folded) cells is refused with their number and the place of the
 first. Every mesh is written with gmsh's own API, then spoiled the way a user would."""
+import re
+
 import numpy as np
 import pytest
 from dolfinx import mesh as dmesh
@@ -150,3 +152,27 @@ def test_a_sound_callers_mesh_and_every_builtin_mesh_pass():
     for name in api.builtin_scenes():
         built = geometry.build(api.load_scene(name))
         geometry.check_cells(built.mesh, name)
+
+
+def test_a_relative_mesh_file_is_found_from_the_scene_folder(tmp_path, monkeypatch):
+    """geometry.file = "body.msh" beside the scene file, the scene loaded, checked and its
+    mesh read from another folder (the rule of every file a scene names); a missing one is
+    named with its resolved path, and an XDMF mesh points to solve(mesh=...)."""
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    write_mesh(folder / "body.msh")
+    scene_on(folder / "body.msh")                  # writes scene/body.toml
+    toml = folder / "body.toml"
+    toml.write_text(toml.read_text().replace(f'file = "{folder / "body.msh"}"',
+                                             'file = "body.msh"'))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert api.check(api.load_scene(str(toml)))["cells"] > 16
+    for name, words in (("none.msh", f"no mesh file '{folder / 'none.msh'}'"),
+                        ("body.xdmf", "solve(scene, mesh=mesh")):
+        toml.write_text(toml.read_text().replace('file = "body.msh"', f'file = "{name}"')
+                        .replace('file = "none.msh"', f'file = "{name}"'))
+        with pytest.raises(SceneError, match=re.escape(words)) as err:
+            api.check(api.load_scene(str(toml)))
+        assert err.value.key == "geometry.file"
