@@ -448,7 +448,8 @@ def fit(description, comm=None) -> dict:
         ``parameters`` (per parameter: key, estimate, initial, standard_error, identifiable,
         scale, bounds), ``correlation``, ``singular_values``, ``rank``, ``cost``
         (1/2 sum r^2), ``s2``, ``residual_rms`` (of the unweighted depth), ``evaluations``
-        (forward runs of all experiments), ``jacobian_evaluations``, ``wall_s``, ``status``
+        (forward runs of all experiments, differences included), ``residual_evaluations``
+        (the optimizer's, at most fit.max_evaluations), ``jacobian_evaluations``, ``wall_s``, ``status``
         and ``message`` of the optimizer, ``success``, ``warnings``, and ``curves`` (per
         experiment: t, measured and fitted depth).
     """
@@ -462,8 +463,16 @@ def fit(description, comm=None) -> dict:
     def residual(x):
         values = _to_values(parameters, x)
         runs[0] += 1
-        return np.concatenate([e["w"] * (forward(e, parameters, values, comm) - e["depth"])
-                               for e in experiments])
+        out = []
+        for i, e in enumerate(experiments):
+            try:
+                out.append(e["w"] * (forward(e, parameters, values, comm) - e["depth"]))
+            except Exception as err:
+                # The run's own message names the step; this names the parameters.
+                err.add_note(f"in the forward run of experiment[{i}] at " + ", ".join(
+                    f"{p['key']} = {v!r}" for p, v in zip(parameters, values)))
+                raise
+        return np.concatenate(out)
 
     lower = _to_x(parameters, [p["bounds"][0] for p in parameters])
     upper = _to_x(parameters, [p["bounds"][1] for p in parameters])
@@ -494,6 +503,7 @@ def fit(description, comm=None) -> dict:
         "correlation": stats["correlation"], "singular_values": stats["singular_values"],
         "rank": stats["rank"], "cost": float(result.cost), "s2": stats["s2"],
         "residual_rms": float(np.sqrt(np.mean(misfit ** 2))), "evaluations": runs[0],
+        "residual_evaluations": int(result.nfev),
         "jacobian_evaluations": int(result.njev or 0), "wall_s": wall,
         "status": int(result.status), "message": str(result.message),
         "success": bool(result.success), "warnings": stats["warnings"],
