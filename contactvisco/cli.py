@@ -471,11 +471,16 @@ def _relaxation(args) -> int:
 def _fit(args) -> int:
     """`contactvisco fit`: the estimates with their standard errors, one line each."""
     from contactvisco import api
+    from contactvisco.io import parallel
     try:
         report = api.fit(args.description, out=args.out)
     except SceneError as err:
-        print(f"contactvisco: fit error: {err}", file=sys.stderr)
+        if parallel.first_rank():
+            print(f"contactvisco: fit error: {err}", file=sys.stderr)
         return 2
+    status = 0 if report["success"] else 3
+    if not parallel.first_rank():        # every rank fits; the first one reports
+        return status
     for p in report["parameters"]:
         print(f"{p['key']} = {p['estimate']:.8g} +- {p['standard_error']:.3g}"
               + ("" if p["identifiable"] else "  (not identifiable)"))
@@ -483,7 +488,7 @@ def _fit(args) -> int:
         print(f"warning: {warning}", file=sys.stderr)
     print(f"cost {report['cost']:.6g}, {report['evaluations']} forward runs, "
           f"{report['wall_s']:.1f} s: {report['message']} ({args.out})")
-    return 0 if report["success"] else 3
+    return status
 
 
 def _plot(args):

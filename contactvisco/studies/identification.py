@@ -199,12 +199,9 @@ def read_data(path: pathlib.Path, key: str):
     tuple
         t, force (None without a force column) and depth, numpy arrays.
     """
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            rows = [(n, row) for n, row in enumerate(csv.reader(f), start=1)
-                    if any(cell.strip() for cell in row)]
-    except (OSError, UnicodeDecodeError) as err:
-        _fail(key, f"{path} cannot be read ({err})")
+    # Read as a Prony file is: at most its byte limit, UTF-8, blank rows skipped.
+    rows = prony_file._rows(path, lambda message: _fail(key, f"{path}: {message}"),
+                            "an indentation curve")
     if not rows:
         _fail(key, f"{path} is empty: a header row (t, force, depth), then one row per sample")
     header = [cell.strip() for cell in rows[0][1]]

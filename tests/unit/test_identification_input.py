@@ -108,3 +108,10 @@ def test_standard_errors_of_a_straight_line_are_the_textbook_ones():
     assert stats["correlation"][0][1] == pytest.approx(
         cov[0, 1] / math.sqrt(cov[0, 0] * cov[1, 1]), rel=1e-10)
     assert any(w.startswith("c: not identifiable") for w in stats["warnings"])
+
+
+def test_a_data_file_that_is_not_text_is_refused(tmp_path):
+    path = written(tmp_path)
+    (tmp_path / "data.csv").write_bytes(b"t,force,depth\n0,1,\xff\n")
+    with pytest.raises(SceneError, match="experiment\\[0\\].data.*not a UTF-8 text file"):
+        ident.read_fit(path)
