@@ -115,7 +115,8 @@ def read_fit(path) -> dict:
     for name in ("step", "tolerance"):
         if _number(fit[name], f"fit.{name}") <= 0 or fit[name] >= 1:
             _fail(f"fit.{name}", f"must be in (0, 1), got {fit[name]!r}")
-    if not isinstance(fit["max_evaluations"], int) or fit["max_evaluations"] < 1:
+    if isinstance(fit["max_evaluations"], bool) or not isinstance(fit["max_evaluations"], int) \
+            or fit["max_evaluations"] < 1:
         _fail("fit.max_evaluations", f"must be an integer >= 1, got {fit['max_evaluations']!r}")
     experiments = [_experiment(item, f"experiment[{i}].", base)
                    for i, item in enumerate(_items(raw, "experiment"))]
@@ -356,8 +357,14 @@ def forward(experiment: dict, parameters: list, values, comm=None) -> np.ndarray
     c = scene["obstacle"]["force_components"][0]
     times = np.array([step["t"] for step in result.steps])
     depth = -np.array([step["obstacle"]["displacement"][c] for step in result.steps])
-    where = np.searchsorted(times, experiment["t"] - 1e-9 * experiment["t"][-1])
-    return depth[np.minimum(where, len(depth) - 1)]
+    # The grid is the sample times; a cut step adds records between them, never at them.
+    tol = 1e-9 * experiment["t"][-1]
+    where = np.minimum(np.searchsorted(times, experiment["t"] - tol), len(depth) - 1)
+    missed = np.flatnonzero(np.abs(times[where] - experiment["t"]) > tol)
+    if missed.size:
+        raise SceneError(f"{experiment['data']}: the run has no step at the sample time "
+                         f"t = {experiment['t'][missed[0]]!r}", key="time.times")
+    return depth[where]
 
 
 def _to_x(parameters, values):

@@ -54,9 +54,9 @@ def synthetic(folder: pathlib.Path, names, times, sigma=None, seed=0, difference
 
 
 def test_one_modulus_is_recovered_from_noise_free_creep(tmp_path):
-    """The relaxing fraction of the shear modulus from four samples of a creep curve, forward
+    """The relaxing fraction of the shear modulus from three samples of a creep curve, forward
     differences: recovered to 1e-6 relative, with a standard error far below it."""
-    spec = synthetic(tmp_path, ["fraction"], [0.0, 0.5, 1.5, 3.0], difference="forward")
+    spec = synthetic(tmp_path, ["fraction"], [0.0, 1.0, 3.0], difference="forward")
     report = ident.fit(spec)
     (fraction,) = report["parameters"]
     assert report["success"]

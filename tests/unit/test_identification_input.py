@@ -52,6 +52,8 @@ def test_a_fit_description_is_read_with_its_data_and_weights(tmp_path):
     (("noise = 1e-5", "noise = 1e-5\nweight = 2.0"), "experiment[0].noise", "either"),
     (("data = \"data.csv\"", "data = \"../data.csv\""), "experiment[0].data", ".."),
     (("noise = 1e-5", "nois = 1e-5"), "experiment[0].nois", "allowed here"),
+    (("[[experiment]]", "[fit]\nmax_evaluations = true\n\n[[experiment]]"),
+     "fit.max_evaluations", "integer"),
 ])
 def test_bad_fit_descriptions_name_the_key(tmp_path, change, key, words):
     with pytest.raises(SceneError) as caught:
