@@ -17,7 +17,7 @@ VENV := .venv
 # GetFEM's Python interface runs the independent solvers that tests/integration/test_peer.py
 # and test_two_body_peer.py compare with (they are skipped where it is missing).
 APT_PACKAGES := python3-dolfinx-real python3-gmsh python3-venv python3-pytest \
-                python3-matplotlib openmpi-bin python3-getfem
+                python3-matplotlib python3-scipy openmpi-bin python3-getfem
 MPIRUN := mpirun -n $(NP)
 else
 $(error STACK must be debian or pip, not '$(STACK)')

@@ -54,7 +54,7 @@ _logging.getLogger().addFilter(
 #: `import contactvisco` loads neither DOLFINx nor PETSc.
 _PUBLIC = {
     "load_scene": "api", "solve": "api", "read_results": "api", "builtin_scenes": "api",
-    "pyvista_grid": "api", "check": "api", "scene_toml": "api",
+    "pyvista_grid": "api", "check": "api", "scene_toml": "api", "fit": "api",
     "Result": "solver.time_loop", "SceneError": "errors", "NewtonFailure": "solver.newton",
     "SlidingLimit": "solver.newton",
     "hertz": "studies.verification", "cattaneo_mindlin": "studies.coulomb",

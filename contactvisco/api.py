@@ -329,6 +329,43 @@ def check(scene: dict, mesh=None, facet_tags=None, boundaries=None, comm=None) -
         raise _located(scene, err) from None
 
 
+def fit(description, out=None, comm=None) -> dict:
+    """Identify material parameters from indentation curves by weighted least squares with
+    the contact solver in the loop (docs/identification.md): minimize
+    1/2 sum_e sum_j (w_e (d_e(t_j; theta) - d_ej))^2 over the parameters theta of a fit
+    description, within their bounds.
+
+    Parameters
+    ----------
+    description : path-like
+        A fit description (TOML): its experiments (scene and CSV data) and parameters.
+    out : path-like, optional
+        A folder for ``fit.json``, ``curves.csv`` and ``fit.png``; None writes nothing.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator of the forward runs (default COMM_WORLD); rank 0 writes.
+
+    Returns
+    -------
+    dict
+        Per parameter its estimate, standard error and whether the data determines it; the
+        correlations, the singular values of J, the cost, the residual variance, the number of
+        forward runs, the wall time, the optimizer's status, warnings and the fitted curves.
+
+    Raises
+    ------
+    SceneError
+        For a fit description, data file or parameter key that cannot be used (the key named).
+    """
+    from mpi4py import MPI
+
+    from contactvisco.studies import identification
+    comm = comm or MPI.COMM_WORLD
+    report = identification.fit(description, comm=comm)
+    if out is not None and comm.rank == 0:
+        identification.write(report, out)
+    return report
+
+
 def scene_toml(scene: dict, every_value: bool = False) -> str:
     """A scene as TOML text that ``contactvisco run`` and `load_scene` read back to the same
     scene.

@@ -30,7 +30,8 @@ EXAMPLES = """examples:
   mpirun -n 4 contactvisco run paper --out results/np4
   contactvisco run paper --out results/paper --restart after a stop: from the checkpoint
   contactvisco plot results/paper --times 0.5          redraw the figures
-exit codes: 0 done, 2 scene, folder or option error, 3 a step that does not converge,
+  contactvisco fit my_fit.toml --out results/fit       identify parameters from curves
+exit codes: 0 done, 2 scene, folder or option error, 3 a step (or a fit) that does not converge,
   128 + N stopped by signal N, 1 anything else"""
 
 
@@ -55,7 +56,20 @@ def _parser():
     _add_tradeoff(sub)
     _add_show_and_check(sub)
     _add_relaxation(sub)
+    _add_fit(sub)
     return parser
+
+
+def _add_fit(sub) -> None:
+    fit = sub.add_parser("fit", help="identify material parameters from indentation curves",
+                         description="Fit the parameters of a fit description (TOML: "
+                         "experiments of a scene and a CSV curve each, the scene keys to "
+                         "identify) by weighted least squares with the solver in the loop; "
+                         "write fit.json, curves.csv and fit.png. Exit 3 if the optimizer "
+                         "stops before converging (the last state written).")
+    fit.add_argument("description", help="the fit description (TOML)")
+    fit.add_argument("--out", default="results/fit", help="the output folder (default: "
+                     "results/fit)")
 
 
 def _add_relaxation(sub) -> None:
@@ -223,6 +237,8 @@ def _main(argv=None):
         return _check(args)
     if args.command == "relaxation":
         return _relaxation(args)
+    if args.command == "fit":
+        return _fit(args)
     # Printing commands end quietly when their reader does (`show paper | head`).
     signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     try:
@@ -450,6 +466,29 @@ def _relaxation(args) -> int:
         return 2
     print(args.out)
     return 0
+
+
+def _fit(args) -> int:
+    """`contactvisco fit`: the estimates with their standard errors, one line each."""
+    from contactvisco import api
+    from contactvisco.io import parallel
+    try:
+        report = api.fit(args.description, out=args.out)
+    except SceneError as err:
+        if parallel.first_rank():
+            print(f"contactvisco: fit error: {err}", file=sys.stderr)
+        return 2
+    status = 0 if report["success"] else 3
+    if not parallel.first_rank():        # every rank fits; the first one reports
+        return status
+    for p in report["parameters"]:
+        print(f"{p['key']} = {p['estimate']:.8g} +- {p['standard_error']:.3g}"
+              + ("" if p["identifiable"] else "  (not identifiable)"))
+    for warning in report["warnings"]:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"cost {report['cost']:.6g}, {report['evaluations']} forward runs, "
+          f"{report['wall_s']:.1f} s: {report['message']} ({args.out})")
+    return status
 
 
 def _plot(args):

@@ -1,0 +1,572 @@
+"""Identification of material parameters from indentation curves, with the contact solver in
+the loop (docs/identification.md).
+
+A fit description (TOML) names experiments, each a scene and a CSV file of measured samples
+(t_j, F_j, d_j), and the parameters theta to identify, each a scene key. The measured force
+drives each run as the obstacle's force F(t), piecewise linear through the samples, on the
+time grid of the sample times (time.grid = "times"); the fit minimizes the weighted least
+squares of the depth,
+
+    r_ej(theta) = w_e (d_e(t_j; theta) - d_ej),     cost = 1/2 sum_e sum_j r_ej^2,
+
+with w_e = 1/sigma_e for a noise level sigma_e (or sqrt(weight_e)), by
+``scipy.optimize.least_squares`` (trust-region reflective, bounds) over the parameters in
+their scale, x_i = theta_i (linear) or ln theta_i (log). The Jacobian J = dr/dx is taken by
+finite differences of forward runs (scipy's "2-point" or "3-point" rule with the relative step
+fit.step: h_i = step * max(1, |x_i|), one-sided near a bound), not yet by forward
+sensitivities.
+
+At the optimum, with m residuals and n parameters, the residual variance
+s^2 = 2 cost / (m - n) scales the covariance of x,
+
+    C_x = s^2 (J^T J)^-1 = s^2 V diag(1/S_k^2) V^T     (J = U S V^T),
+
+and the standard error of theta_i is sqrt(C_x,ii) (linear) or theta_i sqrt(C_x,ii) (log, the
+delta method). A singular value S_k < RCOND S_max is a direction the data does not determine:
+every parameter with a component |V_ik| > NULL_SHARE in it gets an infinite standard error
+and is reported as not identifiable, as is one whose standard error exceeds its value.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import pathlib
+import time
+import tomllib
+
+import numpy as np
+
+from contactvisco.errors import SceneError
+from contactvisco.scene import expressions
+from contactvisco.scene import loader as scene_module
+from contactvisco.scene import prony_file
+
+#: The keys of a fit description, by table.
+FIT_KEYS = {"difference": "central", "step": 1e-3, "max_evaluations": 200, "tolerance": 1e-8}
+EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight")
+PARAMETER_KEYS = ("key", "initial", "bounds", "scale")
+#: fit.difference: the finite-difference rule of the Jacobian and scipy's name of it.
+DIFFERENCES = {"central": "3-point", "forward": "2-point"}
+SCALES = ("linear", "log")
+#: Relative size below which a singular value of J is a direction the data does not fix.
+RCOND = 1e-6
+#: A parameter's share of such a direction that makes it not identifiable.
+NULL_SHARE = 1e-2
+#: A correlation above which two parameters are reported as not separable.
+HIGH_CORRELATION = 0.99
+
+
+def _fail(key: str, message: str):
+    raise SceneError(f"{key}: {message}", key=key)
+
+
+def _number(value, key: str, what: str = "a finite number") -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        _fail(key, f"must be {what}, got {value!r}")
+    return float(value)
+
+
+def _known(table: dict, allowed, where: str) -> None:
+    for name in table:
+        if name not in allowed:
+            _fail(f"{where}{name}", f"unknown key; allowed here: {', '.join(allowed)}")
+
+
+def read_fit(path) -> dict:
+    """Read and check a fit description (docs/identification.md).
+
+    Parameters
+    ----------
+    path : path-like
+        The TOML file; scene files and data files it names are relative to its folder and
+        must stay inside it.
+
+    Returns
+    -------
+    dict
+        ``fit`` (the [fit] table with defaults), ``experiments`` (each with its base scene
+        overrides ``set``, the data arrays ``t``, ``force`` (or None), ``depth``, the weight
+        ``w`` and its scene name), ``parameters`` (each with ``key``, ``path``, ``initial``,
+        ``bounds``, ``scale``).
+
+    Raises
+    ------
+    SceneError
+        Naming the key (``experiment[0].data``, ``parameter[1].bounds``, ...), what is wrong
+        and what is allowed.
+    """
+    path = pathlib.Path(path)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+        raise SceneError(f"fit description {path}: cannot be read ({err})") from None
+    _known(raw, ("fit", "experiment", "parameter"), "")
+    base = path.resolve().parent
+    fit = dict(FIT_KEYS)
+    given = raw.get("fit", {})
+    if not isinstance(given, dict):
+        _fail("fit", "must be a table")
+    _known(given, tuple(FIT_KEYS), "fit.")
+    fit.update(given)
+    if fit["difference"] not in DIFFERENCES:
+        _fail("fit.difference", f"must be one of {', '.join(DIFFERENCES)}, got "
+              f"{fit['difference']!r}")
+    for name in ("step", "tolerance"):
+        if _number(fit[name], f"fit.{name}") <= 0 or fit[name] >= 1:
+            _fail(f"fit.{name}", f"must be in (0, 1), got {fit[name]!r}")
+    if isinstance(fit["max_evaluations"], bool) or not isinstance(fit["max_evaluations"], int) \
+            or fit["max_evaluations"] < 1:
+        _fail("fit.max_evaluations", f"must be an integer >= 1, got {fit['max_evaluations']!r}")
+    experiments = [_experiment(item, f"experiment[{i}].", base)
+                   for i, item in enumerate(_items(raw, "experiment"))]
+    parameters = [_parameter(item, f"parameter[{i}].")
+                  for i, item in enumerate(_items(raw, "parameter"))]
+    keys = [p["key"] for p in parameters]
+    for i, key in enumerate(keys):
+        if key in keys[:i]:
+            _fail(f"parameter[{i}].key", f"{key!r} is identified twice")
+    x0 = [p["initial"] for p in parameters]
+    for i, experiment in enumerate(experiments):
+        # Every key is a number of the scene (a misspelled key fails with the scene's own
+        # message), and the scene runs with the initial values.
+        scene = _scene(experiment, [], [])
+        for j, p in enumerate(parameters):
+            try:
+                value = _at(scene, p["path"])
+            except (KeyError, IndexError, ValueError, TypeError):
+                _fail(f"parameter[{j}].key", f"{p['key']!r}: unknown scene key in the scene "
+                      f"of experiment[{i}]")
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                _fail(f"parameter[{j}].key", f"{p['key']!r} is not a number of the scene of "
+                      f"experiment[{i}] (it holds {value!r})")
+        scene = _scene(experiment, parameters, x0)
+        if not scene["obstacle"]["force_components"]:
+            _fail(f"experiment[{i}].scene", "the scene's obstacle must be under force control "
+                  "(obstacle.force_components): the measured force drives the run")
+    return {"fit": fit, "experiments": experiments, "parameters": parameters}
+
+
+def _items(raw: dict, name: str) -> list:
+    items = raw.get(name)
+    if not isinstance(items, list) or not items or not all(isinstance(v, dict) for v in items):
+        _fail(name, f"the fit description needs at least one [[{name}]] table")
+    return items
+
+
+def _experiment(item: dict, where: str, base: pathlib.Path) -> dict:
+    """One [[experiment]]: its scene, its data and its weight."""
+    _known(item, EXPERIMENT_KEYS, where)
+    scene = item.get("scene")
+    if not isinstance(scene, str) or not scene:
+        _fail(f"{where}scene", f"must be a built-in scene name or a scene file, got {scene!r}")
+    if scene not in scene_module.builtin_names():
+        scene = str(prony_file.inside_path(scene, base, f"{where}scene"))
+    sets = item.get("set", [])
+    if not isinstance(sets, list) or not all(isinstance(s, str) and "=" in s for s in sets):
+        _fail(f"{where}set", f"must be a list of 'key=value' texts, got {sets!r}")
+    if "noise" in item and "weight" in item:
+        _fail(f"{where}noise", "give either noise (the depth's standard deviation) or weight")
+    if "noise" in item:
+        noise = _number(item["noise"], f"{where}noise", "a number > 0")
+        if noise <= 0:
+            _fail(f"{where}noise", f"must be > 0, got {noise!r}")
+        w = 1.0 / noise
+    else:
+        weight = _number(item.get("weight", 1.0), f"{where}weight", "a number > 0")
+        if weight <= 0:
+            _fail(f"{where}weight", f"must be > 0, got {weight!r}")
+        w = math.sqrt(weight)
+    data = prony_file.inside_path(item.get("data"), base, f"{where}data")
+    t, force, depth = read_data(data, f"{where}data")
+    return {"scene": scene, "set": list(sets), "t": t, "force": force, "depth": depth, "w": w,
+            "data": str(data)}
+
+
+def read_data(path: pathlib.Path, key: str):
+    """The samples of an indentation curve: a CSV file with a header row naming the columns
+    ``t``, ``depth`` and optionally ``force``, then one row of finite numbers per sample, the
+    times >= 0 and strictly increasing.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file.
+    key : str
+        The dotted key naming it, for errors.
+
+    Returns
+    -------
+    tuple
+        t, force (None without a force column) and depth, numpy arrays.
+    """
+    # Read as a Prony file is: at most its byte limit, UTF-8, blank rows skipped.
+    rows = prony_file._rows(path, lambda message: _fail(key, f"{path}: {message}"),
+                            "an indentation curve")
+    if not rows:
+        _fail(key, f"{path} is empty: a header row (t, force, depth), then one row per sample")
+    header = [cell.strip() for cell in rows[0][1]]
+    for name in ("t", "depth"):
+        if name not in header:
+            _fail(key, f"{path}: the header row {header!r} has no column '{name}' (columns: "
+                  "t, depth, and force to drive the run)")
+    values = []
+    for number, row in rows[1:]:
+        if len(row) != len(header):
+            _fail(key, f"{path}, row {number}: {len(row)} cells, the header has {len(header)}")
+        try:
+            cells = [float(cell) for cell in row]
+        except ValueError:
+            _fail(key, f"{path}, row {number}: not numbers: {row!r}")
+        if not all(math.isfinite(c) for c in cells):
+            _fail(key, f"{path}, row {number}: a value is not finite: {row!r}")
+        values.append(cells)
+    if len(values) < 2:
+        _fail(key, f"{path}: at least two samples are needed, got {len(values)}")
+    table = np.array(values)
+    t = table[:, header.index("t")]
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if t[0] < 0 or bad.size:
+        row = rows[1 + (int(bad[0]) + 1 if bad.size else 0)][0]
+        _fail(key, f"{path}, row {row}: the times must be >= 0 and increase")
+    force = table[:, header.index("force")] if "force" in header else None
+    return t, force, table[:, header.index("depth")]
+
+
+def _parameter(item: dict, where: str) -> dict:
+    """One [[parameter]]: a scene key with its start, bounds and scale."""
+    _known(item, PARAMETER_KEYS, where)
+    key = item.get("key")
+    if not isinstance(key, str) or not key or any(not part for part in key.split(".")):
+        _fail(f"{where}key", f"must be a dotted scene key (e.g. 'contact.mu', "
+              f"'viscoelastic.shear.fractions.0'), got {key!r}")
+    scale = item.get("scale", "linear")
+    if scale not in SCALES:
+        _fail(f"{where}scale", f"must be one of {', '.join(SCALES)}, got {scale!r}")
+    bounds = item.get("bounds")
+    if not isinstance(bounds, list) or len(bounds) != 2:
+        _fail(f"{where}bounds", f"must be [lower, upper], got {bounds!r}")
+    lower, upper = (_number(b, f"{where}bounds") for b in bounds)
+    if not lower < upper:
+        _fail(f"{where}bounds", f"lower {lower!r} must be below upper {upper!r}")
+    if scale == "log" and lower <= 0:
+        _fail(f"{where}bounds", f"with scale = 'log' the bounds must be > 0, got {bounds!r}")
+    initial = _number(item.get("initial"), f"{where}initial")
+    if not lower <= initial <= upper:
+        _fail(f"{where}initial", f"{initial!r} is outside the bounds {bounds!r}")
+    return {"key": key, "path": key.split("."), "initial": initial, "bounds": (lower, upper),
+            "scale": scale}
+
+
+def _at(scene: dict, path: list):
+    node = scene
+    for part in path:
+        node = node[int(part)] if isinstance(node, list) else node[part]
+    return node
+
+
+def force_expression(t: np.ndarray, force: np.ndarray) -> float | str:
+    """The measured force as an expression in t, piecewise linear through the samples:
+
+        F(t) = F_0 + sum_i s_i min(max(t - t_i, 0), t_{i+1} - t_i),
+        s_i = (F_{i+1} - F_i) / (t_{i+1} - t_i),
+
+    constant before t_0 and after the last sample; samples on a line with their neighbours
+    (to 1e-12 of the largest |F|) add no term, so a held force is one number.
+
+    Parameters
+    ----------
+    t, force : numpy.ndarray
+        The sample times (increasing) and forces.
+
+    Returns
+    -------
+    float or str
+        The constant force, or the expression.
+
+    Raises
+    ------
+    SceneError
+        When the expression is longer than a scene expression may be (too many kinks).
+    """
+    tol = 1e-12 * max(np.max(np.abs(force)), 1e-300)
+    kinks = [0]
+    for i in range(1, len(t) - 1):
+        a = kinks[-1]
+        line = force[a] + (force[i + 1] - force[a]) * (t[i] - t[a]) / (t[i + 1] - t[a])
+        if abs(force[i] - line) > tol:
+            kinks.append(i)
+    kinks.append(len(t) - 1)
+    if np.all(np.abs(force - force[0]) <= tol):
+        return float(force[0])
+    terms = [repr(float(force[0]))]
+    for a, b in zip(kinks, kinks[1:]):
+        slope = (force[b] - force[a]) / (t[b] - t[a])
+        terms.append(f"{float(slope)!r} * min(max(t - {float(t[a])!r}, 0), "
+                     f"{float(t[b] - t[a])!r})")
+    text = " + ".join(terms)
+    if len(text) > expressions.MAX_LENGTH:
+        _fail("force", f"the measured force has {len(kinks) - 2} kinks; as a piecewise-linear "
+              f"force(t) it would take {len(text)} characters, more than a scene expression's "
+              f"{expressions.MAX_LENGTH}: smooth or resample the force column")
+    return text
+
+
+def _scene(experiment: dict, parameters: list, values) -> dict:
+    """The experiment's scene with the parameters' values, the data's times as its time grid
+    and the measured force as the obstacle's force."""
+    t = experiment["t"]
+    sets = list(experiment["set"])
+    sets += [scene_module.Override(["time", "grid"], "times"),
+             scene_module.Override(["time", "T"], float(t[-1])),
+             scene_module.Override(["time", "times"], [float(v) for v in t if v > 0]),
+             scene_module.Override(["output", "figures"], False)]
+    if experiment["force"] is not None:
+        sets.append(scene_module.Override(
+            ["obstacle", "force"], [force_expression(t, experiment["force"])]))
+    sets += [scene_module.Override(p["path"], float(v)) for p, v in zip(parameters, values)]
+    return scene_module.load(experiment["scene"], sets)
+
+
+def forward(experiment: dict, parameters: list, values, comm=None) -> np.ndarray:
+    """The simulated depth at the data's sample times: the obstacle's displacement along its
+    first force-controlled component, with the sign that makes pressing in positive
+    (d = -u_obstacle . e_c).
+
+    Parameters
+    ----------
+    experiment : dict
+        One of ``read_fit(...)["experiments"]``.
+    parameters : list of dict
+        ``read_fit(...)["parameters"]``.
+    values : sequence of float
+        The parameters' values (not their scale).
+    comm : mpi4py.MPI.Comm, optional
+        The communicator of the run (default COMM_WORLD).
+
+    Returns
+    -------
+    numpy.ndarray
+        d(t_j), one per sample.
+    """
+    from mpi4py import MPI
+
+    from contactvisco.solver.time_loop import simulate
+    scene = _scene(experiment, parameters, values)
+    result = simulate(scene, comm=comm or MPI.COMM_WORLD, progress=False)
+    c = scene["obstacle"]["force_components"][0]
+    times = np.array([step["t"] for step in result.steps])
+    depth = -np.array([step["obstacle"]["displacement"][c] for step in result.steps])
+    # The grid is the sample times; a cut step adds records between them, never at them.
+    tol = 1e-9 * experiment["t"][-1]
+    where = np.minimum(np.searchsorted(times, experiment["t"] - tol), len(depth) - 1)
+    missed = np.flatnonzero(np.abs(times[where] - experiment["t"]) > tol)
+    if missed.size:
+        raise SceneError(f"{experiment['data']}: the run has no step at the sample time "
+                         f"t = {experiment['t'][missed[0]]!r}", key="time.times")
+    return depth[where]
+
+
+def _to_x(parameters, values):
+    return np.array([math.log(v) if p["scale"] == "log" else v
+                     for p, v in zip(parameters, values)])
+
+
+def _to_values(parameters, x):
+    return np.array([math.exp(v) if p["scale"] == "log" else v for p, v in zip(parameters, x)])
+
+
+def statistics(jacobian: np.ndarray, residual: np.ndarray, parameters: list,
+               values: np.ndarray) -> dict:
+    """Standard errors, correlations and identifiability at the optimum (module description).
+
+    Parameters
+    ----------
+    jacobian : numpy.ndarray
+        J = dr/dx, (m, n), x the parameters in their scale.
+    residual : numpy.ndarray
+        r at the optimum, (m,).
+    parameters : list of dict
+        The parameters (their scale).
+    values : numpy.ndarray
+        theta at the optimum.
+
+    Returns
+    -------
+    dict
+        ``s2`` (residual variance), ``singular_values``, ``rank``, ``standard_error`` (of
+        theta; inf where not determined), ``correlation`` (nan rows where not determined),
+        ``identifiable`` (bool per parameter) and ``warnings`` (text).
+    """
+    m, n = jacobian.shape
+    s2 = float(residual @ residual / (m - n)) if m > n else math.nan
+    _, S, Vt = np.linalg.svd(jacobian, full_matrices=False)
+    kept = S > RCOND * S[0] if S.size and S[0] > 0 else np.zeros(n, bool)
+    V = Vt.T
+    cov = (V[:, kept] / S[kept] ** 2) @ V[:, kept].T * s2
+    undetermined = np.any(np.abs(V[:, ~kept]) > NULL_SHARE, axis=1)
+    se_x = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    se_x[undetermined] = math.inf
+    se = np.array([v * e if p["scale"] == "log" else e
+                   for p, v, e in zip(parameters, values, se_x)])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se_x, se_x)
+    corr[undetermined, :] = math.nan
+    corr[:, undetermined] = math.nan
+    np.fill_diagonal(corr, 1.0)
+    warnings, identifiable = [], []
+    for i, p in enumerate(parameters):
+        ok = True
+        if undetermined[i]:
+            ok = False
+            warnings.append(f"{p['key']}: not identifiable: the data does not determine it "
+                            f"(J has a singular value below {RCOND:g} of the largest along it)")
+        elif se[i] > abs(values[i]):
+            ok = False
+            warnings.append(f"{p['key']}: not identifiable: its standard error {se[i]:.3g} "
+                            f"exceeds its value {values[i]:.6g}")
+        identifiable.append(ok)
+        for j in range(i):
+            if abs(corr[i, j]) > HIGH_CORRELATION:
+                warnings.append(f"{p['key']} and {parameters[j]['key']}: correlated "
+                                f"({corr[i, j]:+.4f}): the data hardly separates them")
+    return {"s2": s2, "singular_values": S.tolist(), "rank": int(kept.sum()),
+            "standard_error": se.tolist(), "correlation": corr.tolist(),
+            "identifiable": identifiable, "warnings": warnings}
+
+
+def fit(description, comm=None) -> dict:
+    """Identify the parameters of a fit description by weighted least squares over all its
+    experiments (module description).
+
+    Parameters
+    ----------
+    description : path-like or dict
+        A fit TOML file, or what ``read_fit`` returned.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator of the forward runs.
+
+    Returns
+    -------
+    dict
+        ``parameters`` (per parameter: key, estimate, initial, standard_error, identifiable,
+        scale, bounds), ``correlation``, ``singular_values``, ``rank``, ``cost``
+        (1/2 sum r^2), ``s2``, ``residual_rms`` (of the unweighted depth), ``evaluations``
+        (forward runs of all experiments, differences included), ``residual_evaluations``
+        (the optimizer's, at most fit.max_evaluations), ``jacobian_evaluations``, ``wall_s``, ``status``
+        and ``message`` of the optimizer, ``success``, ``warnings``, and ``curves`` (per
+        experiment: t, measured and fitted depth).
+    """
+    from scipy.optimize import least_squares
+
+    spec = description if isinstance(description, dict) else read_fit(description)
+    parameters, experiments = spec["parameters"], spec["experiments"]
+    settings = spec["fit"]
+    runs = [0]
+
+    def residual(x):
+        values = _to_values(parameters, x)
+        runs[0] += 1
+        out = []
+        for i, e in enumerate(experiments):
+            try:
+                out.append(e["w"] * (forward(e, parameters, values, comm) - e["depth"]))
+            except Exception as err:
+                # The run's own message names the step; this names the parameters.
+                err.add_note(f"in the forward run of experiment[{i}] at " + ", ".join(
+                    f"{p['key']} = {v!r}" for p, v in zip(parameters, values)))
+                raise
+        return np.concatenate(out)
+
+    lower = _to_x(parameters, [p["bounds"][0] for p in parameters])
+    upper = _to_x(parameters, [p["bounds"][1] for p in parameters])
+    start = time.perf_counter()
+    tol = settings["tolerance"]
+    result = least_squares(residual, _to_x(parameters, [p["initial"] for p in parameters]),
+                           jac=DIFFERENCES[settings["difference"]], bounds=(lower, upper),
+                           method="trf", diff_step=settings["step"], x_scale="jac",
+                           ftol=tol, xtol=tol, gtol=tol, max_nfev=settings["max_evaluations"])
+    wall = time.perf_counter() - start
+    values = _to_values(parameters, result.x)
+    stats = statistics(result.jac, result.fun, parameters, values)
+    curves, offset = [], 0
+    for e in experiments:
+        k = len(e["t"])
+        fitted = e["depth"] + result.fun[offset:offset + k] / e["w"]
+        curves.append({"data": e["data"], "t": e["t"].tolist(),
+                       "force": None if e["force"] is None else e["force"].tolist(),
+                       "measured": e["depth"].tolist(), "fitted": fitted.tolist()})
+        offset += k
+    misfit = np.concatenate([np.array(c["fitted"]) - c["measured"] for c in curves])
+    return {
+        "parameters": [{"key": p["key"], "estimate": float(v), "initial": p["initial"],
+                        "standard_error": se, "identifiable": ok, "scale": p["scale"],
+                        "bounds": list(p["bounds"])}
+                       for p, v, se, ok in zip(parameters, values, stats["standard_error"],
+                                               stats["identifiable"])],
+        "correlation": stats["correlation"], "singular_values": stats["singular_values"],
+        "rank": stats["rank"], "cost": float(result.cost), "s2": stats["s2"],
+        "residual_rms": float(np.sqrt(np.mean(misfit ** 2))), "evaluations": runs[0],
+        "residual_evaluations": int(result.nfev),
+        "jacobian_evaluations": int(result.njev or 0), "wall_s": wall,
+        "status": int(result.status), "message": str(result.message),
+        "success": bool(result.success), "warnings": stats["warnings"],
+        "jacobian": {"rule": settings["difference"], "step": settings["step"]},
+        "curves": curves,
+    }
+
+
+def write(report: dict, out) -> None:
+    """Write a fit's report into folder `out`: ``fit.json`` (the report without the
+    curves), ``curves.csv`` (experiment, t, force, measured and fitted depth) and
+    ``fit.png`` (measured against fitted depth, and the residuals).
+
+    Parameters
+    ----------
+    report : dict
+        What :func:`fit` returned.
+    out : path-like
+        The folder (created).
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib import pyplot as plt
+
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = {k: v for k, v in report.items() if k != "curves"}
+    # Strict JSON: an undetermined standard error (inf) or correlation (nan) is null.
+    (out / "fit.json").write_text(json.dumps(_finite(summary), indent=2) + "\n")
+    with open(out / "curves.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["experiment", "t", "force", "measured_depth", "fitted_depth"])
+        for i, c in enumerate(report["curves"]):
+            force = c["force"] or [""] * len(c["t"])
+            for row in zip(c["t"], force, c["measured"], c["fitted"]):
+                writer.writerow([i, *[repr(v) if v != "" else "" for v in row]])
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6, 6),
+                                      gridspec_kw={"height_ratios": (3, 1)})
+    for i, c in enumerate(report["curves"]):
+        line, = top.plot(c["t"], c["fitted"], label=f"experiment {i}: fitted")
+        top.plot(c["t"], c["measured"], "o", ms=3, color=line.get_color(),
+                 label=f"experiment {i}: measured")
+        bottom.plot(c["t"], np.array(c["measured"]) - c["fitted"], "o-", ms=3,
+                    color=line.get_color())
+    top.set_ylabel("depth")
+    top.legend()
+    bottom.set_xlabel("t")
+    bottom.set_ylabel("measured - fitted")
+    fig.tight_layout()
+    fig.savefig(out / "fit.png", dpi=120)
+    plt.close(fig)
+
+
+def _finite(value):
+    """The report with every non-finite number as None."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
