@@ -8,6 +8,8 @@ Boundaries: "xsym" (x = 0) and "ysym" (y = 0), the planes of symmetry; "bottom" 
 """
 import math
 
+from refinement import grow_from_origin
+
 
 def build(gmsh, radius=10.0, height=10.0, h_contact=0.05, h_far=1.0, refine=0.2, growth=0.3):
     occ = gmsh.model.occ
@@ -26,11 +28,5 @@ def build(gmsh, radius=10.0, height=10.0, h_contact=0.05, h_far=1.0, refine=0.2,
     side = [tag for _, tag in gmsh.model.getEntities(2) if tag not in named]
     gmsh.model.setPhysicalName(2, gmsh.model.addPhysicalGroup(2, side), "side")
     gmsh.model.setPhysicalName(3, gmsh.model.addPhysicalGroup(3, [volume]), "body")
-    field = gmsh.model.mesh.field
-    size = field.add("MathEval")
-    field.setString(size, "F", f"Min({h_far!r}, {h_contact!r} + {growth!r} * "
-                               f"Max(0, Sqrt(x * x + y * y + z * z) - {refine!r}))")
-    field.setAsBackgroundMesh(size)
-    for option in ("MeshSizeExtendFromBoundary", "MeshSizeFromPoints", "MeshSizeFromCurvature"):
-        gmsh.option.setNumber(f"Mesh.{option}", 0)
+    grow_from_origin(gmsh, h_contact, h_far, refine, growth, "Sqrt(x * x + y * y + z * z)")
     gmsh.model.mesh.generate(3)

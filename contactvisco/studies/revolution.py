@@ -70,12 +70,8 @@ def sphere_on_cylinder(model: str, n: int, size: float = 1.0, comm=MPI.COMM_WORL
 
     Parameters
     ----------
-    model : str
-        ``"axisymmetric"`` or ``"3d"``.
-    n : int
-        Mesh size a/n at the contact.
-    size : float, optional
-        The cylinder's radius and height.
+    model, n, size
+        As in sphere_on_cylinder_scene.
     comm : mpi4py.MPI.Comm, optional
         The communicator (collective).
 
