@@ -24,8 +24,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 
-from contactvisco import load_scene, quick, solve
-from contactvisco.studies.indentation import SphereLeeRadok
+from contactvisco import SphereLeeRadok, load_scene, quick, solve
 
 steps = 10 if quick() else 40
 scene = load_scene("sphere_creep", sets=["time.T=10.0", f"time.steps={steps}",
