@@ -4,8 +4,8 @@ a foundation with normal compliance and a unilateral constraint (Ouafik 2024), i
 The public interface (docs/api.md): load_scene, solve, check, scene_toml, Result, read_results,
 builtin_scenes, pyvista_grid, SceneError, NewtonFailure, the module tradeoff; for the demos also
 hertz, cattaneo_mindlin, cattaneo_traction, cattaneo_obstacle_scene, cattaneo_mindlin_figure,
-creep_indentation, elastic_indentation, LeeRadok, creep_compliance, quick, show_images,
-show_figure.
+creep_indentation, elastic_indentation, LeeRadok, SphereLeeRadok, creep_compliance, quick,
+show_images, show_figure.
 
 Layers, each importing only those below it (docs/architecture.md):
 
@@ -60,7 +60,7 @@ _PUBLIC = {
     "hertz": "studies.verification", "cattaneo_mindlin": "studies.coulomb",
     "cattaneo_traction": "studies.coulomb", "cattaneo_obstacle_scene": "studies.coulomb",
     "creep_indentation": "studies.indentation", "elastic_indentation": "studies.indentation",
-    "LeeRadok": "studies.indentation",
+    "LeeRadok": "studies.indentation", "SphereLeeRadok": "studies.indentation",
     "quick": "post.notebook", "show_images": "post.notebook", "show_figure": "post.notebook",
     "cattaneo_mindlin_figure": "post.figures", "relaxation_figure": "post.figures",
     "creep_compliance": "studies.relaxation",

@@ -8,6 +8,9 @@ for a number of cells that grows only with the logarithm of the block's size.
 
 Boundaries: "axis" (r = 0), "bottom" (z = -height), "side" (r = radius), "top" (z = 0).
 """
+from refinement import grow_from_origin
+
+
 def build(gmsh, radius=10.0, height=10.0, h_contact=0.01, h_far=1.0, refine=0.2, growth=0.1):
     geo = gmsh.model.geo
     corners = [geo.addPoint(r, z, 0.0) for r, z in
@@ -18,11 +21,5 @@ def build(gmsh, radius=10.0, height=10.0, h_contact=0.01, h_far=1.0, refine=0.2,
     for dim, tags, name in ((1, [axis], "axis"), (1, [bottom], "bottom"), (1, [side], "side"),
                             (1, [top], "top"), (2, [surface], "body")):
         gmsh.model.setPhysicalName(dim, gmsh.model.addPhysicalGroup(dim, tags), name)
-    field = gmsh.model.mesh.field
-    size = field.add("MathEval")
-    field.setString(size, "F", f"Min({h_far!r}, {h_contact!r} + {growth!r} * "
-                               f"Max(0, Sqrt(x * x + y * y) - {refine!r}))")
-    field.setAsBackgroundMesh(size)
-    for option in ("MeshSizeExtendFromBoundary", "MeshSizeFromPoints", "MeshSizeFromCurvature"):
-        gmsh.option.setNumber(f"Mesh.{option}", 0)
+    grow_from_origin(gmsh, h_contact, h_far, refine, growth, "Sqrt(x * x + y * y)")
     gmsh.model.mesh.generate(2)

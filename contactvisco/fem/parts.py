@@ -27,12 +27,12 @@ FLOATING_TOLERANCE = 1e-10
 
 
 def part_labels(V) -> tuple[np.ndarray, int]:
-    """The connected part of every local node of a P1 space (owned and ghosts).
+    """The connected part of every local node of a Lagrange space (owned and ghosts).
 
     Parameters
     ----------
     V : dolfinx.fem.FunctionSpace
-        A P1 space (blocked or not).
+        A Lagrange space of any degree (blocked or not); its nodes are its dofs' blocks.
 
     Returns
     -------
@@ -44,7 +44,9 @@ def part_labels(V) -> tuple[np.ndarray, int]:
     n = index_map.size_local + index_map.num_ghosts
     component = components(compat.cell_dofs(V.dofmap), n)
     value = index_map.local_to_global(np.arange(n, dtype=np.int32)).astype(float)
-    scalar = compat.scalar_space(V.mesh, "Lagrange", 1)
+    # the ghost exchange runs on the scalar space of V's own degree, whose dof layout is V's
+    # nodes (P1's held only the vertices, too few for a P2 space)
+    scalar = compat.scalar_space(V.mesh, "Lagrange", compat.element_degree(V))
     carrier = fem.Function(scalar)
     vec = compat.petsc_vector(carrier)
     comm = V.mesh.comm
@@ -150,7 +152,7 @@ def floating_motions(V, fixed: np.ndarray, labels: np.ndarray, count: int) -> li
     Parameters
     ----------
     V : dolfinx.fem.FunctionSpace
-        The displacement space (P1, block size d).
+        The displacement space (Lagrange, block size d).
     fixed : numpy.ndarray
         (local nodes, d) > 0 on prescribed components (Problem.u_fixed).
     labels, count

@@ -730,7 +730,7 @@ def _memory(scene, mesh, u, context=None, updates=None, kin=None) -> MemoryPart 
     dt = float(time_grid.steps(time).max())      # the uniform step of `advance` (tests)
     kin = kin or kinematics(scene, mesh)
     d = kin.tensor_dim                          # the strain's: 3 in axisymmetry
-    tensor_space = kin.tensor_space("DG", scene["discretization"]["degree"] - 1)
+    tensor_space = kin.tensor_space("DG", kin.history_degree(scene["discretization"]["degree"]))
     visco = scene.get("viscoelastic")
     thermal = visco is not None and visco["temperature"] is not None
     if table is not None:

@@ -1,9 +1,15 @@
 """Verification against exact solutions: shared by the tests and the benchmarks.
 
 manufactured(): a manufactured solution of the viscoelastic problem without contact. The
-solution is u(x, t) = U(x), prescribed on the whole boundary. With the constant kernel
-R = alpha I, sigma(t) = A eps(U) + alpha t eps(U), and the body force
-f(t) = -div sigma(t) is derived by UFL. Errors at T in L2 and in the H1 seminorm.
+solution is u(x, t) = U(x), prescribed on the boundary. With the constant kernel R = alpha I,
+sigma(t) = A eps(U) + alpha t eps(U), and the body force f(t) = -div sigma(t) enters in its weak
+form: int f . v dx = int sigma(t) : eps(v) dx for every v vanishing where U is prescribed
+(integration by parts), so that the kinematics' strain and weight give it in every body model
+(in axisymmetry eps has the hoop strain v_r / r and dx carries 2 pi r). In axisymmetry the
+meridian square (r, z) in [0, 1]^2 has U prescribed on r = 1, z = 0 and z = 1; the axis r = 0
+is no boundary of the body (its weight 2 pi r vanishes there), u_r = 0 holds on it, and U is
+smooth about it in 3D (U_r odd in r, U_z even). Errors at T in L2 and in the H1 seminorm of
+the body (weighted by 2 pi r in axisymmetry, with the hoop component u_r / r of the gradient).
 
 hertz(): the cylinder scene against the closed form of Hertz contact (plane strain, on a rigid
 plane): half-width a = sqrt(4 P R / (pi E*)) and peak pressure p0 = 2 P / (pi a), with
@@ -43,7 +49,8 @@ from mpi4py import MPI
 from contactvisco.fem import geometry as geometry_module
 from contactvisco.model import kernels
 from contactvisco.scene import loader as scene_module
-from contactvisco.model.material import elasticity, energy_stress, lame_constants, strain
+from contactvisco.fem.kinematics import AXISYMMETRIC
+from contactvisco.model.material import elasticity, energy_stress, lame_constants
 from contactvisco.fem.problem import build, material_energy
 from contactvisco.solver.time_loop import simulate
 from contactvisco.solver.newton import BlockSNES
@@ -51,10 +58,16 @@ from contactvisco.solver.newton import BlockSNES
 #: The manufactured displacement, as scene expressions in x.
 U_EXACT = ["0.1 * sin(pi * x[0]) * sin(pi * x[1]) + 0.05 * x[0] * x[1]",
            "0.1 * cos(pi * x[0]) * x[1]**2 - 0.02 * x[0]"]
+#: The axisymmetric manufactured displacement (u_r, u_z) in (r, z) = (x[0], x[1]): u_r odd in r
+#: and u_z even, so that the field is smooth across the axis in 3D.
+U_EXACT_AXISYMMETRIC = [
+    "0.1 * x[0] * sin(pi * x[1]) * cos(0.5 * pi * x[0]) + 0.05 * x[0] * x[1]",
+    "0.1 * cos(pi * x[0]) * x[1]**2 - 0.02 * x[0]**2"]
 
 
 def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 4,
-                 alpha: float = 50.0, comm=MPI.COMM_WORLD, material=None) -> dict:
+                 alpha: float = 50.0, comm=MPI.COMM_WORLD, material=None,
+                 model: str = "plane_strain") -> dict:
     """Errors at T = 1 of the manufactured solution (module description).
 
     Parameters
@@ -74,34 +87,40 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
     material : dict, optional
         Further [material] keys, e.g. a nonlinear A (``{"law": "hencky", ...}``): the body
         force is then -div (dW/deps(U) + alpha t eps(U)), W the scene's energy.
+    model : str, optional
+        ``material.model``: ``"plane_strain"`` on the unit square, or ``"axisymmetric"`` on
+        the meridian square (module description).
 
     Returns
     -------
     dict
         ``cells``, ``degree``, ``h`` and the errors ``L2`` and ``H1`` (seminorm).
     """
+    exact = U_EXACT_AXISYMMETRIC if model == AXISYMMETRIC else U_EXACT
+    sides = ("right", "bottom", "top") if model == AXISYMMETRIC else \
+        ("left", "right", "bottom", "top")
     raw = {"name": "manufactured",
            "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [cells, cells]},
-           "material": {"model": "plane_strain", "E": 100.0, "nu": 0.3, **(material or {})},
+           "material": {"model": model, "E": 100.0, "nu": 0.3, **(material or {})},
            "memory": {"kernel": "constant" if alpha else "none", "alpha": alpha},
-           "dirichlet": [{"boundary": b, "components": "all", "value": U_EXACT}
-                         for b in ("left", "right", "bottom", "top")],
+           "dirichlet": [{"boundary": b, "components": "all", "value": exact}
+                         for b in sides],
            "time": {"T": 1.0, "steps": steps, "rule": rule},
            "discretization": {"degree": degree, "contact_quadrature": "gauss"}}
     scene = scene_module.resolve(raw)
     geometry = geometry_module.build(scene, comm)
     problem = build(scene, geometry)
-    ctx = problem.context
-    U = ctx.vector(U_EXACT, "U_EXACT", 2)
-    lmbda, mu = lame_constants("plane_strain", 100.0, 0.3)
+    ctx, kin = problem.context, problem.kinematics
+    U = ctx.vector(exact, "U_EXACT", 2)
+    lmbda, mu = lame_constants(model, 100.0, 0.3)
     if scene["material"]["law"] == "linear":
-        elastic = elasticity(strain(U), lmbda, mu)
+        elastic = elasticity(kin.strain(U), lmbda, mu)
     else:
         energy = material_energy(scene["material"], problem.constants, ctx)
-        elastic = energy_stress(strain(U), energy)[0]
-    sigma = elastic + alpha * ctx.t * strain(U)
+        elastic = energy_stress(kin.strain(U), energy)[0]
+    sigma = elastic + alpha * ctx.t * kin.strain(U)
     v = problem.F[0].arguments()[0]
-    F = [problem.F[0] + ufl.dot(ufl.div(sigma), v) * ufl.dx] + problem.F[1:]
+    F = [problem.F[0] - kin.integral(ufl.inner(sigma, kin.strain(v)), ufl.dx)] + problem.F[1:]
     snes = BlockSNES(F, problem.J, problem.unknowns, problem.bcs, comm)
     T, N = scene["time"]["T"], steps
     try:
@@ -113,10 +132,10 @@ def manufactured(cells: int, degree: int, rule: str = "trapezoid", steps: int = 
         snes.destroy()
         snes = None
     error = problem.u - U
-    quadrature = {"quadrature_degree": 2 * degree + 4}
-    l2 = fem.assemble_scalar(fem.form(ufl.inner(error, error) * ufl.dx(metadata=quadrature)))
-    h1 = fem.assemble_scalar(fem.form(ufl.inner(ufl.grad(error), ufl.grad(error))
-                                      * ufl.dx(metadata=quadrature)))
+    dx = ufl.dx(metadata={"quadrature_degree": 2 * degree + 4})
+    l2 = fem.assemble_scalar(fem.form(kin.integral(ufl.inner(error, error), dx)))
+    grad = kin.gradient(error)
+    h1 = fem.assemble_scalar(fem.form(kin.integral(ufl.inner(grad, grad), dx)))
     problem.release_garbage()
     return {"cells": cells, "degree": degree, "h": 1.0 / cells,
             "L2": math.sqrt(comm.allreduce(l2, MPI.SUM)),

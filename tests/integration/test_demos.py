@@ -16,7 +16,8 @@ pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
 
 
 #: Over 10 s each (the 3D block; the paper scene at its full size; the obstacle demos).
-SLOW = ("block3d", "paper", "creep_indentation", "cattaneo_mindlin", "two_bodies")
+SLOW = ("block3d", "paper", "creep_indentation", "cattaneo_mindlin", "two_bodies",
+        "sphere_creep")
 
 
 @pytest.mark.parametrize("demo", [pytest.param(d, marks=pytest.mark.slow) if d.stem in SLOW
