@@ -27,7 +27,8 @@ from dolfinx import fem, io
 
 from contactvisco.fem import compat
 from contactvisco.errors import SceneError
-from contactvisco.fem.contact_state import STATUSES, STICK_SLIP_STATES, status_at_nodes
+from contactvisco.fem.contact_state import (STATUSES, STICK_SLIP_STATES, rows_at_nodes,
+                                            status_at_nodes)
 from contactvisco.io import files
 
 class Writer:
@@ -134,8 +135,8 @@ class Writer:
         first restart_count steps (a row cut by a stop is dropped), opened for appending.
         verified: the file was already cut back to the checkpoint (check_records)."""
         header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
-            "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
-            "status", "friction"]
+            "u_nu", "gap", "contact_pressure", "u_tau", "reaction_nu", "reaction_tau",
+            "friction_bound", "status", "friction"]
         self.csv = self._start_table(CSV_FILE, header, restart_count, verified)
 
     def _start_table(self, name: str, header: list, restart_count: int | None,
@@ -184,8 +185,8 @@ class Writer:
                 rows.writerow([n, repr(record["t"])]
                               + [repr(float(c)) for c in table["x"][i]]
                               + [repr(float(table[key][i])) for key in
-                                 ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
-                                  "radius")]
+                                 ("u_nu", "gap", "contact_pressure", "u_tau",
+                                  "reaction_nu", "reaction_tau", "radius")]
                               + [STATUSES[table["status"][i]],
                                  STICK_SLIP_STATES[table["friction"][i]]])
             self.csv.append(text.getvalue())
@@ -541,6 +542,20 @@ COMPONENTS = {2: (("xx", 0, 0), ("yy", 1, 1), ("xy", 0, 1)),
               "axisymmetric": (("rr", 0, 0), ("zz", 1, 1), ("rz", 0, 1), ("tt", 2, 2))}
 #: The output.fields computed from sigma.
 STRESS_FIELDS = ("sigma", "stress_components", "von_mises")
+#: output.fields = "contact": the P1 scalar fields on the vertices it writes, their value at
+#: a vertex of the contact boundary (off it: 0, and -1 for the two states).
+CONTACT_FIELDS = {
+    "contact_pressure": "-sigma_nu, positive in compression (contact table: contact_pressure)",
+    "gap": "h - u_nu, the distance left to the foundation or obstacle (negative: into the "
+           "layer)",
+    "normal_traction": "sigma_nu = -contact_pressure, negative in compression",
+    "tangential_traction": "sigma_tau (2D: along t = (-nu_y, nu_x); 3D: its magnitude)",
+    "slip": "the slip (u_tau, or its increment over the step with contact.slip = "
+            "'increment'; 2D: along t; 3D: its magnitude)",
+    "contact_state": "0 separated, 1 normal compliance, 2 at the bound; -1 off the contact "
+                     "boundary",
+    "friction_state": "0 no friction, 1 stick, 2 slip; -1 off the contact boundary",
+}
 
 
 def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
@@ -575,6 +590,8 @@ def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
         fields["stress_components"] = [cache[f"sigma_{name}"] for name, _, _ in components
                                        if f"sigma_{name}" in cache]
         fields["von_mises"] = [cache["von_mises"]] if "von_mises" in cache else []
+    if "contact" in names and problem.contact is not None and table is not None:
+        fields["contact"] = contact_fields(problem, table, cache)
     if "contact_status" in names and problem.contact is not None and table is not None:
         target = _cached(cache, "contact_status", lambda: problem.contact.gap.function_space)
         own, status = status_at_nodes(problem, table)
@@ -583,6 +600,50 @@ def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
         target.x.scatter_forward()
         fields["contact_status"] = [target]
     return fields
+
+
+def contact_fields(problem, table, cache: dict) -> list:
+    """The fields of CONTACT_FIELDS as P1 scalars on the vertices (the space of the gap),
+    from the gathered contact table: its values at the contact nodes, 0 elsewhere (and -1
+    for the two states, so that ParaView's Threshold at >= 0 keeps the contact boundary).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem with contact.
+    table : dict
+        The contact table of the step (contact_state.contact_table).
+    cache : dict
+        Keeps the Functions between steps.
+
+    Returns
+    -------
+    list of dolfinx.fem.Function
+        One Function per name of CONTACT_FIELDS, named so.
+    """
+    own, rows = rows_at_nodes(problem, table)
+    d = table["x"].shape[1]
+    slip = np.asarray(table["slip_vector"])[rows]
+    normal = np.asarray(table["normal"])[rows]
+    if d == 2:                     # signed along t = (-nu_y, nu_x), as u_tau in the table
+        slip = slip[:, 0] * -normal[:, 1] + slip[:, 1] * normal[:, 0]
+    else:
+        slip = np.linalg.norm(slip - np.sum(slip * normal, axis=1)[:, None] * normal, axis=1)
+    values = {"contact_pressure": table["contact_pressure"][rows],
+              "gap": -np.asarray(table["penetration"])[rows],
+              "normal_traction": -table["contact_pressure"][rows],
+              "tangential_traction": table["reaction_tau"][rows],
+              "slip": slip,
+              "contact_state": table["status"][rows],
+              "friction_state": table["friction"][rows]}
+    out = []
+    for name, value in values.items():
+        target = _cached(cache, name, lambda: problem.contact.gap.function_space)
+        target.x.array[:] = -1.0 if name.endswith("_state") else 0.0
+        target.x.array[own] = value
+        target.x.scatter_forward()
+        out.append(target)
+    return out
 
 
 def body_field(problem):
