@@ -30,6 +30,7 @@ from contactvisco.errors import SceneError
 from contactvisco.fem.contact_state import (STATUSES, STICK_SLIP_STATES, rows_at_nodes,
                                             status_at_nodes)
 from contactvisco.io import files
+from contactvisco.io.obstacle_file import DRAWN, OBSTACLE_FILE, ObstacleFile, surface
 
 class Writer:
     """summary.json, steps.jsonl, contact_nodes.csv and solution.xdmf in one output folder.
@@ -119,6 +120,10 @@ class Writer:
                                        restart_count or 0, "solution.xdmf" in verified)
             comm.barrier()
         self._writable = {}                # P1/DG0 copies of higher-degree fields (xdmf_field)
+        self.obstacle = None               # obstacle.xdmf: a rigid obstacle's surface
+        drawing = xdmf and obstacle_drawing(problem, comm)
+        if drawing and self.rank == 0:
+            self.obstacle = ObstacleFile(self.folder / OBSTACLE_FILE, drawing, kept_steps)
 
     def _drop_fields_from(self, count: int):
         """Rank 0, on a restart: remove the field files of steps >= count, written after the
@@ -195,6 +200,8 @@ class Writer:
                 self.interface[name].append(text)
         if self.index is not None and fields:
             self.index.append(n, record["t"])
+        if self.obstacle is not None:
+            self.obstacle.append(record)
         # One line, written whole and flushed: a stop leaves whole lines (and at most a cut
         # last one, which read_summary drops).
         self.steps_file.append(json.dumps(jsonable(record), allow_nan=False) + "\n")
@@ -219,7 +226,7 @@ class Writer:
             return
         if self.index is not None:
             self.index.close()
-        for f in (self.csv, self.steps_file, *self.interface.values()):
+        for f in (self.csv, self.steps_file, self.obstacle, *self.interface.values()):
             if f is not None:
                 f.close()
 
@@ -644,6 +651,36 @@ def contact_fields(problem, table, cache: dict) -> list:
         target.x.scatter_forward()
         out.append(target)
     return out
+
+
+def obstacle_drawing(problem, comm):
+    """The surface of the scene's rigid obstacle in its reference position, drawn to cover
+    the body (obstacle_file.surface), on every rank (the body's bounding box is reduced over
+    the ranks); None without an obstacle that has a drawing.
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem (its scene and mesh).
+    comm : mpi4py.MPI.Comm
+        The communicator of the mesh.
+
+    Returns
+    -------
+    tuple or None
+        (points, cells, XDMF topology type).
+    """
+    from mpi4py import MPI
+    obstacle = problem.scene.get("obstacle") or {}
+    if obstacle.get("shape") not in DRAWN or problem.contact is None:
+        return None
+    d = problem.geometry.mesh.geometry.dim
+    x = problem.geometry.mesh.geometry.x[:, :d]
+    lower = x.min(axis=0) if len(x) else np.full(d, np.inf)
+    upper = x.max(axis=0) if len(x) else np.full(d, -np.inf)
+    comm.Allreduce(MPI.IN_PLACE, lower, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, upper, op=MPI.MAX)
+    return surface(obstacle, lower, upper)
 
 
 def body_field(problem):
