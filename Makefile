@@ -184,14 +184,16 @@ notebook: install
 # The documentation (docs/, Sphinx + MyST + numpydoc from Debian's packages), built offline
 # into build/docs with the Debian route's Python, so that autodoc imports the package; every
 # warning (a broken internal link or anchor included) fails it. Then the relative file links
-# of README.md and docs/*.md (tests/unit/test_docs_links.py).
-DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3-sphinx-rtd-theme
+# of README.md and docs/*.md (tests/unit/test_docs_links.py) and the built pages: no network,
+# MathJax from the build (Debian's libjs-mathjax), no raw math or table (test_docs_built.py).
+DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3-sphinx-rtd-theme \
+                     libjs-mathjax
 
 docs:
 	$(MAKE) STACK=debian install
 	$(MAKE) apt-packages APT_PACKAGES="$(DOCS_APT_PACKAGES)"
 	.venv/bin/python -m sphinx -W --keep-going -n -b html docs build/docs
-	.venv/bin/python -m pytest -q tests/unit/test_docs_links.py
+	.venv/bin/python -m pytest -q tests/unit/test_docs_links.py tests/unit/test_docs_built.py
 	@echo "documentation: build/docs/index.html"
 
 clean:
