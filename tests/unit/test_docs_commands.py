@@ -136,3 +136,22 @@ def test_the_key_pattern_finds_keys():
     """The check above reads what it should: the README names several scene keys."""
     found = named_keys(README.read_text())
     assert ("contact", "p_nu") in found and ("material", "law") in found
+
+
+def test_the_output_folder_table_names_the_files_a_run_writes():
+    """docs/running.md's table of the output folder: each file name in its first column is
+    one the program writes and owns (io.lock: what --overwrite removes, the lock file
+    included), and each file the program owns that a reader opens is in the table."""
+    from contactvisco.io import lock
+    text = (ROOT / "docs" / "running.md").read_text()
+    table = text.split("The output folder holds", 1)[1].split("\n\n", 2)[1]
+    named = set()
+    for line in table.splitlines()[2:]:
+        first = line.split("|")[1]
+        named |= {name.split("/")[0] + ("/" if "/" in name else "")
+                  for name in re.findall(r"`([^`]+)`", first)}
+    own = set(lock.OWN_FILES) | {lock.LOCK} | {f"{name}/" for name in lock.OWN_FOLDERS}
+    assert named - {".h5"} <= own, sorted(named - own)
+    readable = {name for name in own if not name.endswith(".tmp")
+                and not name.endswith(".tmp.npz") and name != "solution.h5"}
+    assert readable <= named, sorted(readable - named)
