@@ -173,10 +173,15 @@ figures: install
 # The demos as notebooks in JupyterLab, on a kernel of this environment (the demos declare
 # none: they open on contactvisco-$(STACK)); root needs --allow-root. What the demos write
 # goes to demos/results/, which git ignores.
+# On the Debian route markdown-it-py and mdit-py-plugins stay at the versions Debian's
+# myst-parser (the documentation's) requires. jupytext-config makes a double click open a
+# demo's .py file as a notebook (the user's JupyterLab settings).
+NOTEBOOK_PINS := $(if $(filter debian,$(STACK)),-c constraints.txt 'markdown-it-py<3' 'mdit-py-plugins<0.4')
 notebook: install
-	$(PY) -m pip install -q $(if $(filter debian,$(STACK)),-c constraints.txt) jupyterlab jupytext
+	$(PY) -m pip install -q $(NOTEBOOK_PINS) jupyterlab jupytext
 	$(PY) -m ipykernel install --user --name contactvisco-$(STACK) \
 	  --display-name "contactvisco ($(STACK))"
+	$(VENV)/bin/jupytext-config set-default-viewer python
 	$(VENV)/bin/jupyter lab demos/ \
 	  --MappingKernelManager.default_kernel_name=contactvisco-$(STACK) \
 	  $$([ "$$(id -u)" = 0 ] && echo --allow-root)
