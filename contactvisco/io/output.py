@@ -15,12 +15,14 @@ are skipped above output.snapshot_max_nodes.
 from __future__ import annotations
 
 import csv
+import errno
 import hashlib
 import io as io_module
 import json
 import math
 import os
 import pathlib
+import shutil
 
 import numpy as np
 from dolfinx import fem, io
@@ -120,6 +122,7 @@ class Writer:
                                        restart_count or 0, "solution.xdmf" in verified)
             comm.barrier()
         self._writable = {}                # P1/DG0 copies of higher-degree fields (xdmf_field)
+        self.last_field_bytes = 0          # rank 0: the last step's field files (_check_room)
         self.obstacle = None               # obstacle.xdmf: a rigid obstacle's surface
         drawing = xdmf and obstacle_drawing(problem, comm)
         if drawing and self.rank == 0:
@@ -172,6 +175,7 @@ class Writer:
             # A file per step, closed before the index lists it: a stop while it is being
             # written never touches the steps before it.
             name = self.xdmf / f"step-{n:06d}.xdmf"
+            self._check_room(name)
             if self.rank == 0:          # DOLFINx opens these paths itself: checked before
                 files.require_regular(name)
                 files.require_regular(name.with_suffix(".h5"))
@@ -179,6 +183,9 @@ class Writer:
                 f.write_mesh(self.mesh)
                 for field in fields:
                     f.write_function(xdmf_field(field, self._writable), record["t"])
+            if self.rank == 0:
+                self.last_field_bytes = sum(os.stat(path).st_size
+                                            for path in (name, name.with_suffix(".h5")))
         self.steps_written = n + 1
         self.last_record = record
         if self.rank != 0:
@@ -205,6 +212,21 @@ class Writer:
         # One line, written whole and flushed: a stop leaves whole lines (and at most a cut
         # last one, which read_summary drops).
         self.steps_file.append(json.dumps(jsonable(record), allow_nan=False) + "\n")
+
+    def _check_room(self, name: pathlib.Path):
+        """Stop (OSError ENOSPC on every rank) before the fields of a step are written when
+        the disk has less free space than twice the last step's field files: HDF5 failing
+        to write a file at its close leaves DOLFINx's file object in a state that crashes
+        the process when it is destroyed, so a step's fields are begun only with room for
+        them."""
+        need = 0
+        if self.rank == 0 and self.last_field_bytes:
+            free = shutil.disk_usage(name.parent).free
+            need = 2 * self.last_field_bytes if free < 2 * self.last_field_bytes else 0
+        need = self.comm.bcast(need, root=0)
+        if need:
+            raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (the fields of a step "
+                          f"need about {need // 2} bytes)", str(name.parent))
 
     def note(self, key: str, text: str):
         """Add a note or warning to summary.json (rewritten: it is small)."""
