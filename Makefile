@@ -173,10 +173,15 @@ figures: install
 # The demos as notebooks in JupyterLab, on a kernel of this environment (the demos declare
 # none: they open on contactvisco-$(STACK)); root needs --allow-root. What the demos write
 # goes to demos/results/, which git ignores.
+# On the Debian route markdown-it-py and mdit-py-plugins stay at the versions Debian's
+# myst-parser (the documentation's) requires. jupytext-config makes a double click open a
+# demo's .py file as a notebook (the user's JupyterLab settings).
+NOTEBOOK_PINS := $(if $(filter debian,$(STACK)),-c constraints.txt 'markdown-it-py<3' 'mdit-py-plugins<0.4')
 notebook: install
-	$(PY) -m pip install -q $(if $(filter debian,$(STACK)),-c constraints.txt) jupyterlab jupytext
+	$(PY) -m pip install -q $(NOTEBOOK_PINS) jupyterlab jupytext
 	$(PY) -m ipykernel install --user --name contactvisco-$(STACK) \
 	  --display-name "contactvisco ($(STACK))"
+	$(VENV)/bin/jupytext-config set-default-viewer python
 	$(VENV)/bin/jupyter lab demos/ \
 	  --MappingKernelManager.default_kernel_name=contactvisco-$(STACK) \
 	  $$([ "$$(id -u)" = 0 ] && echo --allow-root)
@@ -184,14 +189,16 @@ notebook: install
 # The documentation (docs/, Sphinx + MyST + numpydoc from Debian's packages), built offline
 # into build/docs with the Debian route's Python, so that autodoc imports the package; every
 # warning (a broken internal link or anchor included) fails it. Then the relative file links
-# of README.md and docs/*.md (tests/unit/test_docs_links.py).
-DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3-sphinx-rtd-theme
+# of README.md and docs/*.md (tests/unit/test_docs_links.py) and the built pages: no network,
+# MathJax from the build (Debian's libjs-mathjax), no raw math or table (test_docs_built.py).
+DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3-sphinx-rtd-theme \
+                     libjs-mathjax
 
 docs:
 	$(MAKE) STACK=debian install
 	$(MAKE) apt-packages APT_PACKAGES="$(DOCS_APT_PACKAGES)"
 	.venv/bin/python -m sphinx -W --keep-going -n -b html docs build/docs
-	.venv/bin/python -m pytest -q tests/unit/test_docs_links.py
+	.venv/bin/python -m pytest -q tests/unit/test_docs_links.py tests/unit/test_docs_built.py
 	@echo "documentation: build/docs/index.html"
 
 clean:

@@ -50,10 +50,12 @@ cells = 16 if quick() else 32
 steps = 12 if quick() else 30      # over T = 60 s: k = 5 s, or 2 s
 temperatures = [15.0, 25.0]        # 5 degrees below and above T_ref
 
-# The Prony table beside this demo (a notebook runs in the demo's folder; a script knows
-# its file).
+# The Prony table beside this demo: a script knows its file; a notebook has none and runs
+# in the folder it was started from, demos/ or the repository's root.
 here = pathlib.Path(__file__).parent if "__file__" in globals() else pathlib.Path.cwd()
-prony_csv = (here / "data" / "sbs_ac13_prony.csv").resolve()
+prony_csv = next(folder / "data" / "sbs_ac13_prony.csv"
+                 for folder in (here, here / "demos")
+                 if (folder / "data" / "sbs_ac13_prony.csv").is_file()).resolve()
 print(prony_csv.read_text())
 
 # %% [markdown]

@@ -21,6 +21,8 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     Keys: x (n, d), normal (n, d), u_nu, gap (h), penetration (s = u_nu - h),
     u_tau (2D: along t = (-nu_y, nu_x); 3D: |u_tau|),
     lambda_nu, p_nu (compliance traction p_nu(min(s, g))), reaction_nu (-sigma_nu),
+    contact_pressure (the same -sigma_nu, positive in compression, under the name a reader
+    looks for),
     reaction_tau (sigma_tau, same convention as u_tau), radius (the friction bound: mu p_nu,
     or mu (p_nu + R_nu) with contact.friction_law = "coulomb"), slip_vector (u_tau, or the
     step's u_tau - u_tau(t_{n-1}) with contact.slip = "increment"), status (0, 1, 2 as in
@@ -62,6 +64,8 @@ def contact_table(problem, comm) -> dict[str, np.ndarray] | None:
     if body is not None:
         table["master"] = _gather_sorted(problem.contact.obstacle.master_values(), comm,
                                          problem.length_scale)
+    # The name a reader looks for: -sigma_nu, positive in compression.
+    table["contact_pressure"] = table["reaction_nu"].copy()
     table["status"] = classify(table["penetration"], contact["g"], problem.length_scale)
     table["friction"] = stick_slip(table)             # the stick/slip state
     table["status_name"] = state_names(table["status"], STATUSES)
@@ -218,13 +222,35 @@ def status_counts(table) -> dict[str, int]:
 def status_at_nodes(problem, table) -> tuple[np.ndarray, np.ndarray]:
     """(the owned contact nodes of this rank, their status codes from the gathered `table`):
     the table's rows matched to the nodes by position, rounded as _gather_sorted rounds."""
+    own, rows = rows_at_nodes(problem, table)
+    return own, table["status"][rows]
+
+
+def rows_at_nodes(problem, table) -> tuple[np.ndarray, np.ndarray]:
+    """The owned contact nodes of this rank and the rows of the gathered `table` that hold
+    them, matched by position (rounded as _gather_sorted rounds).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem with contact.
+    table : dict
+        A contact table (contact_table), the same on every rank.
+
+    Returns
+    -------
+    own : numpy.ndarray
+        Local P1 node indices of the owned contact nodes.
+    rows : numpy.ndarray
+        For each of them, its row of `table`.
+    """
     nodes = problem.contact.nodes
     d = problem.geometry.mesh.geometry.dim
     own = nodes.nodes[nodes.owned]
     scale = 1e-9 * problem.length_scale
     row = {tuple(key): i for i, key in enumerate(np.round(table["x"] / scale).astype(np.int64))}
     keys = np.round(problem.contact.Q_coordinates[own][:, :d] / scale).astype(np.int64)
-    return own, table["status"][[row[tuple(key)] for key in keys]]
+    return own, np.array([row[tuple(key)] for key in keys], dtype=np.int64)
 
 
 def _nodal_displacement(problem) -> np.ndarray:

@@ -34,7 +34,7 @@ LOCK = "contactvisco.io.lock"
 OWN_FILES = ("summary.json", "summary.json.tmp", "steps.jsonl", "steps.jsonl.tmp",
              "contact_nodes.csv", "contact_nodes.csv.tmp", "interface_nodes.csv",
              "interface_master.csv", "solution.xdmf",
-             "solution.xdmf.tmp", "solution.h5", "snapshots.npz", "snapshots.tmp.npz",
+             "solution.xdmf.tmp", "solution.h5", "obstacle.xdmf", "obstacle.xdmf.tmp", "snapshots.npz", "snapshots.tmp.npz",
              "deformed_mesh.png", "stress.png", "contact_reactions.png",
              "contact_displacements.png", "contact_status.png", "probes.png")
 OWN_FOLDERS = ("solution", "checkpoint")

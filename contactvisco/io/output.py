@@ -15,20 +15,24 @@ are skipped above output.snapshot_max_nodes.
 from __future__ import annotations
 
 import csv
+import errno
 import hashlib
 import io as io_module
 import json
 import math
 import os
 import pathlib
+import shutil
 
 import numpy as np
 from dolfinx import fem, io
 
 from contactvisco.fem import compat
 from contactvisco.errors import SceneError
-from contactvisco.fem.contact_state import STATUSES, STICK_SLIP_STATES, status_at_nodes
+from contactvisco.fem.contact_state import (STATUSES, STICK_SLIP_STATES, rows_at_nodes,
+                                            status_at_nodes)
 from contactvisco.io import files
+from contactvisco.io.obstacle_file import DRAWN, OBSTACLE_FILE, ObstacleFile, surface
 
 class Writer:
     """summary.json, steps.jsonl, contact_nodes.csv and solution.xdmf in one output folder.
@@ -118,6 +122,11 @@ class Writer:
                                        restart_count or 0, "solution.xdmf" in verified)
             comm.barrier()
         self._writable = {}                # P1/DG0 copies of higher-degree fields (xdmf_field)
+        self.last_field_bytes = 0          # rank 0: the last step's field files (_check_room)
+        self.obstacle = None               # obstacle.xdmf: a rigid obstacle's surface
+        drawing = xdmf and obstacle_drawing(problem, comm)
+        if drawing and self.rank == 0:
+            self.obstacle = ObstacleFile(self.folder / OBSTACLE_FILE, drawing, kept_steps)
 
     def _drop_fields_from(self, count: int):
         """Rank 0, on a restart: remove the field files of steps >= count, written after the
@@ -134,8 +143,8 @@ class Writer:
         first restart_count steps (a row cut by a stop is dropped), opened for appending.
         verified: the file was already cut back to the checkpoint (check_records)."""
         header = ["step", "t"] + ["xyz"[i] for i in range(d)] + [
-            "u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau", "friction_bound",
-            "status", "friction"]
+            "u_nu", "gap", "contact_pressure", "u_tau", "reaction_nu", "reaction_tau",
+            "friction_bound", "status", "friction"]
         self.csv = self._start_table(CSV_FILE, header, restart_count, verified)
 
     def _start_table(self, name: str, header: list, restart_count: int | None,
@@ -166,6 +175,7 @@ class Writer:
             # A file per step, closed before the index lists it: a stop while it is being
             # written never touches the steps before it.
             name = self.xdmf / f"step-{n:06d}.xdmf"
+            self._check_room(name)
             if self.rank == 0:          # DOLFINx opens these paths itself: checked before
                 files.require_regular(name)
                 files.require_regular(name.with_suffix(".h5"))
@@ -173,6 +183,9 @@ class Writer:
                 f.write_mesh(self.mesh)
                 for field in fields:
                     f.write_function(xdmf_field(field, self._writable), record["t"])
+            if self.rank == 0:
+                self.last_field_bytes = sum(os.stat(path).st_size
+                                            for path in (name, name.with_suffix(".h5")))
         self.steps_written = n + 1
         self.last_record = record
         if self.rank != 0:
@@ -184,8 +197,8 @@ class Writer:
                 rows.writerow([n, repr(record["t"])]
                               + [repr(float(c)) for c in table["x"][i]]
                               + [repr(float(table[key][i])) for key in
-                                 ("u_nu", "gap", "u_tau", "reaction_nu", "reaction_tau",
-                                  "radius")]
+                                 ("u_nu", "gap", "contact_pressure", "u_tau",
+                                  "reaction_nu", "reaction_tau", "radius")]
                               + [STATUSES[table["status"][i]],
                                  STICK_SLIP_STATES[table["friction"][i]]])
             self.csv.append(text.getvalue())
@@ -194,9 +207,26 @@ class Writer:
                 self.interface[name].append(text)
         if self.index is not None and fields:
             self.index.append(n, record["t"])
+        if self.obstacle is not None:
+            self.obstacle.append(record)
         # One line, written whole and flushed: a stop leaves whole lines (and at most a cut
         # last one, which read_summary drops).
         self.steps_file.append(json.dumps(jsonable(record), allow_nan=False) + "\n")
+
+    def _check_room(self, name: pathlib.Path):
+        """Stop (OSError ENOSPC on every rank) before the fields of a step are written when
+        the disk has less free space than twice the last step's field files: HDF5 failing
+        to write a file at its close leaves DOLFINx's file object in a state that crashes
+        the process when it is destroyed, so a step's fields are begun only with room for
+        them."""
+        need = 0
+        if self.rank == 0 and self.last_field_bytes:
+            free = shutil.disk_usage(name.parent).free
+            need = 2 * self.last_field_bytes if free < 2 * self.last_field_bytes else 0
+        need = self.comm.bcast(need, root=0)
+        if need:
+            raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (the fields of a step "
+                          f"need about {need // 2} bytes)", str(name.parent))
 
     def note(self, key: str, text: str):
         """Add a note or warning to summary.json (rewritten: it is small)."""
@@ -218,7 +248,7 @@ class Writer:
             return
         if self.index is not None:
             self.index.close()
-        for f in (self.csv, self.steps_file, *self.interface.values()):
+        for f in (self.csv, self.steps_file, self.obstacle, *self.interface.values()):
             if f is not None:
                 f.close()
 
@@ -541,6 +571,20 @@ COMPONENTS = {2: (("xx", 0, 0), ("yy", 1, 1), ("xy", 0, 1)),
               "axisymmetric": (("rr", 0, 0), ("zz", 1, 1), ("rz", 0, 1), ("tt", 2, 2))}
 #: The output.fields computed from sigma.
 STRESS_FIELDS = ("sigma", "stress_components", "von_mises")
+#: output.fields = "contact": the P1 scalar fields on the vertices it writes, their value at
+#: a vertex of the contact boundary (off it: 0, and -1 for the two states).
+CONTACT_FIELDS = {
+    "contact_pressure": "-sigma_nu, positive in compression (contact table: contact_pressure)",
+    "gap": "h - u_nu, the distance left to the foundation or obstacle (negative: into the "
+           "layer)",
+    "normal_traction": "sigma_nu = -contact_pressure, negative in compression",
+    "tangential_traction": "sigma_tau (2D: along t = (-nu_y, nu_x); 3D: its magnitude)",
+    "slip": "the slip (u_tau, or its increment over the step with contact.slip = "
+            "'increment'; 2D: along t; 3D: its magnitude)",
+    "contact_state": "0 separated, 1 normal compliance, 2 at the bound; -1 off the contact "
+                     "boundary",
+    "friction_state": "0 no friction, 1 stick, 2 slip; -1 off the contact boundary",
+}
 
 
 def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
@@ -575,6 +619,8 @@ def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
         fields["stress_components"] = [cache[f"sigma_{name}"] for name, _, _ in components
                                        if f"sigma_{name}" in cache]
         fields["von_mises"] = [cache["von_mises"]] if "von_mises" in cache else []
+    if "contact" in names and problem.contact is not None and table is not None:
+        fields["contact"] = contact_fields(problem, table, cache)
     if "contact_status" in names and problem.contact is not None and table is not None:
         target = _cached(cache, "contact_status", lambda: problem.contact.gap.function_space)
         own, status = status_at_nodes(problem, table)
@@ -583,6 +629,80 @@ def derived_fields(names, problem, sigma, table, cache: dict) -> dict:
         target.x.scatter_forward()
         fields["contact_status"] = [target]
     return fields
+
+
+def contact_fields(problem, table, cache: dict) -> list:
+    """The fields of CONTACT_FIELDS as P1 scalars on the vertices (the space of the gap),
+    from the gathered contact table: its values at the contact nodes, 0 elsewhere (and -1
+    for the two states, so that ParaView's Threshold at >= 0 keeps the contact boundary).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem with contact.
+    table : dict
+        The contact table of the step (contact_state.contact_table).
+    cache : dict
+        Keeps the Functions between steps.
+
+    Returns
+    -------
+    list of dolfinx.fem.Function
+        One Function per name of CONTACT_FIELDS, named so.
+    """
+    own, rows = rows_at_nodes(problem, table)
+    d = table["x"].shape[1]
+    slip = np.asarray(table["slip_vector"])[rows]
+    normal = np.asarray(table["normal"])[rows]
+    if d == 2:                     # signed along t = (-nu_y, nu_x), as u_tau in the table
+        slip = slip[:, 0] * -normal[:, 1] + slip[:, 1] * normal[:, 0]
+    else:
+        slip = np.linalg.norm(slip - np.sum(slip * normal, axis=1)[:, None] * normal, axis=1)
+    values = {"contact_pressure": table["contact_pressure"][rows],
+              "gap": -np.asarray(table["penetration"])[rows],
+              "normal_traction": -table["contact_pressure"][rows],
+              "tangential_traction": table["reaction_tau"][rows],
+              "slip": slip,
+              "contact_state": table["status"][rows],
+              "friction_state": table["friction"][rows]}
+    out = []
+    for name, value in values.items():
+        target = _cached(cache, name, lambda: problem.contact.gap.function_space)
+        target.x.array[:] = -1.0 if name.endswith("_state") else 0.0
+        target.x.array[own] = value
+        target.x.scatter_forward()
+        out.append(target)
+    return out
+
+
+def obstacle_drawing(problem, comm):
+    """The surface of the scene's rigid obstacle in its reference position, drawn to cover
+    the body (obstacle_file.surface), on every rank (the body's bounding box is reduced over
+    the ranks); None without an obstacle that has a drawing.
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The problem (its scene and mesh).
+    comm : mpi4py.MPI.Comm
+        The communicator of the mesh.
+
+    Returns
+    -------
+    tuple or None
+        (points, cells, XDMF topology type).
+    """
+    from mpi4py import MPI
+    obstacle = problem.scene.get("obstacle") or {}
+    if obstacle.get("shape") not in DRAWN or problem.contact is None:
+        return None
+    d = problem.geometry.mesh.geometry.dim
+    x = problem.geometry.mesh.geometry.x[:, :d]
+    lower = x.min(axis=0) if len(x) else np.full(d, np.inf)
+    upper = x.max(axis=0) if len(x) else np.full(d, -np.inf)
+    comm.Allreduce(MPI.IN_PLACE, lower, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, upper, op=MPI.MAX)
+    return surface(obstacle, lower, upper)
 
 
 def body_field(problem):

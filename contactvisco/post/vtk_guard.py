@@ -84,9 +84,25 @@ def _to_front() -> None:
     sys.meta_path.insert(0, mine[0] if mine else _Finder())
 
 
+#: Where the EGL library of a Linux system is looked for.
+EGL_LIBRARIES = ("/usr/lib/x86_64-linux-gnu/libEGL.so.1", "/usr/lib/aarch64-linux-gnu/libEGL.so.1",
+                 "/usr/lib64/libEGL.so.1", "/usr/lib/libEGL.so.1")
+
+
+def headless_rendering() -> None:
+    """Without a display, VTK's render windows are EGL's where the system has EGL: VTK (9.4
+    on) otherwise tries X first and warns "bad X server connection" before it falls back.
+    A choice made in the environment (VTK_DEFAULT_OPENGL_WINDOW) is kept."""
+    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+        return
+    if any(os.path.exists(path) for path in EGL_LIBRARIES):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
 def install() -> None:
     """Put the finder first on sys.meta_path (once; a no-op where dlopen has no
-    RTLD_DEEPBIND, i.e. outside glibc)."""
+    RTLD_DEEPBIND, i.e. outside glibc), and choose headless rendering without a display."""
+    headless_rendering()
     if not hasattr(os, "RTLD_DEEPBIND"):
         return
     if not any(isinstance(finder, _Finder) for finder in sys.meta_path):

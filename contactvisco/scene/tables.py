@@ -1174,7 +1174,7 @@ class Solver(Table):
 
 #: output.fields: the fields an XDMF file may hold.
 FIELDS = ("u", "sigma", "history_stress", "lambda_nu", "lambda_tau", "stress_components",
-          "von_mises", "contact_status")
+          "von_mises", "contact_status", "contact")
 
 
 class Output(Table):
@@ -1182,7 +1182,7 @@ class Output(Table):
         "probes": Key([], lambda x: isinstance(x, list), "a list of points"),
         "figure_times": Key([], number_list, "a list of any number of finite numbers"),
         "xdmf": Key(True, boolean, "true or false"),
-        "fields": Key(["u", "sigma"], lambda x: isinstance(x, list) and all(
+        "fields": Key(["u", "sigma", "von_mises", "contact"], lambda x: isinstance(x, list) and all(
             isinstance(f, str) and f in FIELDS for f in x), f"a list of {', '.join(FIELDS)}"),
         "figures": Key(True, boolean, "true or false"),
         "snapshot_max_nodes": Key(200000, lambda x: (integer(x) and x >= 0) or x == math.inf,

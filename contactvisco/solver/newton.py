@@ -504,6 +504,23 @@ class NewtonSolver:
         ksp = self.snes.getKSP()
         return f"{ksp.getType()}/{ksp.getPC().getType()}"
 
+    def describe_linear_solver(self) -> str:
+        """linear_solver() as a run's header says it: with stale factorizations on (the
+        direct solver's default), also that a Jacobian close to the factorized one is solved
+        by FGMRES on the earlier factors, which is when the steps print Krylov iterations.
+
+        Returns
+        -------
+        str
+            E.g. 'preonly/lu, fgmres/lu on the last factors for <= 16 changed rows'.
+        """
+        name = self.linear_solver()
+        if self.stale_rows > 0:
+            pc = self.snes.getKSP().getPC().getType()
+            name = (f"preonly/{pc}, fgmres/{pc} on the last factors for <= {self.stale_rows} "
+                    "changed rows")
+        return name
+
     def solve(self) -> int:
         """Newton from the current Functions; returns the iteration count or raises
         NewtonFailure. The Functions hold the converged solution afterwards."""

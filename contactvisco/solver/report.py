@@ -42,7 +42,7 @@ def announce(scene, problem, snes, comm, setup_s, say, writer=None, output=None)
     say(f"contactvisco: scene '{scene['name']}', {comm.size} rank(s), {counts['u']} "
         f"displacement unknowns"
         + (f", {contact_nodes} contact nodes ({multipliers})" if contact_nodes else "")
-        + f"; {snes.system_kind} system, {snes.linear_solver()}; set-up (incl. JIT) "
+        + f"; {snes.system_kind} system, {snes.describe_linear_solver()}; set-up (incl. JIT) "
         f"{setup_s:.2f} s" + (f"; {output}" if output else ""))
     converted = describe(scene)
     if converted:

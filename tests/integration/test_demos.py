@@ -38,3 +38,23 @@ def test_demo_runs_as_notebook(demo, tmp_path, monkeypatch):
     if demo.stem == "two_bodies":       # the patch test: mortar exact, node to segment not
         assert "mortar: interface pressure / p from 1.0000 to 1.0000" in text
         assert "node_to_segment: interface pressure / p from 0.9" in text
+
+
+@pytest.mark.parametrize("layout", ["demos", "root"])
+def test_a_demo_finds_its_data_wherever_the_notebook_runs(layout, tmp_path):
+    """viscoelastic.py's cells up to its reading of the Prony table, as a notebook started
+    in the demos' folder or in the repository's root (a notebook has no __file__)."""
+    jupytext = pytest.importorskip("jupytext")
+    nbclient = pytest.importorskip("nbclient")
+    data = tmp_path / "data" if layout == "demos" else tmp_path / "demos" / "data"
+    shutil.copytree(ROOT / "demos" / "data", data)
+    notebook = jupytext.read(ROOT / "demos" / "viscoelastic.py")
+    last = next(i for i, cell in enumerate(notebook.cells)
+                if "prony_csv.read_text()" in cell.source)
+    notebook.cells = notebook.cells[:last + 1]
+    client = nbclient.NotebookClient(notebook, timeout=300, kernel_name="python3",
+                                     resources={"metadata": {"path": str(tmp_path)}})
+    client.execute()
+    text = "".join(out.get("text", "") for cell in notebook.cells if cell.cell_type == "code"
+                   for out in cell.get("outputs", []))
+    assert (data / "sbs_ac13_prony.csv").read_text().splitlines()[1] in text
