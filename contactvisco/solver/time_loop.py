@@ -211,7 +211,8 @@ class Run:
     def _record(self, n, state: Accepted, table) -> dict:
         """The step record of steps.jsonl."""
         snes, probes = self.snes, self.probes
-        return {"step": n, "t": state.t, "newton_iterations": state.iterations,
+        # k: the step actually taken (a cut step's halves have their own), None at t_0
+        return {"step": n, "t": state.t, "k": state.k, "newton_iterations": state.iterations,
                 "residual": snes.residuals[-1] if snes.residuals else 0.0,
                 "residual_history": snes.residuals, "wall_s": state.wall_s, "cuts": state.cuts,
                 "krylov_iterations": snes.krylov_iterations,

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from contactvisco.api import read_results
 from contactvisco.errors import SceneError
 from contactvisco.model import time_grid
 from contactvisco.model import viscoelastic as ve
@@ -161,7 +162,8 @@ def _probes(result):
 def test_restart_in_the_middle_of_a_logarithmic_grid_continues_it(tmp_path_factory,
                                                                   monkeypatch):
     """A run stopped after its checkpoint of step 12 (of 28) and restarted steps on the same
-    grid and reaches the uninterrupted run's displacements; the body creeps meanwhile."""
+    grid and reaches the uninterrupted run's displacements; the body creeps meanwhile. The
+    records of both give each step's size k."""
     comm = MPI.COMM_WORLD
     folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
                for name in ("whole", "stopped")]
@@ -173,6 +175,13 @@ def test_restart_in_the_middle_of_a_logarithmic_grid_continues_it(tmp_path_facto
     grid = time_grid.times(scene["time"]).tolist()
     assert [s["t"] for s in whole.steps] == grid
     assert [s["t"] for s in restarted.steps] == grid[13:]
+    # each record's k is its step of the grid, t_n - t_{n-1}, in the result and in steps.jsonl
+    k = [None] + [b - a for a, b in zip(grid, grid[1:])]
+    assert [s["k"] for s in whole.steps] == k
+    if comm.rank == 0:
+        written = read_results(folders[1])["steps"]
+        assert [s["k"] for s in written] == k
+        assert [s["k"] for s in restarted.steps] == k[13:]
     a, b = _probes(whole), _probes(restarted)
     assert np.abs(a[13:] - b).max() <= 1e-12 * np.abs(a).max()
     assert abs(a[-1, 0, 1]) > 1.5 * abs(a[1, 0, 1]) > 0          # it crept
