@@ -50,7 +50,8 @@ def block_error(taus, T, m, rule, history="smooth", hold=0.3, grid=None):
                          grid=grid)
     t, sigma = rl.block_stress(raw)
     exact = rl.maxwell_stress("plane_strain", G, K, STRAIN, history, t, hold=hold)
-    assert t.tolist() == time_grid.times(loader.resolve(raw)["time"]).tolist()
+    if grid.get("grid") != "adaptive":              # an adaptive grid is known as it goes
+        assert t.tolist() == time_grid.times(loader.resolve(raw)["time"]).tolist()
     return float(np.abs(sigma - exact).max() / np.abs(exact).max()), t
 
 
