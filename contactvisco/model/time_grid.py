@@ -353,3 +353,60 @@ def landing_times(time: dict) -> list:
     """The times after 0 an adaptive grid steps onto exactly: time.stops below T, then T."""
     T = float(time["T"])
     return [float(t) for t in (time.get("stops") or []) if 0.0 < float(t) < T] + [T]
+
+
+def scaled(time: dict, factor: float) -> dict:
+    """The [time] keys that make a grid `factor` times as dense (presets, the trade-off's
+    ladder): uniform steps N f; a logarithmic grid's (or segment's) first step k_1 / f and
+    per_decade m f (growth g^(1/f)); an adaptive grid's first step k_1 / f and tolerance
+    tol / f^3 (its local error is of order 3, so its steps scale as tol^(-1/3)); given times
+    are data and stay.
+
+    Parameters
+    ----------
+    time : dict
+        The [time] table (values not yet checked are left as they are).
+    factor : float
+        f > 0.
+
+    Returns
+    -------
+    dict
+        The changed keys and their values (empty when nothing scales).
+    """
+    def number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0
+
+    def geometric(spec):
+        out = {}
+        if number(spec.get("first")):
+            out["first"] = spec["first"] / factor
+        if number(spec.get("per_decade")):
+            out["per_decade"] = spec["per_decade"] * factor
+        elif number(spec.get("growth")) and spec["growth"] > 1:
+            out["growth"] = spec["growth"] ** (1.0 / factor)
+        return out
+
+    def steps(spec):
+        n = spec.get("steps")
+        ok = isinstance(n, int) and not isinstance(n, bool) and n >= 1
+        return {"steps": max(1, round(n * factor))} if ok else {}
+
+    kind = time.get("grid", "uniform")
+    if factor == 1:                       # the scene as it is, its values' types kept
+        return {}
+    if kind == "uniform":
+        return steps(time)
+    if kind == "logarithmic":
+        return geometric(time)
+    if kind == "adaptive":
+        out = {"first": time["first"] / factor} if number(time.get("first")) else {}
+        if number(time.get("tolerance")):
+            out["tolerance"] = time["tolerance"] / factor ** 3
+        return out
+    if kind == "piecewise" and isinstance(time.get("segments"), list):
+        segments = [dict(s, **(steps(s) if s.get("grid", "uniform") == "uniform"
+                               else geometric(s))) if isinstance(s, dict) else s
+                    for s in time["segments"]]
+        return {"segments": segments}
+    return {}
