@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco.scene import loader
 from contactvisco.solver.time_loop import simulate
 from helpers import run_stopped_after_checkpoint
-from test_time_grids import WIDE, _material, _probes, block_error
+import test_time_grids as time_grids
+from test_time_grids import WIDE, _probes, block_error
 
 
 def adaptive(tolerance):
@@ -44,18 +44,9 @@ def test_adaptive_grid_takes_fewer_steps_than_a_logarithmic_grid_of_the_same_err
 
 def creep_scene(tolerance=1e-3):
     """The block creeping on the compliant foundation (test_time_grids.creep_scene) on an
-    adaptive grid from 1e-3 s to 1e4 s, with a stop at 1 s."""
-    visco, _, _ = _material(WIDE)
-    return loader.resolve({
-        "name": "adaptive_creep",
-        "geometry": {"lower": [0.0, 0.0], "upper": [2.0, 1.0], "cells": [8, 4]},
-        "material": {"model": "plane_strain"}, "viscoelastic": visco,
-        "dirichlet": [{"boundary": "left", "components": [0]}],
-        "traction": [{"boundary": "top", "value": [0.0, "-0.5 * x[0] * (1 - exp(-t))"]}],
-        "contact": {"boundary": "bottom", "stiffness": 100.0, "g": 0.03},
-        "time": {"T": 1e4, "rule": "exponential", "grid": "adaptive", "first": 1e-2,
-                 "tolerance": tolerance, "stops": [1.0]},
-        "output": {"probes": [[2.0, 1.0], [1.0, 0.0]], "xdmf": False, "figures": False}})
+    adaptive grid from 1e-2 s to 1e4 s, with a stop at 1 s."""
+    return time_grids.creep_scene(time={"grid": "adaptive", "first": 1e-2,
+                                        "tolerance": tolerance, "stops": [1.0]})
 
 
 def test_restart_in_the_middle_of_an_adaptive_grid_continues_it(tmp_path_factory,

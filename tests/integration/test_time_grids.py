@@ -140,9 +140,10 @@ def test_creep_over_seven_decades_on_a_logarithmic_grid():
     assert np.abs(strain - exact).max() / np.abs(exact).max() > 10 * errors[1]
 
 
-def creep_scene(per_decade=4):
+def creep_scene(per_decade=4, time=None):
     """A block on the compliant foundation creeping under a constant load (shear relaxing
-    over five decades), exponential rule on a logarithmic grid from 1e-3 s to 1e4 s."""
+    over five decades), exponential rule on a logarithmic grid from 1e-3 s to 1e4 s (or the
+    grid of the [time] keys `time`)."""
     visco, _, _ = _material(WIDE)
     return loader.resolve({
         "name": "log_creep",
@@ -151,8 +152,8 @@ def creep_scene(per_decade=4):
         "dirichlet": [{"boundary": "left", "components": [0]}],
         "traction": [{"boundary": "top", "value": [0.0, "-0.5 * x[0]"]}],
         "contact": {"boundary": "bottom", "stiffness": 100.0, "g": 0.03},
-        "time": {"T": 1e4, "rule": "exponential", "grid": "logarithmic", "first": 1e-3,
-                 "per_decade": per_decade},
+        "time": {"T": 1e4, "rule": "exponential", **(time or {
+            "grid": "logarithmic", "first": 1e-3, "per_decade": per_decade})},
         "output": {"probes": [[2.0, 1.0], [1.0, 0.0]], "xdmf": False, "figures": False}})
 
 
