@@ -19,7 +19,7 @@ Four kinds (time.grid):
 - ``adaptive``: the steps are chosen as the run goes (contactvisco.solver.step_control) from
   an estimate of the memory's local time error against time.tolerance, between time.min_step
   and time.max_step, from time.first. Known in advance are only the times it lands on (0,
-  time.stops, T: :func:`times`) and the bounds of its steps (:func:`steps` gives
+  time.landing_times, T: :func:`times`) and the bounds of its steps (:func:`steps` gives
   [min_step, max_step], which every check that needs the grid's steps takes).
 
 Every step is at least :data:`LEAST_STEP` T (the time loop matches times to 1e-12 T) and
@@ -350,9 +350,10 @@ def step_bounds(time: dict) -> tuple[float, float]:
 
 
 def landing_times(time: dict) -> list:
-    """The times after 0 an adaptive grid steps onto exactly: time.stops below T, then T."""
+    """The times after 0 an adaptive grid steps onto exactly: time.landing_times below T,
+    then T."""
     T = float(time["T"])
-    return [float(t) for t in (time.get("stops") or []) if 0.0 < float(t) < T] + [T]
+    return [float(t) for t in (time.get("landing_times") or []) if 0.0 < float(t) < T] + [T]
 
 
 def scaled(time: dict, factor: float) -> dict:

@@ -940,14 +940,14 @@ class Time(Table):
         "min_step": Key(None, _positive_or_none, "a number > 0 (the adaptive grid's least step)"),
         "max_step": Key(None, _positive_or_none,
                         "a number > 0 (the adaptive grid's largest step)"),
-        "stops": Key(None, lambda x: x is None or number_list(x),
-                     "a list of finite numbers (times the adaptive grid lands on)"),
+        "landing_times": Key(None, lambda x: x is None or number_list(x),
+                             "a list of finite numbers (times the adaptive grid lands on)"),
     }
 
     #: The keys of each grid kind besides T (a key of another kind is refused, not ignored).
     GRID_KEYS = {"uniform": (), "logarithmic": ("first", "growth", "per_decade"),
                  "piecewise": ("segments",), "times": ("times", "times_file", "times_column"),
-                 "adaptive": ("first", "tolerance", "min_step", "max_step", "stops")}
+                 "adaptive": ("first", "tolerance", "min_step", "max_step", "landing_times")}
 
     def rules(self, scene):
         kind = self["grid"]
@@ -985,7 +985,7 @@ class Time(Table):
 
     def _adaptive(self, scene) -> None:
         """An adaptive grid (contactvisco.solver.step_control): first and tolerance given,
-        min_step <= first <= max_step <= T, stops inside (0, T); its estimate is the
+        min_step <= first <= max_step <= T, landing_times inside (0, T); its estimate is the
         exponential rule's on a Prony history (no reduced time, no fitted or table kernel)."""
         for name in ("first", "tolerance"):
             self.need(self[name] is not None, name,

@@ -452,11 +452,12 @@ class NewtonSolver:
     def enable_nearby(self):
         """Keep the factorization of the operator P for every Newton matrix J while FGMRES
         with P's factors solves J x = b to STALE_RTOL, until the iterations beyond the first
-        of those solves add up to more than NEARBY_BUDGET: a new step size changes the memory's weight on every row of the bulk
-        operator, J = P + (w(k') - w(k)) M, and P^-1 J = I + (w(k') - w(k)) P^-1 M is close
-        to the identity for nearby k. Only with the direct solver's defaults (reuse, KSP
-        preonly, PC lu) of the displacement system, whose SNES must have J as its Jacobian
-        matrix and P as its preconditioner matrix; otherwise nothing changes."""
+        of those solves add up to more than NEARBY_BUDGET (or one does not converge within
+        NEARBY_MAX_IT). A new step size changes the memory's weight on every row of the bulk
+        operator, J = P + (w(k') - w(k)) M, and P^-1 J = I + (w(k') - w(k)) P^-1 M is close to
+        the identity for nearby k. Only with the direct solver's defaults (reuse, KSP preonly,
+        PC lu) of the displacement system, whose SNES must have J as its Jacobian matrix and P
+        as its preconditioner matrix; otherwise nothing changes."""
         ksp = self.snes.getKSP()
         if self.reuse and ksp.getType() == "preonly" and ksp.getPC().getType() == "lu":
             self.nearby = True

@@ -6,7 +6,7 @@ accepted state of step size k with relative estimate e, the next step is
 
     k' = k min(GROW, max(SHRINK, SAFETY (tol/e)^(1/3)))   within [time.min_step, time.max_step],
 
-shortened to land on the next time of time.stops and on T (stretched onto it when less than
+shortened to land on the next time of time.landing_times and on T (stretched onto it when less than
 time.min_step would be left). A step is not taken again when its estimate exceeds the
 tolerance: the next one shrinks (at most by SHRINK). The cuts on a Newton failure stay those
 of the time loop (halves, solver.max_cuts), each half an accepted state with its own

@@ -46,7 +46,7 @@ def creep_scene(tolerance=1e-3):
     """The block creeping on the compliant foundation (test_time_grids.creep_scene) on an
     adaptive grid from 1e-2 s to 1e4 s, with a stop at 1 s."""
     return time_grids.creep_scene(time={"grid": "adaptive", "first": 1e-2,
-                                        "tolerance": tolerance, "stops": [1.0]})
+                                        "tolerance": tolerance, "landing_times": [1.0]})
 
 
 def test_restart_in_the_middle_of_an_adaptive_grid_continues_it(tmp_path_factory,

@@ -28,7 +28,7 @@ def test_paper_scene_values():
                              "per_decade": None, "segments": None, "times": None,
                              "times_file": None, "times_column": None,
                              "tolerance": None, "min_step": None, "max_step": None,
-                             "stops": None}
+                             "landing_times": None}
 
 
 def test_set_overrides():

@@ -61,8 +61,8 @@ def test_next_step_grows_and_shrinks_within_its_limits():
 
 
 def test_adaptive_grid_states_its_landing_times_and_bounds():
-    """Known in advance: 0, the stops, T; the bounds of its steps for every check."""
-    time = dict(ADAPTIVE, stops=[0.1, 200.0, 5.0], max_step=10.0)
+    """Known in advance: 0, the landing times, T; the bounds of its steps for every check."""
+    time = dict(ADAPTIVE, landing_times=[0.1, 200.0, 5.0], max_step=10.0)
     assert time_grid.times(time).tolist() == [0.0, 0.1, 5.0, 100.0]
     assert time_grid.steps(time).tolist() == [1e-4, 10.0]
     assert time_grid.summary(time) == (3, 1e-4, 10.0)
