@@ -14,7 +14,6 @@ import pytest
 from mpi4py import MPI
 
 from contactvisco.solver.time_loop import simulate
-from helpers import run_stopped_after_checkpoint
 import test_time_grids as time_grids
 from test_time_grids import WIDE, _probes, block_error
 
@@ -54,14 +53,8 @@ def test_restart_in_the_middle_of_an_adaptive_grid_continues_it(tmp_path_factory
     """A run stopped after its checkpoint of step 9 and restarted takes the uninterrupted
     run's steps (each k and error estimate) and reaches its displacements; the stop is a
     step time."""
-    comm = MPI.COMM_WORLD
-    folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
-               for name in ("whole", "stopped")]
-    scene = creep_scene()
-    whole = simulate(scene, out=folders[0], comm=comm, progress=False)
-    run_stopped_after_checkpoint(monkeypatch, 10, lambda: simulate(
-        scene, out=folders[1], comm=comm, progress=False))
-    restarted = simulate(scene, out=folders[1], comm=comm, progress=False, restart=True)
+    whole, restarted, _ = time_grids.whole_and_restarted(tmp_path_factory, monkeypatch,
+                                                         creep_scene(), 10)
     times = [s["t"] for s in whole.steps]
     assert 1.0 in times and times[-1] == 1e4
     assert [s["t"] for s in restarted.steps] == times[10:]

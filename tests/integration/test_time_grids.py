@@ -161,19 +161,27 @@ def _probes(result):
     return np.array([[probe["u"] for probe in record["probes"]] for record in result.steps])
 
 
+def whole_and_restarted(tmp_path_factory, monkeypatch, scene, count):
+    """The uninterrupted run of `scene`, the run stopped after its checkpoint of `count`
+    accepted states and restarted, and their two output folders."""
+    comm = MPI.COMM_WORLD
+    folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
+               for name in ("whole", "stopped")]
+    whole = simulate(scene, out=folders[0], comm=comm, progress=False)
+    run_stopped_after_checkpoint(monkeypatch, count, lambda: simulate(
+        scene, out=folders[1], comm=comm, progress=False))
+    restarted = simulate(scene, out=folders[1], comm=comm, progress=False, restart=True)
+    return whole, restarted, folders
+
+
 def test_restart_in_the_middle_of_a_logarithmic_grid_continues_it(tmp_path_factory,
                                                                   monkeypatch):
     """A run stopped after its checkpoint of step 12 (of 28) and restarted steps on the same
     grid and reaches the uninterrupted run's displacements; the body creeps meanwhile. The
     records of both give each step's size k."""
     comm = MPI.COMM_WORLD
-    folders = [comm.bcast(str(tmp_path_factory.mktemp(name)) if comm.rank == 0 else None)
-               for name in ("whole", "stopped")]
     scene = creep_scene()
-    whole = simulate(scene, out=folders[0], comm=comm, progress=False)
-    run_stopped_after_checkpoint(monkeypatch, 13, lambda: simulate(
-        scene, out=folders[1], comm=comm, progress=False))
-    restarted = simulate(scene, out=folders[1], comm=comm, progress=False, restart=True)
+    whole, restarted, folders = whole_and_restarted(tmp_path_factory, monkeypatch, scene, 13)
     grid = time_grid.times(scene["time"]).tolist()
     assert [s["t"] for s in whole.steps] == grid
     assert [s["t"] for s in restarted.steps] == grid[13:]
