@@ -259,6 +259,9 @@ def _grid_comment(scene) -> str:
     """A TOML comment that says what the time grid makes: its steps and their extremes."""
     from contactvisco.model import time_grid
     steps, least, largest = time_grid.summary(scene["time"])
+    if time_grid.adaptive(scene["time"]):       # chosen as the run goes: its bounds
+        return (f"\n# time grid (adaptive): at least {steps} steps, k between {least:.4g} "
+                f"and {largest:.4g}, tolerance {scene['time']['tolerance']:g}")
     return (f"\n# time grid ({scene['time']['grid']}): {steps} steps, k from {least:.4g} to "
             f"{largest:.4g}")
 

@@ -57,6 +57,8 @@ import math
 
 import numpy as np
 
+from contactvisco.model import time_error
+
 PARTS = ("full", "deviatoric", "volumetric")
 
 #: time.rule: eq (19) as printed, the trapezoid rule on the last sub-interval, and each
@@ -159,6 +161,12 @@ class History:
         self.sums: list[np.ndarray] | None = None   # P_i,n
         self.last: dict | None = None               # parts of eps_n
         self.direct = False
+        # An adaptive grid (solver.step_control) sets keep_previous: eps_{n-1} is then kept
+        # (and checkpointed) and each commit estimates the step's local error (time_error).
+        self.keep_previous = False
+        self.previous: dict | None = None           # parts of eps_{n-1}
+        self.last_k: float | None = None            # k_n, between eps_{n-1} and eps_n
+        self.local_error: tuple | None = None       # (max |e_{n+1}|, max |eps_{n+1}|) here
 
     def commit(self, eps: np.ndarray, k: float | None):
         """Take the strain of a converged state, reached by a step of size k (None at t_0)."""
@@ -175,7 +183,24 @@ class History:
                 dec = _decay(k, tau)                  # 1 if tau = inf
                 total *= dec
                 total += (0.5 * k * dec) * self.last[part] + (0.5 * k) * parts[part]
+        if self.keep_previous:
+            self._estimate(parts, eps, k)
         self.last = parts
+
+    def _estimate(self, parts: dict, eps: np.ndarray, k: float | None):
+        """local_error of the step k to the strain `parts` (model.time_error), None until
+        three strains are known; then eps_n becomes the previous strain."""
+        self.local_error = None
+        if self.previous is not None and k is not None and self.last_k is not None:
+            error = np.zeros_like(eps)
+            for a, tau, part in self.terms:
+                curvature = time_error.second_difference(
+                    self.previous[part], self.last[part], parts[part], self.last_k, k)
+                error += (a * time_error.curvature_weight(k, tau)) * curvature
+            self.local_error = (float(np.abs(error).max()) if error.size else 0.0,
+                                float(np.abs(eps).max()) if eps.size else 0.0)
+        self.previous = self.last
+        self.last_k = k
 
     def explicit(self, k: float) -> np.ndarray:
         """The history stress (its explicit part for the trapezoid rule) of a step of size k
@@ -211,6 +236,8 @@ class History:
         """Arrays that restore() takes back (checkpoints)."""
         out = {f"sum{i}": total for i, total in enumerate(self.sums or [])}
         out.update({f"last_{part}": e for part, e in (self.last or {}).items()})
+        if self.keep_previous:
+            out.update({f"prev_{part}": e for part, e in (self.previous or {}).items()})
         return out
 
     def restore(self, state: dict):
@@ -218,6 +245,8 @@ class History:
         self.sums = [state[f"sum{i}"].copy() for i in range(count)] or None
         self.last = {key[5:]: value.copy() for key, value in state.items()
                      if key.startswith("last_")} or None
+        self.previous = {key[5:]: value.copy() for key, value in state.items()
+                         if key.startswith("prev_")} or None
 
 
 def _decay(k, tau: float):

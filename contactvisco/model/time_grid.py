@@ -16,6 +16,11 @@ Four kinds (time.grid):
   ramp-and-hold load). The last end is T.
 - ``times``: the given times (a list, or a column of a CSV file read by the scene), T added
   when the list ends before it.
+- ``adaptive``: the steps are chosen as the run goes (contactvisco.solver.step_control) from
+  an estimate of the memory's local time error against time.tolerance, between time.min_step
+  and time.max_step, from time.first. Known in advance are only the times it lands on (0,
+  time.landing_times, T: :func:`times`) and the bounds of its steps (:func:`steps` gives
+  [min_step, max_step], which every check that needs the grid's steps takes).
 
 Every step is at least :data:`LEAST_STEP` T (the time loop matches times to 1e-12 T) and
 the grid has at most the scene's bound of steps; :func:`count` gives N before any array is
@@ -28,7 +33,7 @@ import math
 import numpy as np
 
 #: time.grid: the kinds of time grid.
-GRIDS = ("uniform", "logarithmic", "piecewise", "times")
+GRIDS = ("uniform", "logarithmic", "piecewise", "times", "adaptive")
 
 #: Kinds of a segment of a piecewise grid.
 SEGMENT_GRIDS = ("uniform", "logarithmic")
@@ -141,6 +146,8 @@ def count(time: dict) -> float:
     kind, T = time.get("grid", "uniform"), float(time["T"])
     if kind == "uniform":
         return float(time["steps"])
+    if kind == "adaptive":            # the fewest it can take: the landing times
+        return float(len(landing_times(time)))
     if kind == "logarithmic":
         return geometric_count(T, float(time["first"]), growth_of(time))
     if kind == "piecewise":
@@ -205,6 +212,8 @@ def times(time: dict) -> np.ndarray:
                                        growth_of(segment)))
             start = end
         after = np.concatenate(parts)
+    elif kind == "adaptive":
+        after = np.array(landing_times(time))
     else:
         after = np.array(explicit_times(time))
     out = np.concatenate([[0.0], after])
@@ -261,6 +270,8 @@ def steps(time: dict) -> np.ndarray:
     """
     if time.get("grid", "uniform") == "uniform":
         return np.full(int(time["steps"]), float(time["T"]) / time["steps"])
+    if time.get("grid") == "adaptive":
+        return np.array(step_bounds(time))
     return np.diff(times(time))
 
 
@@ -278,6 +289,8 @@ def summary(time: dict) -> tuple[int, float, float]:
         The number of steps and the extreme step sizes.
     """
     k = steps(time)
+    if time.get("grid") == "adaptive":            # the fewest steps, and the bounds
+        return int(count(time)), float(k[0]), float(k[1])
     return len(k), float(k.min()), float(k.max())
 
 
@@ -304,3 +317,97 @@ def nearest(time: dict, wanted) -> list[int]:
         return [min(steps, max(0, round(t / k))) for t in wanted]
     grid = times(time)
     return [int(np.argmin(np.abs(grid - t))) for t in wanted]
+
+
+def adaptive(time: dict) -> bool:
+    """Whether the [time] table's steps are chosen as the run goes (time.grid = "adaptive")."""
+    return time.get("grid") == "adaptive"
+
+
+#: Default smallest step of an adaptive grid, relative to its first step.
+MIN_STEP_OF_FIRST = 0.01
+
+
+def step_bounds(time: dict) -> tuple[float, float]:
+    """(k_min, k_max) of an adaptive grid: time.min_step (default first/100) and time.max_step
+    (default T); the checks that need a grid's steps in advance take these two.
+
+    Parameters
+    ----------
+    time : dict
+        The [time] table, grid = "adaptive".
+
+    Returns
+    -------
+    tuple of float
+        The smallest and the largest step the controller may choose.
+    """
+    first = float(time["first"])
+    least = time.get("min_step")
+    largest = time.get("max_step")
+    least = MIN_STEP_OF_FIRST * first if least is None else float(least)
+    return least, float(time["T"]) if largest is None else float(largest)
+
+
+def landing_times(time: dict) -> list:
+    """The times after 0 an adaptive grid steps onto exactly: time.landing_times below T,
+    then T."""
+    T = float(time["T"])
+    return [float(t) for t in (time.get("landing_times") or []) if 0.0 < float(t) < T] + [T]
+
+
+def scaled(time: dict, factor: float) -> dict:
+    """The [time] keys that make a grid `factor` times as dense (presets, the trade-off's
+    ladder): uniform steps N f; a logarithmic grid's (or segment's) first step k_1 / f and
+    per_decade m f (growth g^(1/f)); an adaptive grid's first step k_1 / f and tolerance
+    tol / f^3 (its local error is of order 3, so its steps scale as tol^(-1/3)); given times
+    are data and stay.
+
+    Parameters
+    ----------
+    time : dict
+        The [time] table (values not yet checked are left as they are).
+    factor : float
+        f > 0.
+
+    Returns
+    -------
+    dict
+        The changed keys and their values (empty when nothing scales).
+    """
+    def number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0
+
+    def geometric(spec):
+        out = {}
+        if number(spec.get("first")):
+            out["first"] = spec["first"] / factor
+        if number(spec.get("per_decade")):
+            out["per_decade"] = spec["per_decade"] * factor
+        elif number(spec.get("growth")) and spec["growth"] > 1:
+            out["growth"] = spec["growth"] ** (1.0 / factor)
+        return out
+
+    def steps(spec):
+        n = spec.get("steps")
+        ok = isinstance(n, int) and not isinstance(n, bool) and n >= 1
+        return {"steps": max(1, round(n * factor))} if ok else {}
+
+    kind = time.get("grid", "uniform")
+    if factor == 1:                       # the scene as it is, its values' types kept
+        return {}
+    if kind == "uniform":
+        return steps(time)
+    if kind == "logarithmic":
+        return geometric(time)
+    if kind == "adaptive":
+        out = {"first": time["first"] / factor} if number(time.get("first")) else {}
+        if number(time.get("tolerance")):
+            out["tolerance"] = time["tolerance"] / factor ** 3
+        return out
+    if kind == "piecewise" and isinstance(time.get("segments"), list):
+        segments = [dict(s, **(steps(s) if s.get("grid", "uniform") == "uniform"
+                               else geometric(s))) if isinstance(s, dict) else s
+                    for s in time["segments"]]
+        return {"segments": segments}
+    return {}

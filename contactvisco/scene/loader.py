@@ -16,6 +16,7 @@ import pathlib
 import sys
 import tomllib
 
+from contactvisco.model import time_grid
 from contactvisco.scene.table import Provenance, finite, is_mesh_size
 from contactvisco.scene.tables import TABLE_LISTS, TABLES, Contact, Scene
 from contactvisco.scene import viscoelastic_table
@@ -288,9 +289,10 @@ def apply_preset(scene: dict, name: str) -> None:
         geo["parameters"] = {k: (v / preset["mesh"] if is_mesh_size(k) and not
                                  isinstance(v, bool) and isinstance(v, (int, float)) else v)
                              for k, v in geo["parameters"].items()}
-    if integer(scene["time"]["steps"]):
-        scene["time"]["steps"] = max(1, round(scene["time"]["steps"] * preset["steps"]))
-    scene["time"]["rule"] = preset["rule"]
+    # every kind of grid made preset["steps"] times as dense (time_grid.scaled)
+    scene["time"].update(time_grid.scaled(scene["time"], preset["steps"]))
+    if scene["time"].get("grid") != "adaptive":      # its estimate is the exponential rule's
+        scene["time"]["rule"] = preset["rule"]
     scene["discretization"]["degree"] = preset["degree"]
     if preset["degree"] > 1:
         scene["discretization"]["contact_quadrature"] = "gauss"

@@ -964,18 +964,28 @@ class Time(Table):
                           "the name of a CSV file beside the scene file"),
         "times_column": Key(None, lambda x: x is None or (isinstance(x, str) and x != ""),
                             "the header name of the time column of time.times_file"),
+        "tolerance": Key(None, lambda x: x is None or (finite(x) and 0 < x < 1),
+                         "a number in (0, 1) (the relative local error of a step's memory)"),
+        "min_step": Key(None, _positive_or_none, "a number > 0 (the adaptive grid's least step)"),
+        "max_step": Key(None, _positive_or_none,
+                        "a number > 0 (the adaptive grid's largest step)"),
+        "landing_times": Key(None, lambda x: x is None or number_list(x),
+                             "a list of finite numbers (times the adaptive grid lands on)"),
     }
 
     #: The keys of each grid kind besides T (a key of another kind is refused, not ignored).
     GRID_KEYS = {"uniform": (), "logarithmic": ("first", "growth", "per_decade"),
-                 "piecewise": ("segments",), "times": ("times", "times_file", "times_column")}
+                 "piecewise": ("segments",), "times": ("times", "times_file", "times_column"),
+                 "adaptive": ("first", "tolerance", "min_step", "max_step", "landing_times")}
 
     def rules(self, scene):
         kind = self["grid"]
         for other, names in self.GRID_KEYS.items():
             for name in names:
-                self.need(other == kind or self[name] is None, name,
+                self.need(name in self.GRID_KEYS[kind] or self[name] is None, name,
                           f"time.{name} belongs to time.grid = '{other}', not '{kind}'")
+        if kind == "adaptive":
+            self._adaptive(scene)
         if kind == "logarithmic":
             self._geometric(self, "time.grid = 'logarithmic'", "time.", self.need)
         elif kind == "piecewise":
@@ -984,6 +994,7 @@ class Time(Table):
             self._times(scene)
         count = time_grid.count(self)
         name = {"uniform": "steps", "logarithmic": "first", "piecewise": "segments",
+                "adaptive": "min_step",
                 "times": "times" if self["times"] is not None else "times_file"}[kind]
         what = (f"time.steps = {self['steps']}" if kind == "uniform" else
                 f"time.{name}: the grid has {count:.4g} steps, which")
@@ -1000,6 +1011,29 @@ class Time(Table):
         if not scene.get("body"):       # bodies: once their tables are checked (Scene)
             self.stable(scene)
         self._exponential_rule(scene)
+
+    def _adaptive(self, scene) -> None:
+        """An adaptive grid (contactvisco.solver.step_control): first and tolerance given,
+        min_step <= first <= max_step <= T, landing_times inside (0, T); its estimate is the
+        exponential rule's on a Prony history (no reduced time, no fitted or table kernel)."""
+        for name in ("first", "tolerance"):
+            self.need(self[name] is not None, name,
+                      f"time.grid = 'adaptive' needs time.{name}")
+        least, largest = time_grid.step_bounds(self)
+        self.need(least <= self["first"] <= largest <= self["T"], "max_step",
+                  f"time.grid = 'adaptive': min_step {least:g} <= first {self['first']:g} <= "
+                  f"max_step {largest:g} <= T {self['T']:g} is not true")
+        self.need(self["rule"] == "exponential", "rule",
+                  "time.grid = 'adaptive' estimates the exponential rule's error: set "
+                  "time.rule = 'exponential'")
+        visco, kernel = scene.get("viscoelastic"), scene["memory"]["kernel"]
+        self.need(kernel in ("constant", "exponential", "prony") or (
+            kernel == "none" and visco is not None), "grid",
+                  "time.grid = 'adaptive' needs a memory of exponential terms (memory.kernel "
+                  f"constant, exponential or prony, or [viscoelastic]), not {kernel!r}")
+        self.need(visco is None or visco["temperature"] is None, "grid",
+                  "time.grid = 'adaptive' steps in time, not in the reduced time of "
+                  "viscoelastic.temperature: use a logarithmic grid")
 
     @staticmethod
     def _geometric(spec, what: str, prefix: str, need) -> None:

@@ -138,6 +138,18 @@ STALE_MAX_IT = 2 * STALE_ROWS + 8
 STALE_KRYLOV = 4
 
 
+#: The displacement system with the direct solver keeps its factorization for a Newton matrix
+#: of another step size (another memory weight) until the FGMRES iterations beyond the first
+#: of the solves with its factors add up to more than NEARBY_BUDGET, about what a
+#: factorization costs in triangular solves (9 to 15 at 64^2 to 128^2 cells, docs/scaling.md):
+#: renting before buying, at most twice the cost of the better choice made in hindsight; or
+#: until a solve does not converge within NEARBY_MAX_IT iterations (enable_nearby).
+NEARBY_BUDGET = 10
+NEARBY_MAX_IT = 12
+#: Off: every new matrix is factorized (the measurement's reference).
+NEARBY = True
+
+
 def auto_iterative_size(d: int) -> int:
     """The number of displacement unknowns from which linear_solver = "auto" is iterative."""
     return (AUTO_ITERATIVE if compat.has_hypre() else AUTO_ITERATIVE_GAMG)[d]
@@ -351,6 +363,9 @@ class NewtonSolver:
         self._stale = False              # the current step is solved with an earlier P
         self._krylov_limit = 0           # the most FGMRES iterations the row count allows
         self.floating = None             # floating motions (solver.floating)
+        self.nearby = False              # keep P's factors for any nearby J (enable_nearby)
+        self._nearby_extra = 0           # FGMRES iterations beyond the first since P's factors
+        self.nearby_solves = 0           # solves with an earlier matrix's factors (a run's)
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -419,10 +434,44 @@ class NewtonSolver:
         fingerprint = matrix_fingerprint(A)
         same = fingerprint is not None and fingerprint == self._fingerprint
         if A.getComm().tompi4py().allreduce(same, op=MPI.LAND):
+            if self.nearby:
+                self._use_factors(self.snes.getKSP(), stale=False)
+            return
+        if self.nearby and self._fingerprint is not None and not self._nearby_exhausted():
+            self._krylov_limit = NEARBY_MAX_IT
+            self._use_factors(self.snes.getKSP(), stale=True)
+            self.nearby_solves += 1
             return
         A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         self._fingerprint = fingerprint
         self.setups += 1
+        if self.nearby:
+            self._nearby_extra = 0
+            self._use_factors(self.snes.getKSP(), stale=False)
+
+    def enable_nearby(self):
+        """Keep the factorization of the operator P for every Newton matrix J while FGMRES
+        with P's factors solves J x = b to STALE_RTOL, until the iterations beyond the first
+        of those solves add up to more than NEARBY_BUDGET (or one does not converge within
+        NEARBY_MAX_IT). A new step size changes the memory's weight on every row of the bulk
+        operator, J = P + (w(k') - w(k)) M, and P^-1 J = I + (w(k') - w(k)) P^-1 M is close to
+        the identity for nearby k. Only with the direct solver's defaults (reuse, KSP preonly,
+        PC lu) of the displacement system, whose SNES must have J as its Jacobian matrix and P
+        as its preconditioner matrix; otherwise nothing changes."""
+        ksp = self.snes.getKSP()
+        if self.reuse and ksp.getType() == "preonly" and ksp.getPC().getType() == "lu":
+            self.nearby = True
+
+    def _nearby_exhausted(self) -> bool:
+        """The last solve with an earlier matrix's factors did not converge, or the solves
+        with P's factors took more than NEARBY_BUDGET iterations beyond their first (the same
+        on every rank: the KSP's reductions are global)."""
+        ksp = self.snes.getKSP()
+        if not self._stale:
+            return False
+        self._nearby_extra += max(ksp.getIterationNumber() - 1, 0)
+        return (ksp.getConvergedReason() != PETSc.KSP.ConvergedReason.CONVERGED_RTOL
+                or self._nearby_extra > NEARBY_BUDGET)
 
     def enable_stale(self, rows: int | None = None):
         """Keep the factorization of the operator P for Newton matrices J that differ from it
@@ -608,6 +657,13 @@ class BlockSNES(NewtonSolver):
         self.snes.setFunction(_weak(self._residual), self.b)
         self.snes.setJacobian(_weak(self._jacobian), self.operator)
         self._finish_setup()
+
+    def keep_nearby_factors(self):
+        """The displacement system with the direct solver: J (the assembled matrix) and P
+        (the factorized operator) given to the SNES apart, and enable_nearby."""
+        if self.reuse and len(self.functions) == 1 and NEARBY:
+            self.snes.setJacobian(_weak(self._jacobian), self.A, self.operator)
+            self.enable_nearby()
 
     def _residual(self, snes, x, b):
         # SNES updates only the owned entries of x; the lifting of the Dirichlet rows below
@@ -980,6 +1036,7 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
             return newton
         newton.system_kind = system            # u alone: a block system of one block
         newton.operator.setNearNullSpace(near_nullspace(problem))
+        newton.keep_nearby_factors()
     return _with_floating(newton, problem, kind)
 
 

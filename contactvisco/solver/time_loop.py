@@ -29,7 +29,7 @@ from contactvisco.fem.problem import Problem, build
 from contactvisco.io import checkpoint, output, parallel
 from contactvisco.io.lock import FolderLock
 from contactvisco.model import time_grid
-from contactvisco.solver import diagnosis, predictor, report
+from contactvisco.solver import diagnosis, predictor, report, step_control
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure, SlidingLimit
 
@@ -185,6 +185,11 @@ class Run:
             t, count = self.resumed["t"], self.resumed["count"]
             self.say(f"restarting from the checkpoint at t = {t:g} (step {count - 1})")
         last = len(grid) - 1
+        self.control = None
+        if time_grid.adaptive(scene["time"]):     # the times come as the states are accepted
+            self.control = step_control.Controller(
+                scene["time"], problem, comm, self.resumed and self.writer.last_record)
+            grid, last = self.control.times(), None
         for n, t_n in enumerate(grid):
             t_n = float(t_n)
             if self.resumed and t_n <= t + 1e-12 * t_end:
@@ -200,7 +205,8 @@ class Run:
                     for observe in observers:
                         observe(record, table)
                     t, count = state.t, count + 1
-                    self._checkpoint(state, count, final=n == last and state.t == t_n)
+                    self._checkpoint(state, count, final=state.t == t_n and (
+                        n == last or (last is None and t_n == t_end)))
             except StepFailed as failed:
                 raise diagnosis.step_failure(problem, comm, failed.t_from, failed.t_to,
                                              failed.cuts, failed.failure, table,
@@ -211,7 +217,11 @@ class Run:
     def _record(self, n, state: Accepted, table) -> dict:
         """The step record of steps.jsonl."""
         snes, probes = self.snes, self.probes
-        return {"step": n, "t": state.t, "newton_iterations": state.iterations,
+        control = getattr(self, "control", None)
+        # adaptive grid: the relative estimate of the step's memory error (step_control)
+        error = {} if control is None else {"error": control.accepted(state.t, state.k)}
+        # k: the step actually taken (a cut step's halves have their own), None at t_0
+        return {"step": n, "t": state.t, "k": state.k, "newton_iterations": state.iterations,
                 "residual": snes.residuals[-1] if snes.residuals else 0.0,
                 "residual_history": snes.residuals, "wall_s": state.wall_s, "cuts": state.cuts,
                 "krylov_iterations": snes.krylov_iterations,
@@ -219,7 +229,7 @@ class Run:
                 "status_counts": contact_state.status_counts(table),
                 "probes": probes.values(self.problem.u, self.comm) if probes else [],
                 **thermal_record(self.problem, self.comm),
-                **obstacle_record(self.problem, table)}
+                **obstacle_record(self.problem, table), **error}
 
     def _file_observers(self) -> list:
         """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""

@@ -24,6 +24,7 @@ from contactvisco.model import viscoelastic as ve
 from contactvisco.model.material import lame_constants
 from contactvisco.scene import loader
 from contactvisco.solver.newton import create
+from contactvisco.solver import step_control
 
 #: The strain histories f(t) as scene expressions in t (hold: a ramp to t = hold, then held;
 #: smooth: the smooth ramp-and-hold 1 - exp(-t/hold), its rate 1/hold at 0, held at 1).
@@ -110,11 +111,19 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     owned = problem.tensor_space.dofmap.index_map.size_local
     bs = problem.tensor_space.dofmap.index_map_bs
     times, out = [], []
+    control = None
+    grid = time_grid.times(scene["time"])
+    if time_grid.adaptive(scene["time"]):       # the steps of the controller, as it goes
+        control = step_control.Controller(scene["time"], problem, comm)
+        grid = control.times()
     try:
-        for t in time_grid.times(scene["time"]):
+        for t in grid:
+            before = problem.time.committed
             problem.time.stage(float(t))
             snes.solve()
             problem.time.commit()
+            if control is not None:
+                control.accepted(float(t), None if before is None else float(t) - before)
             sigma.interpolate(problem.sigma_expression)
             values = sigma.x.array[:owned * bs].reshape(-1, d, d)
             times.append(float(t))

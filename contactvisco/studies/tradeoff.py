@@ -43,6 +43,7 @@ from mpi4py import MPI
 
 from contactvisco.errors import SceneError
 from contactvisco.io import files
+from contactvisco.model import time_grid
 from contactvisco.model.material import dimension
 from contactvisco.scene import loader as scene_module
 from contactvisco.scene.toml_text import document_text
@@ -74,7 +75,8 @@ class TradeoffError(ValueError):
 # --- the ladder -------------------------------------------------------------------------
 
 
-def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[str]:
+def settings_lines(scene: dict, mesh: float, steps: int, degree: int,
+                   density: float = 1.0) -> list[str]:
     """The absolute ``--set`` lines of one rung of the ladder.
 
     Parameters
@@ -89,6 +91,9 @@ def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[st
     degree : int
         The Lagrange degree of the displacement; degree 2 also selects the Gauss contact
         quadrature (the nodal conditions are P1's).
+    density : float, optional
+        A grid other than uniform: the factor on its density (time_grid.scaled), whose keys
+        replace ``time.steps``.
 
     Returns
     -------
@@ -105,7 +110,12 @@ def settings_lines(scene: dict, mesh: float, steps: int, degree: int) -> list[st
         for key, value in geo["parameters"].items():
             if scene_module.is_mesh_size(key):
                 lines.append(f"geometry.parameters.{key}={value / mesh:.6g}")
-    lines += [f"time.steps={steps}", f"discretization.degree={degree}"]
+    if scene["time"]["grid"] == "uniform":
+        lines.append(f"time.steps={steps}")
+    else:
+        lines += [f"time.{key}={_toml_value(value)}"
+                  for key, value in time_grid.scaled(scene["time"], density).items()]
+    lines.append(f"discretization.degree={degree}")
     if degree > 1:                       # nodal contact conditions are P1's
         lines.append("discretization.contact_quadrature=gauss")
     return lines
@@ -143,23 +153,30 @@ def rungs(scene: dict, levels: int, coarsest: float, degrees=(1, 2)) -> list[dic
         raise TradeoffError("geometry: the mesh cannot be refined (a .msh file, or a gmsh "
                             "script without mesh size parameters h or h_*); give a box or a gmsh "
                             "script with them")
-    if scene["time"]["grid"] != "uniform":
-        raise TradeoffError(f"time.grid = '{scene['time']['grid']}': the ladder's time knob is "
-                            "time.steps of a uniform grid; give a uniform grid (the trade-off "
-                            "does not scale other grids yet)")
-    N = scene["time"]["steps"]
-    step_counts = sorted({max(1, round(N / 2)), N, 2 * N}) if N > 1 else [N]
+    time = scene["time"]
+    if time["grid"] in ("times", "adaptive"):
+        raise TradeoffError(f"time.grid = '{time['grid']}': the ladder's time knob is the "
+                            "density of a uniform, logarithmic or piecewise grid (given times "
+                            "are data; an adaptive grid's steps are not known before the run: "
+                            "vary time.tolerance)")
+    N = int(time_grid.count(time))
+    # the grid half, once and twice as dense (time_grid.scaled): N/2, N, 2N uniform steps
+    densities = [0.5, 1.0, 2.0] if N > 1 else [1.0]
     base_degree = scene["discretization"]["degree"]
     out = []
     for j in range(levels):
         mesh = coarsest * 2 ** j
-        for steps in step_counts:
-            out.append({"level": j, "mesh": mesh, "steps": steps, "degree": base_degree})
+        for density in densities:
+            steps = int(time_grid.count({**time, **time_grid.scaled(time, density)}))
+            out.append({"level": j, "mesh": mesh, "steps": steps, "degree": base_degree,
+                        "density": density})
         for degree in degrees:
             if degree > base_degree and j < levels - 1:
-                out.append({"level": j, "mesh": mesh, "steps": N, "degree": degree})
+                out.append({"level": j, "mesh": mesh, "steps": N, "degree": degree,
+                            "density": 1.0})
     for rung in out:
-        rung["set"] = settings_lines(scene, rung["mesh"], rung["steps"], rung["degree"])
+        rung["set"] = settings_lines(scene, rung["mesh"], rung["steps"], rung["degree"],
+                                     rung["density"])
     return out
 
 
@@ -225,6 +242,17 @@ def run(source: str, overrides: list[str], comm=MPI.COMM_WORLD) -> dict:
             "steps_s": comm.allreduce(sum(s["wall_s"] for s in result.steps), op=MPI.MAX),
             "unknowns": int(sum(result.problem.count_unknowns().values())),
             "newton_mean": float(np.mean([s["newton_iterations"] for s in result.steps]))}
+
+
+def _toml_value(value) -> str:
+    """A number, or a list of inline tables (time.segments), as a TOML value of --set."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, str):
+        return f'"{value}"'
+    return repr(value)
 
 
 def _time_key(t: float, T: float) -> int:

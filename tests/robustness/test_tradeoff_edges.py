@@ -61,11 +61,31 @@ def test_the_command_line_exits_2_with_one_line(tmp_path, args):
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
-def test_a_grid_other_than_uniform_is_refused_before_any_run(tmp_path):
-    """The ladder scales time.steps: a logarithmic grid would run every rung on the same
-    grid without a word, so it is refused naming the key."""
-    overrides = ["time.grid='logarithmic'", "time.first=0.01", "time.growth=1.5",
-                 "time.rule='trapezoid'"]
-    with pytest.raises(tradeoff.TradeoffError, match="time.grid = 'logarithmic'"):
+def test_given_times_are_refused_before_any_run(tmp_path):
+    """The ladder scales a grid's density: given times are data it cannot scale, so they
+    are refused naming the key, not run on the same grid at every rung."""
+    overrides = ["time.grid='times'", "time.times=[0.1, 0.5, 1.0]", "time.rule='trapezoid'"]
+    with pytest.raises(tradeoff.TradeoffError, match="time.grid = 'times'"):
         tradeoff.tradeoff("paper", overrides=overrides, out=tmp_path / "t", **GOOD)
     assert not (tmp_path / "t").exists()
+
+
+def test_the_ladder_scales_a_logarithmic_grids_density():
+    """Half, once and twice as dense: first step k_1 / f and f m steps per decade; the rung
+    counts the steps of its grid."""
+    from contactvisco.model import time_grid
+    from contactvisco.scene import loader
+    scene = loader.load("paper", ["time.grid='logarithmic'", "time.first=0.01",
+                                  "time.per_decade=8", "time.rule='trapezoid'"])
+    rungs = [r for r in tradeoff.rungs(scene, 2, 0.5, degrees=(1,)) if r["level"] == 0]
+    assert [r["density"] for r in rungs] == [0.5, 1.0, 2.0]
+    for rung in rungs:
+        given = [line for line in rung["set"] if line.startswith("time.")]
+        assert given == [] if rung["density"] == 1.0 else given == [
+            f"time.first={0.01 / rung['density']!r}",
+            f"time.per_decade={8 * rung['density']!r}"]
+        scaled = loader.load("paper", ["time.grid='logarithmic'", "time.first=0.01",
+                                       "time.per_decade=8", "time.rule='trapezoid'",
+                                       *rung["set"]])
+        assert len(time_grid.steps(scaled["time"])) == rung["steps"]
+    assert rungs[0]["steps"] < rungs[1]["steps"] < rungs[2]["steps"]

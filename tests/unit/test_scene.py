@@ -26,7 +26,9 @@ def test_paper_scene_values():
     assert scene["time"] == {"T": 1.0, "steps": 10, "rule": "paper", "allow_unstable": False,
                              "grid": "uniform", "first": None, "growth": None,
                              "per_decade": None, "segments": None, "times": None,
-                             "times_file": None, "times_column": None}
+                             "times_file": None, "times_column": None,
+                             "tolerance": None, "min_step": None, "max_step": None,
+                             "landing_times": None}
 
 
 def test_set_overrides():
