@@ -275,23 +275,28 @@ class SphereLeeRadok:
 
 def creep_indentation(h: float, steps: int, T: float = 3.0, E: float = 200.0,
                       nu: float = 0.3, alpha: float = -60.0, tau: float = 1.0,
-                      P: float = 0.3, R: float = 1.0, comm=MPI.COMM_WORLD) -> dict:
+                      P: float = 0.3, R: float = 1.0, comm=MPI.COMM_WORLD,
+                      time: dict | None = None) -> dict:
     """A layer [0, 2] x [0, 1] (top held) under a cylinder pushed up by the constant force P
     (force control, from t = 0), with the deviatoric memory term alpha exp(-t/tau), trapezoid
-    rule; the contact width at every step against Lee-Radok.
+    rule on `steps` uniform steps unless `time` says otherwise; the contact width at every
+    step against Lee-Radok.
 
     Parameters
     ----------
     h : float
         The mesh size along the contact boundary.
     steps : int
-        Time steps on [0, T].
+        Time steps on [0, T] (uniform grid).
     T : float, optional
         The end time.
     E, nu, alpha, tau, P, R : float, optional
         The layer, its memory term, the force and the radius.
     comm : mpi4py.MPI.Comm, optional
         The communicator (collective).
+    time : dict, optional
+        Keys of the scene's `[time]` table that replace the uniform trapezoid grid (e.g.
+        ``{"grid": "logarithmic", "first": 0.01, "per_decade": 5, "rule": "exponential"}``).
 
     Returns
     -------
@@ -304,6 +309,7 @@ def creep_indentation(h: float, steps: int, T: float = 3.0, E: float = 200.0,
     raw["memory"] = {"kernel": "prony",
                      "terms": [{"alpha": alpha, "tau": tau, "part": "deviatoric"}]}
     raw["time"] = {"T": T, "steps": steps, "rule": "trapezoid"}
+    raw["time"].update(time or {})
     result = simulate(scene_module.resolve(raw), comm=comm, progress=False, keep_tables=True)
     exact = LeeRadok(E, nu, alpha, tau, P, R)
     out = {key: [] for key in ("t", "a_m", "a_m_exact", "a_exact", "depth", "force")}

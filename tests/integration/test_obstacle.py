@@ -463,6 +463,22 @@ def test_creep_indentation_against_lee_radok():
     assert r["a_m_exact"][-1] / r["a_m_exact"][0] > 1.15
 
 
+def test_creep_indentation_over_five_decades_on_a_logarithmic_grid():
+    """The same cylinder and layer from t_1 = 1e-2 tau to T = 1e3 tau on a logarithmic grid of
+    5 steps per decade (24 steps), exponential rule: the contact width follows Lee-Radok's
+    within 2 % at every step (measured 1.2 %), the force stays P, and the width grows over
+    the five decades as the closed form's does (by 19.5 % against 20.6 %), then stays."""
+    from contactvisco.studies.indentation import creep_indentation
+    r = creep_indentation(0.01, 1, T=1000.0, time={
+        "grid": "logarithmic", "first": 0.01, "per_decade": 5, "rule": "exponential"})
+    assert len(r["t"]) == 25 and r["t"][1] <= 0.01 and r["t"][-1] == 1000.0
+    assert r["error"] < 0.02, r["error"]
+    assert np.max(np.abs(r["force"] - 0.3)) < 1e-9
+    # the width and the depth grow until the memory has relaxed, then stay (to round-off)
+    assert np.all(np.diff(r["a_m"]) > -1e-12) and np.all(np.diff(r["depth"]) > -1e-12)
+    assert r["a_m"][-1] / r["a_m"][1] > 1.15 and r["a_m_exact"][-1] / r["a_m_exact"][1] > 1.15
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(COMM.size > 1, reason="two meshes; the 1-rank check is enough")
 def test_creep_indentation_converges_in_h():
