@@ -63,6 +63,24 @@ def cli_command(args, ranks: int = 1) -> list[str]:
     return launcher(ranks) + [sys.executable, "-m", "contactvisco", *map(str, args)]
 
 
+def layer_on_surface(distance: str, h: float = 0.25, h_bottom: float = 0.1,
+                     steps: int = 1) -> dict:
+    """The raw scene of a layer [0, 2] x [0, 1] (its top held, plane strain, E = 200,
+    nu = 0.3) pressed by `steps` steps onto a surface obstacle of signed distance `distance`
+    (*expr* in x) that rises by 1e-3: the case of the surface checks (tests/robustness,
+    benchmarks/robustness/trust_round.py)."""
+    return {"name": "layer_on_surface",
+            "geometry": {"type": "gmsh", "script": "rectangle",
+                         "parameters": {"length": 2.0, "height": 1.0, "h": h,
+                                        "h_bottom": h_bottom}},
+            "material": {"model": "plane_strain", "E": 200.0, "nu": 0.3},
+            "dirichlet": [{"boundary": "top", "components": "all"}],
+            "contact": {"boundary": "bottom", "g": 0.0, "mu": 0.0, "augmentation": 200.0},
+            "obstacle": {"shape": "surface", "distance": distance,
+                         "displacement": [0.0, "1e-3 * t"]},
+            "time": {"T": 1.0, "steps": steps}, "output": {"probes": []}}
+
+
 def run_cli(*args, ranks: int = 1, timeout: float = 300, cwd=None, env=None):
     """Run the command line to its end (killed after `timeout` s): the finished process, its
     output captured as text."""

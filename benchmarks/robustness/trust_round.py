@@ -25,6 +25,7 @@ import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
 from common import write_results  # noqa: E402
+from helpers import layer_on_surface  # noqa: E402
 
 from mpi4py import MPI  # noqa: E402
 
@@ -37,16 +38,7 @@ SMALL = ["geometry.cells=[6, 3]", "time.steps=3"]
 
 def surface(distance: str) -> dict:
     """A layer [0, 2] x [0, 1] (its top held) on a surface obstacle that rises by 1e-3."""
-    return {"name": "surface",
-            "geometry": {"type": "gmsh", "script": "rectangle",
-                         "parameters": {"length": 2.0, "height": 1.0, "h": 0.5,
-                                        "h_bottom": 0.25}},
-            "material": {"model": "plane_strain", "E": 200.0, "nu": 0.3},
-            "dirichlet": [{"boundary": "top", "components": "all"}],
-            "contact": {"boundary": "bottom", "g": 0.0, "mu": 0.0, "augmentation": 200.0},
-            "obstacle": {"shape": "surface", "distance": distance,
-                         "displacement": [0.0, "1e-3 * t"]},
-            "time": {"T": 1.0, "steps": 2}, "output": {"probes": []}}
+    return layer_on_surface(distance, h=0.5, h_bottom=0.25, steps=2)
 
 
 def wlf(temperature: str) -> dict:

@@ -6,6 +6,7 @@ import json
 import pathlib
 
 import pytest
+from helpers import layer_on_surface
 from mpi4py import MPI
 
 from contactvisco.errors import SceneError
@@ -14,20 +15,6 @@ from contactvisco.solver.time_loop import simulate
 
 COMM = MPI.COMM_WORLD
 SMALL = ["geometry.cells=[8, 4]", "time.steps=4"]
-
-
-def layer_on_surface(distance: str) -> dict:
-    """A layer [0, 2] x [0, 1] (its top held) on a surface obstacle that rises by 1e-3."""
-    return {"name": "layer_on_surface",
-            "geometry": {"type": "gmsh", "script": "rectangle",
-                         "parameters": {"length": 2.0, "height": 1.0, "h": 0.25,
-                                        "h_bottom": 0.1}},
-            "material": {"model": "plane_strain", "E": 200.0, "nu": 0.3},
-            "dirichlet": [{"boundary": "top", "components": "all"}],
-            "contact": {"boundary": "bottom", "g": 0.0, "mu": 0.0, "augmentation": 200.0},
-            "obstacle": {"shape": "surface", "distance": distance,
-                         "displacement": [0.0, "1e-3 * t"]},
-            "time": {"T": 1.0, "steps": 1}, "output": {"probes": []}}
 
 
 @pytest.mark.mpi
