@@ -166,9 +166,10 @@ compare-stacks:
 	python3 $(BENCH)/accuracy/stacks.py
 
 # The figures of README.md and docs/ with their signatures (tests/integration/test_figures.py
-# checks them).
+# checks them), and the picture of docs/paraview.md (a run read back as ParaView reads it).
 figures: install
 	$(PY) docs/make_figures.py
+	$(PY) docs/paraview_view.py
 
 # The demos as notebooks in JupyterLab, on a kernel of this environment (the demos declare
 # none: they open on contactvisco-$(STACK)); root needs --allow-root. What the demos write
