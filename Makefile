@@ -190,8 +190,9 @@ notebook: install
 # The documentation (docs/, Sphinx + MyST + numpydoc from Debian's packages), built offline
 # into build/docs with the Debian route's Python, so that autodoc imports the package; every
 # warning (a broken internal link or anchor included) fails it. The demos are executed as
-# notebooks first, two at a time (docs/demo_pages.py; cached in build/docs-demos/): about
-# 2.5 minutes from an empty build/ on 2 cores, 20 s with the cache. Then the relative file links
+# notebooks first, two at a time (docs/demo_pages.py; cached in build/docs-demos/): budget
+# 3 minutes from an empty build/ on an idle 2-core machine, 20 s with the cache
+# (docs/installation.md has the measurements). Then the relative file links
 # of README.md and docs/*.md (tests/unit/test_docs_links.py) and the built pages: no network,
 # MathJax from the build (Debian's libjs-mathjax), no raw math or table (test_docs_built.py).
 DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3-sphinx-rtd-theme \
