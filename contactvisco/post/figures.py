@@ -553,7 +553,10 @@ def deformed_meshes(data, indices, units, scale: float = 1.0, asked=None, obstac
     key.legend(handles, names,
                loc="upper center" if slender else "upper left",
                bbox_to_anchor=(0.5 if slender else 0.0, 0.0),
-               bbox_transform=_under(key, fig, 0.36), ncol=len(handles), frameon=False)
+               bbox_transform=_under(key, fig, 0.36),
+               # three entries in one row are wider than one column's figure
+               ncol=len(handles) if size[0] > COLUMN or len(handles) < 3 else 2,
+               frameon=False)
     return fig
 
 
