@@ -31,7 +31,7 @@ from contactvisco.fem import compat
 from contactvisco.errors import SceneError
 from contactvisco.fem.contact_state import (STATUSES, STICK_SLIP_STATES, rows_at_nodes,
                                             status_at_nodes)
-from contactvisco.io import files
+from contactvisco.io import files, h5states
 from contactvisco.io.obstacle_file import DRAWN, OBSTACLE_FILE, ObstacleFile, surface
 
 class Writer:
@@ -183,6 +183,7 @@ class Writer:
                 f.write_mesh(self.mesh)
                 for field in fields:
                     f.write_function(xdmf_field(field, self._writable), record["t"])
+            self._integer_codes(name, fields)
             if self.rank == 0:
                 self.last_field_bytes = sum(os.stat(path).st_size
                                             for path in (name, name.with_suffix(".h5")))
@@ -212,6 +213,22 @@ class Writer:
         # One line, written whole and flushed: a stop leaves whole lines (and at most a cut
         # last one, which read_summary drops).
         self.steps_file.append(json.dumps(jsonable(record), allow_nan=False) + "\n")
+
+    def _integer_codes(self, name: pathlib.Path, fields):
+        """The state codes of the step file `name` rewritten as integers (h5states), by rank
+        0 once every rank has closed the file; a failure is raised on every rank."""
+        if not any(f.name in h5states.CODE_FIELDS for f in fields):
+            return
+        error = None
+        self.comm.barrier()
+        if self.rank == 0:
+            try:
+                h5states.integer_codes(name)
+            except OSError as err:
+                error = str(err)
+        error = self.comm.bcast(error, root=0)
+        if error is not None:
+            raise OSError(f"the state codes of {name} cannot be written as integers: {error}")
 
     def _check_room(self, name: pathlib.Path):
         """Stop (OSError ENOSPC on every rank) before the fields of a step are written when
