@@ -542,10 +542,16 @@ class ForwardModel:
     def apply(self, scene: dict):
         """The Constants and Prony terms of `scene` into the built problem."""
         constants = self.problem.constants
+        built = scene_constants(self.scene)
         for name, value in scene_constants(scene).items():
             c = constants.get(name)
             if isinstance(c, fem.Constant):
                 c.value = value
+            elif value != built.get(name):
+                # e.g. contact.mu from 0: the built problem has no friction terms
+                raise SceneError(f"{name} = {value!r}: the problem was built with "
+                                 f"{built.get(name)!r}, which has no term of it; start the "
+                                 "parameter away from 0", key=f"contact.{name}")
         if self.terms is not None:
             self.problem.memory.history.terms = _prony_terms(scene, self.terms)
 

@@ -43,7 +43,14 @@ from contactvisco.scene import loader as scene_module
 from contactvisco.scene import prony_file
 
 #: The keys of a fit description, by table.
-FIT_KEYS = {"difference": "central", "step": 1e-3, "max_evaluations": 200, "tolerance": 1e-8}
+FIT_KEYS = {"jacobian": "auto", "difference": "central", "step": 1e-3, "max_evaluations": 200,
+            "tolerance": 1e-8}
+#: fit.jacobian: forward sensitivities through the time loop (contactvisco.solver.sensitivity),
+#: finite differences of forward runs, or the sensitivities where they cover every parameter.
+JACOBIANS = ("auto", "sensitivities", "finite-differences")
+#: Relative step of the central differences of the scene's conversion of a parameter (its
+#: Constants and Prony terms; no solve): h = SCENE_STEP max(|theta|, 1e-300).
+SCENE_STEP = 1e-5
 EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight")
 PARAMETER_KEYS = ("key", "initial", "bounds", "scale")
 #: fit.difference: the finite-difference rule of the Jacobian and scipy's name of it.
@@ -109,6 +116,8 @@ def read_fit(path) -> dict:
         _fail("fit", "must be a table")
     _known(given, tuple(FIT_KEYS), "fit.")
     fit.update(given)
+    if fit["jacobian"] not in JACOBIANS:
+        _fail("fit.jacobian", f"must be one of {', '.join(JACOBIANS)}, got {fit['jacobian']!r}")
     if fit["difference"] not in DIFFERENCES:
         _fail("fit.difference", f"must be one of {', '.join(DIFFERENCES)}, got "
               f"{fit['difference']!r}")
@@ -367,6 +376,76 @@ def forward(experiment: dict, parameters: list, values, comm=None) -> np.ndarray
     return depth[where]
 
 
+def _sample_index(times: np.ndarray, experiment: dict) -> np.ndarray:
+    """The grid's states at the data's sample times (the grid is the sample times)."""
+    tol = 1e-9 * experiment["t"][-1]
+    where = np.minimum(np.searchsorted(times, experiment["t"] - tol), len(times) - 1)
+    missed = np.flatnonzero(np.abs(times[where] - experiment["t"]) > tol)
+    if missed.size:
+        raise SceneError(f"{experiment['data']}: the run has no step at the sample time "
+                         f"t = {experiment['t'][missed[0]]!r}", key="time.times")
+    return where
+
+
+def _tangents(experiment: dict, parameters: list, values) -> list:
+    """Per parameter, the experiment's scene at theta_i +- h_i and 2 h_i (SCENE_STEP): the
+    central differences of the scene's conversion that the sensitivities take."""
+    out = []
+    for i, v in enumerate(values):
+        h = SCENE_STEP * max(abs(v), 1e-300)
+        shifted = []
+        for sign in (1.0, -1.0):
+            moved = np.array(values, float)
+            moved[i] = v + sign * h
+            shifted.append(_scene(experiment, parameters, moved))
+        out.append((shifted[0], shifted[1], 2 * h))
+    return out
+
+
+def _models(experiments, parameters, mode: str, comm):
+    """The experiments' forward models (contactvisco.solver.sensitivity.ForwardModel, each
+    built once at the initial values), whether the Jacobian is taken by sensitivities, and
+    why not when fit.jacobian = "auto" falls back to finite differences (None if it does
+    not)."""
+    from mpi4py import MPI
+
+    from contactvisco.solver import sensitivity
+    reasons = [r for r in (sensitivity.unsupported_key(p["key"]) for p in parameters) if r]
+    models = []
+    try:
+        for e in experiments:
+            if reasons:              # a key the built problem cannot follow: whole runs
+                models.append(None)
+                continue
+            model = sensitivity.ForwardModel(
+                _scene(e, parameters, [p["initial"] for p in parameters]),
+                comm or MPI.COMM_WORLD)
+            if model.memory_reason:
+                reasons.append(model.memory_reason)
+                model.destroy()
+                models.append(None)
+                continue
+            models.append(model)
+            if mode != "finite-differences":
+                try:
+                    model.sensitivity = sensitivity.StepSensitivity(model.problem,
+                                                                    model.newton)
+                except SceneError as err:
+                    reasons.append(str(err))
+    except BaseException:
+        for model in models:
+            if model is not None:
+                model.destroy()
+        raise
+    if mode == "sensitivities" and reasons:
+        for model in models:
+            if model is not None:
+                model.destroy()
+        _fail("fit.jacobian", f"forward sensitivities do not cover this fit: {reasons[0]}")
+    return models, mode != "finite-differences" and not reasons, (
+        reasons[0] if reasons and mode == "auto" else None)
+
+
 def _to_x(parameters, values):
     return np.array([math.log(v) if p["scale"] == "log" else v
                      for p, v in zip(parameters, values)])
@@ -463,29 +542,59 @@ def fit(description, comm=None) -> dict:
     parameters, experiments = spec["parameters"], spec["experiments"]
     settings = spec["fit"]
     runs = [0]
+    models, sensitivities, reason = _models(experiments, parameters, settings["jacobian"],
+                                            comm)
+    cached = {}
 
-    def residual(x):
+    def evaluate(x, with_jacobian):
         values = _to_values(parameters, x)
         runs[0] += 1
-        out = []
-        for i, e in enumerate(experiments):
+        out, rows = [], []
+        # dtheta/dx: 1 in linear scale, theta in log scale
+        scale = np.array([v if p["scale"] == "log" else 1.0 for p, v in zip(parameters, values)])
+        for i, (e, model) in enumerate(zip(experiments, models)):
             try:
-                out.append(e["w"] * (forward(e, parameters, values, comm) - e["depth"]))
+                if model is None:     # whole runs (a key the built problem cannot follow)
+                    out.append(e["w"] * (forward(e, parameters, values, comm) - e["depth"]))
+                    continue
+                tangents = _tangents(e, parameters, values) if with_jacobian else ()
+                result = model.run(_scene(e, parameters, values), tangents)
+                where = _sample_index(result["t"], e)
+                out.append(e["w"] * (result["depth"][where] - e["depth"]))
+                if with_jacobian:
+                    rows.append(e["w"] * result["d_depth"][where] * scale)
             except Exception as err:
                 # The run's own message names the step; this names the parameters.
                 err.add_note(f"in the forward run of experiment[{i}] at " + ", ".join(
                     f"{p['key']} = {v!r}" for p, v in zip(parameters, values)))
                 raise
+        if with_jacobian:
+            cached["x"], cached["J"] = np.array(x, copy=True), np.concatenate(rows)
         return np.concatenate(out)
+
+    def residual(x):
+        return evaluate(x, sensitivities)
+
+    def jacobian(x):
+        if "x" not in cached or not np.array_equal(cached["x"], x):
+            evaluate(x, True)
+        return cached["J"]
 
     lower = _to_x(parameters, [p["bounds"][0] for p in parameters])
     upper = _to_x(parameters, [p["bounds"][1] for p in parameters])
     start = time.perf_counter()
     tol = settings["tolerance"]
-    result = least_squares(residual, _to_x(parameters, [p["initial"] for p in parameters]),
-                           jac=DIFFERENCES[settings["difference"]], bounds=(lower, upper),
-                           method="trf", diff_step=settings["step"], x_scale="jac",
-                           ftol=tol, xtol=tol, gtol=tol, max_nfev=settings["max_evaluations"])
+    try:
+        result = least_squares(residual, _to_x(parameters, [p["initial"] for p in parameters]),
+                               jac=jacobian if sensitivities
+                               else DIFFERENCES[settings["difference"]],
+                               bounds=(lower, upper), method="trf", diff_step=settings["step"],
+                               x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
+                               max_nfev=settings["max_evaluations"])
+    finally:
+        for model in models:
+            if model is not None:
+                model.destroy()
     wall = time.perf_counter() - start
     values = _to_values(parameters, result.x)
     stats = statistics(result.jac, result.fun, parameters, values)
@@ -511,7 +620,9 @@ def fit(description, comm=None) -> dict:
         "jacobian_evaluations": int(result.njev or 0), "wall_s": wall,
         "status": int(result.status), "message": str(result.message),
         "success": bool(result.success), "warnings": stats["warnings"],
-        "jacobian": {"rule": settings["difference"], "step": settings["step"]},
+        "jacobian": ({"rule": "sensitivities", "scene_step": SCENE_STEP} if sensitivities
+                     else {"rule": settings["difference"], "step": settings["step"],
+                           **({"why": reason} if reason else {})}),
         "curves": curves,
     }
 
