@@ -60,7 +60,8 @@ from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.problem import build
 from contactvisco.model import time_grid
 from contactvisco.model.material import lame_constants
-from contactvisco.model.memory import History
+from contactvisco.model.memory import History, ReducedTimeHistory
+from contactvisco.model.viscoelastic import inverse_shift
 from contactvisco.model.memory_kernel import memory_terms
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver import predictor
@@ -73,8 +74,10 @@ _FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE
 #: The Constants of the forms a parameter may move (scene_constants), and the scene keys
 #: whose changes they carry: a parameter outside these is refused (unsupported_key).
 SUPPORTED_KEYS = ("viscoelastic.shear.", "viscoelastic.bulk.", "viscoelastic.young",
-                  "viscoelastic.nu", "material.E", "material.nu", "memory.",
-                  "contact.mu", "contact.stiffness", "contact.augmentation")
+                  "viscoelastic.nu", "viscoelastic.C1", "viscoelastic.C2",
+                  "viscoelastic.activation_energy", "viscoelastic.T_ref", "material.E",
+                  "material.nu", "memory.", "contact.mu", "contact.stiffness",
+                  "contact.augmentation")
 
 #: Relative displacement of a curved obstacle (of the body's size) in the central differences
 #: of its normal and gap (module description).
@@ -205,6 +208,11 @@ class StepSensitivity:
                       and np.ndim(c.value) == 0]
         self.dots = {name: fem.Constant(mesh, PETSc.ScalarType(0.0)) for name in self.names}
         memory = problem.memory
+        # the implicit weights of a history in reduced time: one value per point (Functions)
+        self.weights = {name: f for name, f in problem.constants.items()
+                        if name.startswith("memory_implicit_") and isinstance(f, fem.Function)}
+        self.weight_dots = {name: fem.Function(f.function_space)
+                            for name, f in self.weights.items()}
         self.H_dot = fem.Function(memory.tensor_space) if memory is not None else None
         self.u_dot = fem.Function(problem.V)
         contact = problem.contact
@@ -217,6 +225,8 @@ class StepSensitivity:
         def derivative(form):
             pieces = [constant_derivative(form, problem.constants[n], self.dots[n], scalar0)
                       for n in self.names]
+            pieces += [_function_derivative(form, f, self.weight_dots[name])
+                       for name, f in self.weights.items()]
             if memory is not None:
                 pieces.append(_function_derivative(form, memory.H, self.H_dot))
             if self.previous_dot is not None:
@@ -429,6 +439,8 @@ class StepSensitivity:
         """
         for name in self.names:
             self.dots[name].value = dots.get(name, 0.0)
+        for name, f in self.weight_dots.items():
+            f.x.array[:] = dots.get(name, 0.0)
         if self.H_dot is not None:
             self.H_dot.x.array[:] = 0.0 if H_dot is None else H_dot
         if self.previous_dot is not None:
@@ -463,28 +475,54 @@ class StepSensitivity:
 class HistoryTangent:
     """The tangent of the Prony history of eq (19) for one parameter (module description):
     a History of the same terms holding P'_n, and two at theta +- h for the recursion's
-    derivative at the primal state."""
+    derivative at the primal state. A history in reduced time (a temperature with a shift,
+    ReducedTimeHistory) has per point the rates 1/a_T at the step's two ends: the twin takes
+    the primal's, the two at theta +- h their own from the shift at theta +- h (WLF C1, C2,
+    an Arrhenius energy, T_ref)."""
 
-    def __init__(self, history: History, plus: list, minus: list, two_h: float):
+    def __init__(self, history, plus: list, minus: list, two_h: float, shifts=(None, None)):
         self.two_h = two_h
-        self.twin = History(history.terms, history.k, history.rule, history.d)
-        self.plus = History(plus, history.k, history.rule, history.d)
-        self.minus = History(minus, history.k, history.rule, history.d)
+        self.reduced = isinstance(history, ReducedTimeHistory)
+        base = history.history if self.reduced else history
 
-    def _at(self, state):
-        for h in (self.plus, self.minus):
-            h.restore(state)
+        def make(terms):
+            made = History(terms, base.k, base.rule, base.d)
+            return ReducedTimeHistory(made, history.block) if self.reduced else made
+        self.twin, self.plus, self.minus = make(base.terms), make(plus), make(minus)
+        self.shifts = shifts
 
-    def stress(self, state, k: float | None):
-        """H'_{n+1} of a step of size k from the primal state `state` (None at t_0)."""
-        if k is None or self.twin.sums is None:
+    def _sums(self, h):
+        return (h.history if self.reduced else h).sums
+
+    def prepare(self, primal, state, before, now):
+        """Before the step's stress and weights: the histories at theta +- h at the primal
+        state `state`; in reduced time their rates at the temperatures `before` (the
+        committed time's; None at t_0) and `now` (the staged time's), and the twin's the
+        primal's."""
+        if not self.reduced:
+            for h in (self.plus, self.minus):
+                if state:
+                    h.restore(state)
+            return
+        self.twin.committed = None if primal.committed is None else primal.committed.copy()
+        self.twin.stage(primal.staged)
+        for h, shift in zip((self.plus, self.minus), self.shifts):
+            if state:
+                h.restore(state)
+            if before is not None:
+                h.committed = inverse_shift(shift, before)[0]
+            h.stage(inverse_shift(shift, now)[0])
+
+    def stress(self, k: float | None):
+        """H'_{n+1} of a step of size k (None at t_0); prepare() first."""
+        if k is None or self._sums(self.twin) is None:
             return None
-        self._at(state)
         return self.twin.explicit(k) + (self.plus.explicit(k)
                                         - self.minus.explicit(k)) / self.two_h
 
-    def weights(self, state, k: float | None) -> dict:
-        """The derivatives of the implicit weights, name -> w' (memory_implicit_<part>)."""
+    def weights(self, k: float | None) -> dict:
+        """The derivatives of the implicit weights, name -> w' (memory_implicit_<part>:
+        numbers, or arrays per point in reduced time); prepare() first."""
         if k is None:
             return {}
         plus, minus = self.plus.implicit(k), self.minus.implicit(k)
@@ -492,15 +530,15 @@ class HistoryTangent:
                 for part in plus}
 
     def commit(self, state, eps: np.ndarray, eps_dot: np.ndarray, k: float | None):
-        """P'_{n+1} from the primal state before the step, its strain eps_{n+1} and the
-        tangent strain eps'_{n+1}."""
+        """P'_{n+1} from the primal state before the step (prepare() for this step first),
+        its strain eps_{n+1} and the tangent strain eps'_{n+1}."""
         self.twin.commit(eps_dot, k)
         if k is None or not state:
             return
-        self._at(state)
         self.plus.commit(eps, k)
         self.minus.commit(eps, k)
-        for total, p, m in zip(self.twin.sums, self.plus.sums, self.minus.sums):
+        for total, p, m in zip(self._sums(self.twin), self._sums(self.plus),
+                               self._sums(self.minus)):
             total += (p - m) / self.two_h
 
 
@@ -522,13 +560,18 @@ class ForwardModel:
         self.newton = solver_module.create(self.problem, comm)
         memory = self.problem.memory
         history = memory and memory.history
-        if memory is not None and type(history) is not History:
-            self.memory_reason = ("forward sensitivities follow a Prony history without a "
-                                  "temperature (viscoelastic.temperature) only")
+        self.reduced = isinstance(history, ReducedTimeHistory) and \
+            type(history.history) is History
+        self.base = history.history if self.reduced else history
+        if memory is not None and type(history) is not History and not self.reduced:
+            self.memory_reason = ("forward sensitivities follow a Prony history (in time, or "
+                                  "in reduced time with a shift) only, not a power-law, "
+                                  "table or fractional kernel or two bodies")
+            self.base = None
         else:
             self.memory_reason = None
-        self.terms = list(history.terms) if memory is not None and \
-            type(history) is History else None
+        self.terms = list(self.base.terms) if self.base is not None else None
+        self.built = scene_constants(scene)
         self.sensitivity = None
         self.runs = 0
 
@@ -542,7 +585,7 @@ class ForwardModel:
     def apply(self, scene: dict):
         """The Constants and Prony terms of `scene` into the built problem."""
         constants = self.problem.constants
-        built = scene_constants(self.scene)
+        built = self.built
         for name, value in scene_constants(scene).items():
             c = constants.get(name)
             if isinstance(c, fem.Constant):
@@ -553,7 +596,11 @@ class ForwardModel:
                                  f"{built.get(name)!r}, which has no term of it; start the "
                                  "parameter away from 0", key=f"contact.{name}")
         if self.terms is not None:
-            self.problem.memory.history.terms = _prony_terms(scene, self.terms)
+            self.base.terms = _prony_terms(scene, self.terms)
+        if self.reduced:
+            # the shift of the stage (fem.problem) reads the built scene's table: updated in
+            # place
+            self.scene["viscoelastic"].update(scene["viscoelastic"])
 
     def _reset(self):
         problem = self.problem
@@ -570,9 +617,16 @@ class ForwardModel:
         if memory is not None:
             memory.H.x.array[:] = 0.0
             for constant, _ in memory.implicit_terms:
-                constant.value = 0.0
-            history = memory.history
-            history.sums = history.last = history.previous = None
+                if isinstance(constant, fem.Function):     # a weight per point
+                    constant.x.array[:] = 0.0
+                else:
+                    constant.value = 0.0
+            self.base.sums = self.base.last = self.base.previous = None
+            if self.reduced:
+                history = memory.history
+                history.committed = history.staged = history.temperature = None
+                history.reduced_time = None
+                history._cached = None
 
     def run(self, scene: dict, tangents=()) -> dict:
         """Run the scene's grid with the parameters of `scene`.
@@ -612,7 +666,8 @@ class ForwardModel:
         histories = []
         if tangents and self.terms is not None:
             histories = [HistoryTangent(problem.memory.history, _prony_terms(plus, self.terms),
-                                        _prony_terms(minus, self.terms), two_h)
+                                        _prony_terms(minus, self.terms), two_h,
+                                        (plus["viscoelastic"], minus["viscoelastic"]))
                          for plus, minus, two_h in tangents]
         state = {"u": [None] * len(tangents), "d": [None] * len(tangents)}
         depth, d_depth = [], []
@@ -639,6 +694,8 @@ class ForwardModel:
         history = problem.memory and problem.memory.history
         before = ({key: value.copy() for key, value in history.state().items()}
                   if histories and not first else {})
+        temperature = getattr(history, "temperature", None)
+        temperature = None if temperature is None or first else temperature.copy()
         problem.time.stage(t_to)
         try:
             _solve(problem, self.newton, saved, predict, t_to)
@@ -660,8 +717,10 @@ class ForwardModel:
                 constant_dots = dict(dots[i])
                 H_dot = None
                 if histories:
-                    constant_dots.update(histories[i].weights(before, k))
-                    H_dot = histories[i].stress(before, k)
+                    histories[i].prepare(history, before, temperature,
+                                         getattr(history, "temperature", None))
+                    constant_dots.update(histories[i].weights(k))
+                    H_dot = histories[i].stress(k)
                 results.append(step.tangent(constant_dots, H_dot, state["u"][i],
                                             state["d"][i]))
         problem.time.commit()
