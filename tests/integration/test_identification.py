@@ -123,3 +123,39 @@ def test_sensitivities_recover_three_parameters_from_a_start_30_percent_off(tmp_
         assert p["identifiable"]
     # the Jacobian comes with the residual's run at the same parameters: no extra runs
     assert report["evaluations"] == report["residual_evaluations"]
+
+
+def test_two_temperatures_recover_wlf_constants_with_a_modulus(tmp_path):
+    """WLF C1, C2 and the relaxing fraction from noise-free creep at two temperatures
+    (T_ref - 3 and T_ref + 3, one experiment each, its temperature a fixed scene change),
+    each started 30 % off, with the sensitivities through the shift: all three to 1e-6
+    relative; C1 and C2 are reported as strongly correlated (two temperatures fix two values
+    of log a_T, and C1 C2 nearly sets both near T_ref)."""
+    true = {"viscoelastic.C1": 17.44, "viscoelastic.C2": 51.6,
+            "viscoelastic.shear.fractions.0": FRACTION}
+    start = {"viscoelastic.C1": 1.3 * 17.44, "viscoelastic.C2": 0.7 * 51.6,
+             "viscoelastic.shear.fractions.0": 0.7 * FRACTION}
+    bounds = {"viscoelastic.C1": [5.0, 40.0], "viscoelastic.C2": [20.0, 200.0],
+              "viscoelastic.shear.fractions.0": [0.05, 0.9]}
+    (tmp_path / "data.csv").write_text("t,force,depth\n" + "".join(
+        f"{t!r},{P!r},0\n" for t in [0.0, 0.5, 1.0, 2.0, 3.0]))
+    text = '[fit]\njacobian = "sensitivities"\n\n'
+    for temperature in (47.0, 53.0):
+        sets = [COARSE, 'viscoelastic.shift="wlf"', "viscoelastic.T_ref=50.0",
+                "viscoelastic.C1=17.0", "viscoelastic.C2=50.0",
+                f"viscoelastic.temperature={temperature!r}"]
+        text += ('[[experiment]]\nscene = "sphere_creep"\ndata = "data.csv"\nset = ['
+                 + ", ".join(f"'{s}'" for s in sets) + ']\nweight = 1e10\n\n')
+    for key in true:
+        text += (f'[[parameter]]\nkey = "{key}"\ninitial = {start[key]!r}\n'
+                 f'bounds = {bounds[key]!r}\n\n')
+    (tmp_path / "fit.toml").write_text(text)
+    spec = ident.read_fit(tmp_path / "fit.toml")
+    for experiment in spec["experiments"]:
+        experiment["depth"] = ident.forward(experiment, spec["parameters"], list(true.values()))
+    report = ident.fit(spec)
+    assert report["success"] and report["jacobian"]["rule"] == "sensitivities"
+    for p in report["parameters"]:
+        assert p["estimate"] == pytest.approx(true[p["key"]], rel=1e-6), p["key"]
+    assert any("viscoelastic.C2 and viscoelastic.C1: correlated" in w
+               for w in report["warnings"])
