@@ -237,8 +237,12 @@ class StepSensitivity:
                                                    self.D_previous_dot))
             return _total(pieces)
 
-        self.dF = [_form(derivative(F)) for F in problem.F]
+        dF = [derivative(F) for F in problem.F]
+        self.dF = [_form(a) for a in dF]
         self.controlled = bool(self.obstacle is not None and self.obstacle.controlled)
+        self.reaction = None
+        if self.obstacle is not None and not self.controlled:
+            self._reaction_forms(dF[0])
         self.eps_expression = None
         if memory is not None:
             self.eps_expression = compat.expression(problem.kinematics.strain(self.u_dot),
@@ -286,6 +290,49 @@ class StepSensitivity:
     def destroy(self):
         for obj in (self.ksp, self.P, self.rhs, self.y, self.b):
             obj.destroy()
+
+    def _reaction_forms(self, dF_u):
+        """Under displacement control, the obstacle's force along each axis j as the residual
+        F_u tested with the uniform unit field e_j, g_j = F_u(w; e_j): the bulk term vanishes
+        on a rigid translation (eps(e_j) = 0; not the radial one of a body of revolution), so
+        g_j is the contact terms' resultant minus the loads', and the force on the body is
+        f_j = -g_j up to the loads, which do not depend on the parameters. Its derivative,
+        dg_j/dtheta + sum_k dg_j/dw_k [w_k'], with w' in Functions set per parameter."""
+        problem = self.problem
+        V = problem.V
+        dim = V.mesh.geometry.dim
+        (v,) = problem.F[0].arguments()
+        self.w_dots = [fem.Function(f.function_space) for f in problem.unknowns]
+        self.reaction = []
+        for j in range(dim):
+            unit = fem.Function(V)
+            unit.x.array.reshape(-1, dim)[:, j] = 1.0
+            g = ufl.replace(problem.F[0], {v: unit})
+            through_w = _total([_function_derivative(g, w, w_dot)
+                                for w, w_dot in zip(problem.unknowns, self.w_dots)])
+            self.reaction.append({
+                "unit": unit, "g": fem.form(g), "dtheta": _form(
+                    None if dF_u is None else ufl.replace(dF_u, {v: unit})),
+                "dw": _form(through_w)})
+
+    def reaction_force(self, j: int) -> float:
+        """-g_j at the current state (the obstacle's force on the body along j, up to the
+        loads' resultant)."""
+        return -self._scalar(self.reaction[j]["g"])
+
+    def reaction_tangent(self, j: int, x, l) -> float:
+        """d(-g_j)/dtheta for the tangent (u' owned entries x, multipliers' l at the owned
+        contact nodes) of the parameter whose derivative Functions tangent() set last."""
+        s = self.system
+        u_dot = self.w_dots[0]
+        u_dot.x.array[:x.size] = x
+        u_dot.x.scatter_forward()
+        for a, f in enumerate(self.w_dots[1:]):
+            f.x.array[:] = 0.0
+            f.x.array.reshape(-1, s.bs[a])[s.own] = l[:, s.offsets[a]:s.offsets[a + 1]]
+            f.x.scatter_forward()
+        forms = self.reaction[j]
+        return -(self._scalar(forms["dtheta"]) + self._scalar(forms["dw"]))
 
     # ---------------------------------------------------------------- linear algebra
 
@@ -553,8 +600,8 @@ class ForwardModel:
     comm : mpi4py.MPI.Comm
     """
 
-    def __init__(self, scene: dict, comm=MPI.COMM_WORLD):
-        self.scene, self.comm = scene, comm
+    def __init__(self, scene: dict, comm=MPI.COMM_WORLD, component: int | None = None):
+        self.scene, self.comm, self.component = scene, comm, component
         geometry = geometry_module.build(scene, comm)
         self.problem = build(scene, geometry)
         self.newton = solver_module.create(self.problem, comm)
@@ -645,7 +692,9 @@ class ForwardModel:
         -------
         dict
             ``t`` (the grid's times), ``depth`` (-d_c of the first force-controlled component
-            c, or None), and with tangents ``d_depth`` (times x parameters).
+            c, or None), and with tangents ``d_depth`` (times x parameters); under
+            displacement control with a `component`, ``force`` (the obstacle's force on the
+            body along it, -g_c: StepSensitivity._reaction_forms) and ``d_force``.
         """
         problem = self.problem
         if tangents and self.memory_reason:
@@ -660,6 +709,11 @@ class ForwardModel:
         obstacle = problem.contact and problem.contact.obstacle
         component = (obstacle.controlled[0] if obstacle is not None and obstacle.controlled
                      else None)
+        held = (self.component if obstacle is not None and not obstacle.controlled
+                else None)             # displacement control: the force is observed
+        force, d_force = [], []
+        if held is not None and self.sensitivity is None:
+            self.sensitivity = StepSensitivity(problem, self.newton)
         dots = [{name: (a - b) / two_h for (name, a), b in
                  zip(scene_constants(plus).items(), scene_constants(minus).values())}
                 for plus, minus, two_h in tangents]
@@ -669,7 +723,8 @@ class ForwardModel:
                                         _prony_terms(minus, self.terms), two_h,
                                         (plus["viscoelastic"], minus["viscoelastic"]))
                          for plus, minus, two_h in tangents]
-        state = {"u": [None] * len(tangents), "d": [None] * len(tangents)}
+        state = {"u": [None] * len(tangents), "d": [None] * len(tangents),
+                 "force": [None] * len(tangents)}
         depth, d_depth = [], []
         for t in grid:
             for accepted in self._advance(float(t), predict, tangents, dots, histories,
@@ -679,8 +734,14 @@ class ForwardModel:
                 depth.append(-obstacle.displacement()[component])
                 if tangents:
                     d_depth.append([-d[component] for d in state["d"]])
+            if held is not None:
+                force.append(self.sensitivity.reaction_force(held))
+                if tangents:
+                    d_force.append(list(state["force"]))
         return {"t": np.asarray(grid, float), "depth": np.array(depth) if depth else None,
-                "d_depth": np.array(d_depth) if tangents else None}
+                "d_depth": np.array(d_depth) if tangents and depth else None,
+                "force": np.array(force) if force else None,
+                "d_force": np.array(d_force) if tangents and force else None}
 
     def _advance(self, t_to, predict, tangents, dots, histories, state, cuts):
         """One step to t_to (in halves when Newton fails, as the time loop cuts), with the
@@ -723,6 +784,9 @@ class ForwardModel:
                     H_dot = histories[i].stress(k)
                 results.append(step.tangent(constant_dots, H_dot, state["u"][i],
                                             state["d"][i]))
+                if step.reaction is not None and self.component is not None:
+                    x, l, _ = results[-1]
+                    state["force"][i] = step.reaction_tangent(self.component, x, l)
         problem.time.commit()
         if predict is not None:
             predict.record(t_to)

@@ -51,7 +51,11 @@ JACOBIANS = ("auto", "sensitivities", "finite-differences")
 #: Relative step of the central differences of the scene's conversion of a parameter (its
 #: Constants and Prony terms; no solve): h = SCENE_STEP max(|theta|, 1e-300).
 SCENE_STEP = 1e-5
-EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight")
+EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight", "control")
+#: experiment.control: what the data drives. "force": the measured force drives the
+#: obstacle's force-controlled component, the depth is fitted (creep); "depth": the measured
+#: depth drives that component as a displacement, the force is fitted (relaxation).
+CONTROLS = ("force", "depth")
 PARAMETER_KEYS = ("key", "initial", "bounds", "scale")
 #: fit.difference: the finite-difference rule of the Jacobian and scipy's name of it.
 DIFFERENCES = {"central": "3-point", "forward": "2-point"}
@@ -137,6 +141,7 @@ def read_fit(path) -> dict:
             _fail(f"parameter[{i}].key", f"{key!r} is identified twice")
     x0 = [p["initial"] for p in parameters]
     for i, experiment in enumerate(experiments):
+        _component(experiment, i)
         # Every key is a number of the scene (a misspelled key fails with the scene's own
         # message), and the scene runs with the initial values.
         scene = _scene(experiment, [], [])
@@ -149,11 +154,28 @@ def read_fit(path) -> dict:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 _fail(f"parameter[{j}].key", f"{p['key']!r} is not a number of the scene of "
                       f"experiment[{i}] (it holds {value!r})")
-        scene = _scene(experiment, parameters, x0)
-        if not scene["obstacle"]["force_components"]:
-            _fail(f"experiment[{i}].scene", "the scene's obstacle must be under force control "
-                  "(obstacle.force_components): the measured force drives the run")
+        _scene(experiment, parameters, x0)
     return {"fit": fit, "experiments": experiments, "parameters": parameters}
+
+
+def _measured(experiment: dict) -> np.ndarray:
+    """The fitted data of an experiment: its depth, or its force under control = "depth"."""
+    return experiment["force"] if experiment["control"] == "depth" else experiment["depth"]
+
+
+def _component(experiment: dict, i: int) -> None:
+    """The experiment's controlled axis c (the first of obstacle.force_components of its
+    scene) and the space dimension, into `experiment`."""
+    scene = scene_module.load(experiment["scene"], experiment["set"])
+    obstacle = scene.get("obstacle") or {}
+    if not obstacle.get("force_components"):
+        _fail(f"experiment[{i}].scene", "the scene's obstacle must name its axis under force "
+              "control (obstacle.force_components): the measured force (or depth, with "
+              "control = 'depth') drives the run along it")
+    experiment["component"] = int(obstacle["force_components"][0])
+    experiment["dim"] = 3 if scene["material"]["model"] == "3d" or any(
+        isinstance(obstacle.get(k), list) and len(obstacle[k]) == 3
+        for k in ("centre", "point", "normal")) else 2
 
 
 def _items(raw: dict, name: str) -> list:
@@ -186,10 +208,16 @@ def _experiment(item: dict, where: str, base: pathlib.Path) -> dict:
         if weight <= 0:
             _fail(f"{where}weight", f"must be > 0, got {weight!r}")
         w = math.sqrt(weight)
+    control = item.get("control", "force")
+    if control not in CONTROLS:
+        _fail(f"{where}control", f"must be one of {', '.join(CONTROLS)}, got {control!r}")
     data = prony_file.inside_path(item.get("data"), base, f"{where}data")
     t, force, depth = read_data(data, f"{where}data")
+    if control == "depth" and force is None:
+        _fail(f"{where}data", f"{data}: control = 'depth' fits the force: the data needs a "
+              "'force' column")
     return {"scene": scene, "set": list(sets), "t": t, "force": force, "depth": depth, "w": w,
-            "data": str(data)}
+            "data": str(data), "control": control}
 
 
 def read_data(path: pathlib.Path, key: str):
@@ -274,7 +302,7 @@ def _at(scene: dict, path: list):
     return node
 
 
-def force_expression(t: np.ndarray, force: np.ndarray) -> float | str:
+def force_expression(t: np.ndarray, force: np.ndarray, name: str = "force") -> float | str:
     """The measured force as an expression in t, piecewise linear through the samples:
 
         F(t) = F_0 + sum_i s_i min(max(t - t_i, 0), t_{i+1} - t_i),
@@ -315,9 +343,9 @@ def force_expression(t: np.ndarray, force: np.ndarray) -> float | str:
                      f"{float(t[b] - t[a])!r})")
     text = " + ".join(terms)
     if len(text) > expressions.MAX_LENGTH:
-        _fail("force", f"the measured force has {len(kinks) - 2} kinks; as a piecewise-linear "
-              f"force(t) it would take {len(text)} characters, more than a scene expression's "
-              f"{expressions.MAX_LENGTH}: smooth or resample the force column")
+        _fail(name, f"the measured {name} has {len(kinks) - 2} kinks; as a piecewise-linear "
+              f"function of t it would take {len(text)} characters, more than a scene "
+              f"expression's {expressions.MAX_LENGTH}: smooth or resample the {name} column")
     return text
 
 
@@ -330,7 +358,15 @@ def _scene(experiment: dict, parameters: list, values) -> dict:
              scene_module.Override(["time", "T"], float(t[-1])),
              scene_module.Override(["time", "times"], [float(v) for v in t if v > 0]),
              scene_module.Override(["output", "figures"], False)]
-    if experiment["force"] is not None:
+    if experiment.get("control", "force") == "depth":
+        # the measured depth as the obstacle's displacement along its axis: u_c = -d(t)
+        displacement = [0.0] * experiment["dim"]
+        displacement[experiment["component"]] = force_expression(t, -experiment["depth"],
+                                                                 "depth")
+        sets += [scene_module.Override(["obstacle", "force_components"], []),
+                 scene_module.Override(["obstacle", "force"], []),
+                 scene_module.Override(["obstacle", "displacement"], displacement)]
+    elif experiment["force"] is not None:
         sets.append(scene_module.Override(
             ["obstacle", "force"], [force_expression(t, experiment["force"])]))
     sets += [scene_module.Override(p["path"], float(v)) for p, v in zip(parameters, values)]
@@ -363,9 +399,12 @@ def forward(experiment: dict, parameters: list, values, comm=None) -> np.ndarray
     from contactvisco.solver.time_loop import simulate
     scene = _scene(experiment, parameters, values)
     result = simulate(scene, comm=comm or MPI.COMM_WORLD, progress=False)
-    c = scene["obstacle"]["force_components"][0]
+    c = experiment["component"]
     times = np.array([step["t"] for step in result.steps])
-    depth = -np.array([step["obstacle"]["displacement"][c] for step in result.steps])
+    if experiment.get("control", "force") == "depth":      # the force is observed
+        depth = np.array([step["obstacle"]["force"][c] for step in result.steps])
+    else:
+        depth = -np.array([step["obstacle"]["displacement"][c] for step in result.steps])
     # The grid is the sample times; a cut step adds records between them, never at them.
     tol = 1e-9 * experiment["t"][-1]
     where = np.minimum(np.searchsorted(times, experiment["t"] - tol), len(depth) - 1)
@@ -419,7 +458,7 @@ def _models(experiments, parameters, mode: str, comm):
                 continue
             model = sensitivity.ForwardModel(
                 _scene(e, parameters, [p["initial"] for p in parameters]),
-                comm or MPI.COMM_WORLD)
+                comm or MPI.COMM_WORLD, component=e["component"])
             if model.memory_reason:
                 reasons.append(model.memory_reason)
                 model.destroy()
@@ -555,14 +594,15 @@ def fit(description, comm=None) -> dict:
         for i, (e, model) in enumerate(zip(experiments, models)):
             try:
                 if model is None:     # whole runs (a key the built problem cannot follow)
-                    out.append(e["w"] * (forward(e, parameters, values, comm) - e["depth"]))
+                    out.append(e["w"] * (forward(e, parameters, values, comm) - _measured(e)))
                     continue
                 tangents = _tangents(e, parameters, values) if with_jacobian else ()
                 result = model.run(_scene(e, parameters, values), tangents)
                 where = _sample_index(result["t"], e)
-                out.append(e["w"] * (result["depth"][where] - e["depth"]))
+                name = "force" if e["control"] == "depth" else "depth"
+                out.append(e["w"] * (result[name][where] - _measured(e)))
                 if with_jacobian:
-                    rows.append(e["w"] * result["d_depth"][where] * scale)
+                    rows.append(e["w"] * result[f"d_{name}"][where] * scale)
             except Exception as err:
                 # The run's own message names the step; this names the parameters.
                 err.add_note(f"in the forward run of experiment[{i}] at " + ", ".join(
@@ -601,10 +641,11 @@ def fit(description, comm=None) -> dict:
     curves, offset = [], 0
     for e in experiments:
         k = len(e["t"])
-        fitted = e["depth"] + result.fun[offset:offset + k] / e["w"]
+        fitted = _measured(e) + result.fun[offset:offset + k] / e["w"]
         curves.append({"data": e["data"], "t": e["t"].tolist(),
                        "force": None if e["force"] is None else e["force"].tolist(),
-                       "measured": e["depth"].tolist(), "fitted": fitted.tolist()})
+                       "quantity": "force" if e["control"] == "depth" else "depth",
+                       "measured": _measured(e).tolist(), "fitted": fitted.tolist()})
         offset += k
     misfit = np.concatenate([np.array(c["fitted"]) - c["measured"] for c in curves])
     return {
@@ -663,7 +704,7 @@ def write(report: dict, out) -> None:
                  label=f"experiment {i}: measured")
         bottom.plot(c["t"], np.array(c["measured"]) - c["fitted"], "o-", ms=3,
                     color=line.get_color())
-    top.set_ylabel("depth")
+    top.set_ylabel(" / ".join(sorted({c.get("quantity", "depth") for c in report["curves"]})))
     top.legend()
     bottom.set_xlabel("t")
     bottom.set_ylabel("measured - fitted")

@@ -159,3 +159,31 @@ def test_two_temperatures_recover_wlf_constants_with_a_modulus(tmp_path):
         assert p["estimate"] == pytest.approx(true[p["key"]], rel=1e-6), p["key"]
     assert any("viscoelastic.C2 and viscoelastic.C1: correlated" in w
                for w in report["warnings"])
+
+
+def test_relaxation_under_a_measured_depth_recovers_three_parameters(tmp_path):
+    """control = "depth": the measured depth (a ramp to 0.01 over t = 0.5, then held) drives the
+    sphere as a displacement and the force is fitted. mu_0, the fraction and tau from
+    noise-free relaxation, each started 30 % off, with the sensitivities of the reaction
+    force: all three to 1e-6 relative."""
+    times = [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0]
+    depth = [0.01 * min(t / 0.5, 1.0) for t in times]
+    (tmp_path / "data.csv").write_text("t,force,depth\n" + "".join(
+        f"{t!r},0,{d!r}\n" for t, d in zip(times, depth)))
+    names = ["mu0", "fraction", "tau"]
+    text = (f'[fit]\njacobian = "sensitivities"\n\n[[experiment]]\nscene = "sphere_creep"\n'
+            f'data = "data.csv"\ncontrol = "depth"\nset = [\'{COARSE}\']\nweight = 1e10\n\n'
+            + "".join(f"[[parameter]]\n{PARAMETERS[n]}\n\n" for n in names))
+    (tmp_path / "fit.toml").write_text(text)
+    spec = ident.read_fit(tmp_path / "fit.toml")
+    for p, value in zip(spec["parameters"], [0.7 * MU0, 0.7 * FRACTION, 1.3]):
+        p["initial"] = value
+    (experiment,) = spec["experiments"]
+    force = ident.forward(experiment, spec["parameters"], [TRUE[n] for n in names])
+    assert 0 < abs(force[-1]) < 0.8 * abs(force[2])    # it relaxes under the held depth
+    experiment["force"] = force
+    report = ident.fit(spec)
+    assert report["success"] and report["jacobian"]["rule"] == "sensitivities"
+    assert report["curves"][0]["quantity"] == "force"
+    for p, name in zip(report["parameters"], names):
+        assert p["estimate"] == pytest.approx(TRUE[name], rel=1e-6), name
