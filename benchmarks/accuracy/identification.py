@@ -94,7 +94,7 @@ def fits() -> list:
         with tempfile.TemporaryDirectory() as folder:
             folder = pathlib.Path(folder)
             (folder / "data.csv").write_text("t,force,depth\n" + "".join(
-                f"{t!r},-0.0015,0\n" for t in times))
+                f"{float(t)!r},-0.0015,0\n" for t in times))
             text = (f'[fit]\njacobian = "{jacobian}"\n\n[[experiment]]\nscene = '
                     f'"sphere_creep"\ndata = "data.csv"\nset = [\'{COARSE}\']\nweight = 1e10\n\n')
             for key, (scale, bounds) in names.items():

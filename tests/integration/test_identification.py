@@ -39,7 +39,7 @@ TRUE = {"mu0": MU0, "fraction": FRACTION, "augmentation": AUGMENTATION, "tau": 1
 def synthetic(folder: pathlib.Path, names, times, sigma=None, seed=0, difference="central",
               jacobian="auto", initial=None):
     """A fit description of `names` with its data made at the true values (noise sigma)."""
-    (folder / "data.csv").write_text("t,force,depth\n" + "".join(f"{t!r},{P!r},0\n"
+    (folder / "data.csv").write_text("t,force,depth\n" + "".join(f"{float(t)!r},{P!r},0\n"
                                                                  for t in times))
     noise = f"noise = {sigma!r}" if sigma else "weight = 1e10"
     text = (f'[fit]\ndifference = "{difference}"\njacobian = "{jacobian}"\n\n'
