@@ -68,8 +68,7 @@ from contactvisco.solver import predictor
 from contactvisco.solver.condensed import condense_rhs, recover
 from contactvisco.solver.newton import NewtonFailure
 
-_INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
-_FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE
+_ADD, _REVERSE = PETSc.InsertMode.ADD, PETSc.ScatterMode.REVERSE
 
 #: The Constants of the forms a parameter may move (scene_constants), and the scene keys
 #: whose changes they carry: a parameter outside these is refused (unsupported_key).

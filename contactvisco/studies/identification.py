@@ -5,16 +5,19 @@ A fit description (TOML) names experiments, each a scene and a CSV file of measu
 (t_j, F_j, d_j), and the parameters theta to identify, each a scene key. The measured force
 drives each run as the obstacle's force F(t), piecewise linear through the samples, on the
 time grid of the sample times (time.grid = "times"); the fit minimizes the weighted least
-squares of the depth,
+squares of the depth (of the force for an experiment under control = "depth", which the
+measured depth drives as the obstacle's displacement),
 
     r_ej(theta) = w_e (d_e(t_j; theta) - d_ej),     cost = 1/2 sum_e sum_j r_ej^2,
 
 with w_e = 1/sigma_e for a noise level sigma_e (or sqrt(weight_e)), by
 ``scipy.optimize.least_squares`` (trust-region reflective, bounds) over the parameters in
-their scale, x_i = theta_i (linear) or ln theta_i (log). The Jacobian J = dr/dx is taken by
-finite differences of forward runs (scipy's "2-point" or "3-point" rule with the relative step
-fit.step: h_i = step * max(1, |x_i|), one-sided near a bound), not yet by forward
-sensitivities.
+their scale, x_i = theta_i (linear) or ln theta_i (log). Each experiment's problem is built
+once (contactvisco.solver.sensitivity.ForwardModel) and run again at every evaluation. The
+Jacobian J = dr/dx is taken by forward sensitivities through the time loop (fit.jacobian =
+"auto" where they cover every parameter, or "sensitivities"), or by finite differences of
+forward runs (scipy's "2-point" or "3-point" rule with the relative step fit.step:
+h_i = step * max(1, |x_i|), one-sided near a bound).
 
 At the optimum, with m residuals and n parameters, the residual variance
 s^2 = 2 cost / (m - n) scales the covariance of x,
@@ -571,9 +574,10 @@ def fit(description, comm=None) -> dict:
         scale, bounds), ``correlation``, ``singular_values``, ``rank``, ``cost``
         (1/2 sum r^2), ``s2``, ``residual_rms`` (of the unweighted depth), ``evaluations``
         (forward runs of all experiments, differences included), ``residual_evaluations``
-        (the optimizer's, at most fit.max_evaluations), ``jacobian_evaluations``, ``wall_s``, ``status``
-        and ``message`` of the optimizer, ``success``, ``warnings``, and ``curves`` (per
-        experiment: t, measured and fitted depth).
+        (the optimizer's, at most fit.max_evaluations), ``jacobian_evaluations``,
+        ``wall_s``, ``status`` and ``message`` of the optimizer, ``success``, ``warnings``,
+        ``jacobian`` (how J was taken) and ``curves`` (per experiment: t, the fitted
+        ``quantity``, depth or force, measured and fitted).
     """
     from scipy.optimize import least_squares
 
