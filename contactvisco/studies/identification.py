@@ -63,6 +63,8 @@ PARAMETER_KEYS = ("key", "initial", "bounds", "scale")
 #: fit.difference: the finite-difference rule of the Jacobian and scipy's name of it.
 DIFFERENCES = {"central": "3-point", "forward": "2-point"}
 SCALES = ("linear", "log")
+#: parameter.initial: the start from a Lee-Radok fit of the same curves (studies.lee_radok).
+CLOSED_FORM = "closed-form"
 #: Relative size below which a singular value of J is a direction the data does not fix.
 RCOND = 1e-6
 #: A parameter's share of such a direction that makes it not identifiable.
@@ -291,11 +293,16 @@ def _parameter(item: dict, where: str) -> dict:
         _fail(f"{where}bounds", f"lower {lower!r} must be below upper {upper!r}")
     if scale == "log" and lower <= 0:
         _fail(f"{where}bounds", f"with scale = 'log' the bounds must be > 0, got {bounds!r}")
-    initial = _number(item.get("initial"), f"{where}initial")
+    closed = item.get("initial") == CLOSED_FORM
+    if closed:      # checked at the bounds' middle; the closed-form fit starts there too
+        initial = (math.sqrt(lower * upper) if scale == "log" else 0.5 * (lower + upper))
+    else:
+        initial = _number(item.get("initial"), f"{where}initial",
+                          f"a finite number or '{CLOSED_FORM}'")
     if not lower <= initial <= upper:
         _fail(f"{where}initial", f"{initial!r} is outside the bounds {bounds!r}")
     return {"key": key, "path": key.split("."), "initial": initial, "bounds": (lower, upper),
-            "scale": scale}
+            "scale": scale, "closed_form": closed}
 
 
 def _at(scene: dict, path: list):
@@ -488,6 +495,54 @@ def _models(experiments, parameters, mode: str, comm):
         reasons[0] if reasons and mode == "auto" else None)
 
 
+def _closed_form_start(experiments: list, parameters: list) -> dict:
+    """The Lee-Radok fit of the creep curves (studies.lee_radok: a sphere on a half-space, no
+    friction) over the parameters whose initial is "closed-form", the others held at their
+    start, by the same least squares and bounds; its estimates become their starts.
+
+    Returns
+    -------
+    dict
+        key -> closed-form estimate (empty when no parameter asks for it).
+    """
+    from scipy.optimize import least_squares
+
+    from contactvisco.studies import lee_radok
+    chosen = [i for i, p in enumerate(parameters) if p.get("closed_form")]
+    if not chosen:
+        return {}
+    for i, e in enumerate(experiments):
+        scene = _scene(e, parameters, [p["initial"] for p in parameters])
+        obstacle = scene["obstacle"]
+        if (e["control"] != "force" or e["force"] is None or obstacle["shape"] != "sphere"
+                or scene["material"]["model"] not in ("axisymmetric", "3d")):
+            _fail(f"parameter[{chosen[0]}].initial", f"'{CLOSED_FORM}' needs creep "
+                  "experiments of a sphere (control = 'force' with a force column, "
+                  "obstacle.shape = 'sphere', an axisymmetric or 3D body); experiment"
+                  f"[{i}] is not one")
+    values = np.array([p["initial"] for p in parameters], float)
+
+    def residual(x):
+        values[chosen] = _to_values([parameters[i] for i in chosen], x)
+        return np.concatenate([
+            e["w"] * (lee_radok.creep_depth(_scene(e, parameters, values), e["t"], e["force"],
+                                            e_radius) - e["depth"])
+            for e, e_radius in zip(experiments, radii)])
+
+    radii = [_scene(e, parameters, values)["obstacle"]["radius"] for e in experiments]
+    picked = [parameters[i] for i in chosen]
+    result = least_squares(
+        residual, _to_x(picked, [p["initial"] for p in picked]),
+        bounds=(_to_x(picked, [p["bounds"][0] for p in picked]),
+                _to_x(picked, [p["bounds"][1] for p in picked])),
+        method="trf", x_scale="jac", ftol=1e-12, xtol=1e-12, gtol=1e-12)
+    out = {}
+    for p, v in zip(picked, _to_values(picked, result.x)):
+        p["initial"] = float(v)
+        out[p["key"]] = float(v)
+    return out
+
+
 def _to_x(parameters, values):
     return np.array([math.log(v) if p["scale"] == "log" else v
                      for p, v in zip(parameters, values)])
@@ -585,6 +640,7 @@ def fit(description, comm=None) -> dict:
     parameters, experiments = spec["parameters"], spec["experiments"]
     settings = spec["fit"]
     runs = [0]
+    closed = _closed_form_start(experiments, parameters)
     models, sensitivities, reason = _models(experiments, parameters, settings["jacobian"],
                                             comm)
     cached = {}
@@ -654,6 +710,7 @@ def fit(description, comm=None) -> dict:
     misfit = np.concatenate([np.array(c["fitted"]) - c["measured"] for c in curves])
     return {
         "parameters": [{"key": p["key"], "estimate": float(v), "initial": p["initial"],
+                        "closed_form": closed.get(p["key"]),
                         "standard_error": se, "identifiable": ok, "scale": p["scale"],
                         "bounds": list(p["bounds"])}
                        for p, v, se, ok in zip(parameters, values, stats["standard_error"],
