@@ -122,8 +122,9 @@ def creep_depth(scene: dict, t: np.ndarray, force: np.ndarray, radius: float) ->
                 break
             end = min(s1, tj)
             slope = (p1 - p0) / (s1 - s0)
-            total += slope * (c0 * (end - s0) + np.sum(
-                rho * (np.exp(rates * (tj - s0)) - np.exp(rates * (tj - end))) / rates))
+            # int_s0^end exp(r (tj - s)) ds, without cancellation for small |r| (expm1)
+            segment = np.exp(rates * (tj - end)) * np.expm1(rates * (end - s0)) / rates
+            total += slope * (c0 * (end - s0) + np.sum(rho * segment))
         a = (0.75 * radius * total) ** (1.0 / 3.0)
         out.append(a * a / radius)
     return np.array(out)
