@@ -125,6 +125,7 @@ def test_sensitivities_recover_three_parameters_from_a_start_30_percent_off(tmp_
     assert report["evaluations"] == report["residual_evaluations"]
 
 
+@pytest.mark.slow
 def test_two_temperatures_recover_wlf_constants_with_a_modulus(tmp_path):
     """WLF C1, C2 and the relaxing fraction from noise-free creep at two temperatures
     (T_ref - 3 and T_ref + 3, one experiment each, its temperature a fixed scene change),
@@ -189,6 +190,7 @@ def test_relaxation_under_a_measured_depth_recovers_three_parameters(tmp_path):
         assert p["estimate"] == pytest.approx(TRUE[name], rel=1e-6), name
 
 
+@pytest.mark.slow
 def test_the_closed_form_start_and_its_bias(tmp_path):
     """initial = "closed-form" for mu_0 and the fraction. On depths made by the Lee-Radok
     closed form itself (studies.lee_radok) its fit returns the true values (to 1e-8); on the
