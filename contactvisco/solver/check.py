@@ -17,7 +17,7 @@ from contactvisco.model import time_grid
 from contactvisco.model.memory import History
 from contactvisco.model.stability import amplifies, worst_body
 from contactvisco.solver import newton
-from contactvisco.solver.time_loop import FieldSchedule
+from contactvisco.solver.field_schedule import FieldSchedule
 
 #: Bytes of one float64 value.
 FLOAT = 8
