@@ -115,9 +115,10 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     try:
         geometry = geometry or geometry_module.build(scene, comm)
         problem = build(scene, geometry)
+        from contactvisco.solver.check import initial_penetration, output_limit
+        initial_penetration(problem, comm)
         estimate = None
         if out:                           # before a step, and before the solver's set-up
-            from contactvisco.solver.check import output_limit
             estimate = output_limit(scene, problem, out)
         snes = solver_module.create(problem, comm)
         run = Run(scene, out, comm, problem, snes, progress, restart, started)
