@@ -153,3 +153,18 @@ def test_shallow_interference_is_pushed_out():
         assert abs(table["gap"][at] + 0.001) < 1e-9
         assert abs(table["u_nu"][at] - table["gap"][at]) < 1e-9
         assert table["reaction_nu"][at] > 0
+
+
+def test_force_from_a_zero_force_touch():
+    """A cylinder 0.001 inside the layer under F = 0.2 t: the first state (F = 0) pushes it out
+    to a touch at zero force, where no node need be in contact; the next steps start pushed
+    into contact and give the run that starts touching, shifted by -0.001 (the same body,
+    the same forces), to 1e-9 of the depth."""
+    def depths(dy):
+        raw = layer(cylinder(dy, force_components=[1], force=["0.2 * t"]))
+        result = simulate(loader.resolve(raw), comm=COMM, progress=False)
+        return np.array([s["obstacle"]["displacement"][1] for s in result.steps])
+    touching, inside = depths(0.0), depths(0.001)
+    assert len(inside) == len(touching) == 5
+    assert abs(inside[0] + 0.001) < 1e-12
+    assert np.max(np.abs(inside - (touching - 0.001))) < 1e-9 * touching[-1]
