@@ -144,7 +144,7 @@ class ObstaclePart:
     D: fem.Function
     D_previous: fem.Function
     reference: fem.Constant
-    nodes: object                      # problem.ContactNodes: their normals follow nu
+    nodes: object                      # contact_terms.ContactNodes: their normals follow nu
     t: fem.Constant
     _normal_expression: fem.Expression
     _gap_expression: fem.Expression
@@ -290,7 +290,7 @@ def build(scene: dict, Q, W, nodes, t) -> ObstaclePart:
         The resolved scene.
     Q, W : fem.FunctionSpace
         The scalar and vector P1 spaces of the contact part.
-    nodes : contactvisco.fem.problem.ContactNodes
+    nodes : contactvisco.fem.contact_terms.ContactNodes
         The contact nodes; their normals (and 2D tangents) are set to the obstacle's.
     t : fem.Constant
         The time of the expressions.

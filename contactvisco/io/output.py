@@ -721,7 +721,7 @@ def body_field(problem):
     dolfinx.fem.Function or None
         b on the cells of body b (ghost cells included).
     """
-    from contactvisco.fem.problem import body_cells
+    from contactvisco.fem.stress import body_cells
     obstacle = problem.contact and problem.contact.obstacle
     two = hasattr(obstacle, "pairing")
     if not problem.scene.get("body") and not two:

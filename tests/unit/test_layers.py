@@ -74,7 +74,6 @@ def test_the_check_sees_an_upward_import(tmp_path):
 #: (test_known_circles_still_exist fails then, so that the entry is removed with it).
 KNOWN_CIRCLES = [
     {"contactvisco.solver.newton", "contactvisco.solver.interface_newton"},
-    {"contactvisco.fem.kinematics", "contactvisco.fem.problem"},
 ]
 
 
