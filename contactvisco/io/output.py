@@ -68,7 +68,7 @@ class Writer:
                     error = err
             message = comm.bcast(error and str(error), root=0)
             if message is not None:
-                from contactvisco.io.checkpoint import Damaged
+                from contactvisco.io.files import Damaged
                 raise error if error is not None else Damaged(message)
         self.summary = {"scene": problem.scene, "unknowns": problem.count_unknowns(),
                         "ranks": comm.size, "steps_file": STEPS_FILE, "final": None}
@@ -86,7 +86,7 @@ class Writer:
             self.last_record = kept_steps[-1] if kept_steps else None
             if records is not None and [s.get("step") for s in kept_steps] != list(
                     range(restart_count)):
-                from contactvisco.io.checkpoint import Damaged
+                from contactvisco.io.files import Damaged
                 raise Damaged(f"--restart: {self.folder / STEPS_FILE} holds "
                               f"{len(kept_steps)} step records, not the steps 0.."
                               f"{restart_count - 1} of the checkpoint")
@@ -372,7 +372,7 @@ def check_records(folder, records: dict, count: int) -> None:
     bytes differ from what the checkpoint recorded stops the restart (SceneError naming the
     file): the steps it held would be lost. Every HDF5 file the XDMF index lists up to the
     checkpoint must be there. Nothing is changed unless every file passes."""
-    from contactvisco.io.checkpoint import Damaged
+    from contactvisco.io.files import Damaged
     folder = pathlib.Path(folder)
     for name, entry in records.items():
         path = folder / name
@@ -415,7 +415,7 @@ def _check_listed_fields(path: pathlib.Path, text: bytes):
     """Every HDF5 file the XDMF index `text` (of file `path`) points to is a regular file."""
     import xml.etree.ElementTree as ET
 
-    from contactvisco.io.checkpoint import Damaged
+    from contactvisco.io.files import Damaged
     try:
         root = ET.fromstring(text)
     except ET.ParseError as err:
