@@ -409,7 +409,7 @@ class NewtonSolver:
         if self.__dict__.get("floating") is not None:
             self.floating.destroy()
             self.floating = None
-        owned = ("snes", "b", "x", "A", "_x_jacobian", "_du") + (
+        owned = ("snes", "b", "x", "A", "_x_jacobian", "_du", "_trial", "_trial_b") + (
             ("operator",) if self.reuse else ())   # else the operator is A or J_red
         for name in owned:
             obj = self.__dict__.get(name)
@@ -689,6 +689,15 @@ class BlockSNES(NewtonSolver):
 #: Most evaluations of a force-controlled curved obstacle's closest points within one step.
 MAX_PLACEMENTS = 10
 
+#: The condensed system's line search (CondensedSNES._line_search): the sufficient decrease
+#: of the merit phi = |F|^2 of the coupled residual (Armijo's constant c in
+#: phi(lambda) <= (1 - 2 c lambda) max of the last LINE_SEARCH_MEMORY accepted phi), the most
+#: trial steps before the best of them is taken, and the bounds of each reduction of lambda.
+LINE_SEARCH_ARMIJO = 1e-4
+LINE_SEARCH_MEMORY = 5
+LINE_SEARCH_TRIALS = 12
+LINE_SEARCH_SHRINK = (0.1, 0.5)
+
 
 def _condensation(problem):
     """The condensed system of a problem: NodalCondensation, or for a contact boundary that
@@ -697,6 +706,19 @@ def _condensation(problem):
         from contactvisco.solver.interface_newton import InterfaceCondensation
         return InterfaceCondensation(problem)
     return NodalCondensation(problem)
+
+
+def line_search_on(scene) -> bool:
+    """Whether the condensed Newton system backtracks (solver.line_search): "nonmonotone"
+    always, "none" never, "auto" where the bulk law is nonlinear (material.law "hencky" or
+    "energy"). With the linear law the Newton matrix changes only with the contact nodes'
+    branches, and the full generalized Newton step (an active-set method on the contact
+    conditions) is kept as it is: measured in benchmarks/results/line_search.md, a line
+    search there changes no answer but can add an iteration at a change of contact state."""
+    choice = scene["solver"]["line_search"]
+    if choice == "auto":
+        return scene["material"]["law"] != "linear"
+    return choice == "nonmonotone"
 
 
 class CondensedSNES(NewtonSolver):
@@ -735,6 +757,15 @@ class CondensedSNES(NewtonSolver):
         self._finish_setup()
         if self.force is None:           # the bordered solves need P's exact factors
             self.enable_stale()
+        # The line search on the coupled residual (none with force control, whose bordered
+        # step moves the obstacle with u).
+        self.line_search = self.force is None and line_search_on(problem.scene)
+        self.step_lengths: list[float] = []     # lambda of each Newton step of a solve
+        self._trial = u_vector.copy()           # the line search's trial iterate
+        self._trial_b = u_vector.copy()         # and its condensed residual
+        self._trial_norm = None                 # its coupled residual norm (None: no trial)
+        if self.line_search:
+            self.snes.setLineSearchPreCheck(_weak(self._line_search))
 
     def _check_options(self):
         """The multipliers are recovered from each displacement step as the coupled Newton
@@ -783,6 +814,8 @@ class CondensedSNES(NewtonSolver):
         self._broken = None
         self._error = None
         self._residuals_since_jacobian = 0
+        self._trial_norm = None
+        self.step_lengths = []
         try:
             iterations = super().solve()
             finish = getattr(self.system, "finish", None)
@@ -829,6 +862,15 @@ class CondensedSNES(NewtonSolver):
             b.set(np.nan)
             self.system.full_norm = float("nan")
             return
+        if self._trial_norm is not None:
+            # The iterate the line search accepted (x_J - lambda y, evaluated last): its
+            # residual, Functions and node blocks are those of the trial.
+            trial, self._trial_norm = self._trial_norm, None
+            if np.array_equal(x.getArray(readonly=True), self._trial.getArray(readonly=True)):
+                self._trial_b.copy(b)
+                self.system.full_norm = trial
+                self._residuals_since_jacobian += 1
+                return
         if self._pending:
             # x = x_J - y, the step from the last Jacobian's iterate: update the multipliers.
             x.copy(self._du)
@@ -855,6 +897,88 @@ class CondensedSNES(NewtonSolver):
             G = self.force.residual()
             self.system.full_norm = float(np.hypot(self.system.full_norm,
                                                    np.linalg.norm(G)))
+
+    def _line_search(self, X, Y):
+        """Backtracking along the Newton step of the coupled system, called by SNES before
+        it takes the step x = X - Y (a line-search pre-check that may shorten Y).
+
+        The condensed step du = -Y and the multipliers' step dl (recovered node by node) are
+        the coupled Newton step, so x_J + lambda (du, dl) is the coupled method's damped
+        iterate for every lambda. The merit is the coupled residual's phi = |F(u, l)|^2 (the
+        norm Newton's convergence test reads): the condensed residual's own norm weighs a
+        contact node's constraint rows by s_i and grows at most changes of contact state.
+        A trial is accepted under the non-monotone Armijo condition of Grippo, Lampariello
+        and Lucidi (SIAM J. Numer. Anal. 23, 1986, 707-716),
+
+            phi(lambda) <= (1 - 2 c lambda) max(phi_k, ..., phi_{k-M+1}),
+
+        with c = LINE_SEARCH_ARMIJO and M = LINE_SEARCH_MEMORY, using the generalized Newton
+        step's slope d phi / d lambda = -2 phi_k at lambda = 0; otherwise lambda becomes the
+        minimizer of the quadratic through phi_k, that slope and phi(lambda), kept within
+        LINE_SEARCH_SHRINK times lambda. A semismooth Newton step whose residual grows at a
+        change of contact state is thus still taken in full when it stays below the recent
+        maximum, so the iterates of a run whose full steps are accepted are those of the
+        full-step method.
+
+        Parameters
+        ----------
+        X : petsc4py.PETSc.Vec
+            The iterate of the last Jacobian, x_J.
+        Y : petsc4py.PETSc.Vec
+            The Newton update (x = X - Y), scaled in place by the accepted lambda.
+
+        Returns
+        -------
+        bool
+            Whether Y was shortened.
+        """
+        trial = self._trial
+        X.copy(trial)
+        trial.axpy(-1.0, Y)                  # the full step, as SNES forms it
+        trial.copy(self._du)
+        self._du.axpy(-1.0, self._x_jacobian)
+        dl = self.system.update_multipliers(self._du)     # l = l_J + dl
+        self._pending = False
+        phi0 = self.residuals[-1] ** 2 if self.residuals else self.system.full_norm ** 2
+        reference = max(r * r for r in self.residuals[-LINE_SEARCH_MEMORY:]) \
+            if self.residuals else phi0
+        lam, taken = 1.0, 1.0
+        best = (np.inf, 1.0)                 # (phi, lambda) of the best trial
+        for attempt in range(LINE_SEARCH_TRIALS + 1):
+            if lam != taken:                 # x_J + lam du, l_J + lam dl
+                X.copy(trial)
+                trial.axpy(-lam, Y)
+                self.system.add_to_multipliers((lam - taken) * dl)
+                taken = lam
+            trial.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+            self._to_functions(trial)
+            self.system.residual(trial, self._trial_b)
+            phi = self.system.full_norm ** 2
+            if (np.isfinite(phi) and phi <= (1.0 - 2.0 * LINE_SEARCH_ARMIJO * lam) * reference) \
+                    or attempt == LINE_SEARCH_TRIALS:
+                break
+            if phi < best[0]:
+                best = (phi, lam)
+            if attempt == LINE_SEARCH_TRIALS - 1:
+                # No trial decreased the merit enough: the best one is taken (evaluated
+                # again, as the last), and Newton's iteration limit decides.
+                lam = best[1]
+                continue
+            low, high = LINE_SEARCH_SHRINK
+            if np.isfinite(phi):
+                # phi(s) ~ phi0 - 2 phi0 s + a s^2 through phi(lam): minimizer phi0 / a
+                curvature = (phi - phi0 + 2.0 * phi0 * lam) / lam ** 2
+                fit = phi0 / curvature if curvature > 0 else high * lam
+            else:
+                fit = low * lam
+            lam = float(np.clip(fit, low * lam, high * lam))
+        self._trial_norm = self.system.full_norm
+        self.step_lengths.append(taken)
+        if taken != 1.0:
+            Y.scale(taken)
+            X.copy(trial)                    # bit for bit the iterate SNES forms next
+            trial.axpy(-1.0, Y)
+        return taken != 1.0
 
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
