@@ -383,7 +383,7 @@ class CondensedSNES(NewtonSolver):
         the coupled Newton step, so x_J + lambda (du, dl) is the coupled method's damped
         iterate for every lambda. The merit is the coupled residual's phi = |F(u, l)|^2 (the
         norm Newton's convergence test reads): the condensed residual's own norm weighs a
-        contact node's constraint rows by s_i and grows at most changes of contact state.
+        contact node's constraint rows by s_i and jumps at changes of contact state.
         A trial is accepted under the non-monotone Armijo condition of Grippo, Lampariello
         and Lucidi (SIAM J. Numer. Anal. 23, 1986, 707-716),
 
