@@ -107,13 +107,15 @@ def test_a_ball_of_radius_zero_takes_the_side_asked_for(monkeypatch, tie, slope)
 def test_block3d_releases_its_unloaded_nodes_at_once(monkeypatch):
     """block3d's first loaded step starts from an unloaded contact boundary (no pressure, so
     friction balls of radius 0): with the free side there Newton takes 5 iterations where
-    the stick side, which holds every tangential component first, took 8; the converged
-    contact values of every step agree to the Newton tolerance (measured 1.6e-11 of the
-    largest) and the later steps keep their counts."""
+    the stick side, which holds every tangential component first, took 8 or more; the later
+    steps keep their counts. Both solved to |F| <= 1e-13, their contact values agree to
+    round-off (measured 7e-13; at the default tolerance 1e-10 the two stopping points differ
+    by up to 2.4e-9 in reaction_tau)."""
     counts, tables = {}, {}
+    tight = "solver.petsc_options={snes_atol=1e-13, snes_rtol=1e-14}"
     for tie in ("stick", "free"):
         monkeypatch.setattr(law, "ZERO_BALL", tie)
-        result = simulate(scene_module.load("block3d", ["output.probes=[]"]),
+        result = simulate(scene_module.load("block3d", ["output.probes=[]", tight]),
                           comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
         counts[tie] = [s["newton_iterations"] for s in result.steps]
         tables[tie] = result.tables
@@ -122,4 +124,4 @@ def test_block3d_releases_its_unloaded_nodes_at_once(monkeypatch):
     for a, b in zip(tables["stick"], tables["free"]):
         for key in KEYS:
             scale = np.max(np.abs(a[key]))
-            assert np.max(np.abs(a[key] - b[key])) <= 1e-9 * max(scale, 1.0), key
+            assert np.max(np.abs(a[key] - b[key])) <= 1e-11 * max(scale, 1.0), key
