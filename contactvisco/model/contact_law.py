@@ -38,12 +38,11 @@ ufl.max_value (whose UFL derivative takes the side of the second argument at a t
   matrix (slope 0 costs an iteration at t_0 of the paper scene);
 - the friction ball, |z| = radius in project_ball: the stick side, the identity, which is
   defined at z = 0 where the slip side's z/|z| is not (a node with no pressure and no slip);
-  except on a ball of radius 0 (ZERO_BALL = "free"), where P_B = 0 and its derivative 0: a
-  node without pressure carries no friction force in the Newton matrix either (not under
-  Coulomb's law, whose radius depends on the multiplier: the stick side there). The stick
-  side there held every tangential component of an unloaded contact boundary, and the first
-  loaded step of block3d spent 3 Newton iterations releasing them (8 -> 5 iterations,
-  docs/scaling.md); "stick" keeps the earlier choice.
+  also on a ball of radius 0 (a node without pressure) unless ZERO_BALL = "free", where P_B = 0
+  with derivative 0, so that such a node carries no friction force in the Newton matrix either
+  (never under Coulomb's law, whose radius depends on the multiplier). "free" takes block3d's
+  first loaded step in 5 Newton iterations instead of 8 but makes Newton cycle on other
+  scenes (docs/scaling.md), so "stick" is the default.
 """
 from __future__ import annotations
 
@@ -175,9 +174,11 @@ def unilateral_reaction(lambda_nu, u_nu, g, r, ops=UFL):
 
 
 #: The side of P_B's derivative at z = 0 on a ball of radius 0 (the module description):
-#: "free" (P_B = 0 there, derivative 0) or "stick" (the identity).
+#: "free" (P_B = 0 there, derivative 0) or "stick" (the identity). "stick" by default: "free"
+#: saves block3d 3 to 6 Newton iterations at its first loaded step but makes Newton cycle at
+#: t_0 of the paper scene with contact.stiffness = 1e8 (docs/scaling.md).
 ZERO_BALL_TIES = ("free", "stick")
-ZERO_BALL = "free"
+ZERO_BALL = "stick"
 
 
 def project_ball(z, radius, ops=UFL, zero_ball=None):
@@ -185,8 +186,8 @@ def project_ball(z, radius, ops=UFL, zero_ball=None):
 
         P_B(z) = z if |z| <= radius, radius z / |z| otherwise,
 
-    and P_B(z) = 0 on a ball of radius 0 (whatever z, with derivative 0) unless the tie
-    `zero_ball` (default ZERO_BALL) is "stick"."""
+    and, on a ball of radius 0, the identity's side (`zero_ball` "stick", the default
+    ZERO_BALL) or P_B(z) = 0 with derivative 0 ("free")."""
     tie = ZERO_BALL if zero_ball is None else zero_ball
     norm = ops.sqrt(ops.dot(z, z))
     projected = ops.where_le(norm, radius, z,

@@ -91,7 +91,7 @@ def test_both_sides_converge_to_the_same_state(monkeypatch, name, predictor):
 @pytest.mark.parametrize("tie, slope", [("free", 0.0), ("stick", 1.0)])
 def test_a_ball_of_radius_zero_takes_the_side_asked_for(monkeypatch, tie, slope):
     """At z = 0 on the ball of radius 0 (a node without pressure): P_B's derivative is 0
-    ("free", the default) or the identity ("stick"); its value is 0 either way, and a ball of
+    ("free") or the identity ("stick", the default); its value is 0 either way, and a ball of
     positive radius keeps the stick side at |z| = radius."""
     monkeypatch.setattr(law, "ZERO_BALL", tie)
     radius = lambda d: fem.Constant(d, PETSc.ScalarType(0.0))  # noqa: E731
