@@ -1206,6 +1206,7 @@ class Solver(Table):
         "linear_system": choice("auto", "auto", "condensed", "coupled"),
         "linear_solver": choice("auto", "auto", "direct", "iterative"),
         "predictor": choice("extrapolate", "extrapolate", "none"),
+        "line_search": choice("auto", "auto", "nonmonotone", "none"),
     }
 
     def rules(self, scene):

@@ -22,7 +22,7 @@ from petsc4py import PETSc
 
 from contactvisco.fem import compat, interface
 from contactvisco.solver.condensed import NodalCondensation
-from contactvisco.solver.newton import NewtonSolver, _weak, near_nullspace
+from contactvisco.solver.newton_base import NewtonSolver, _weak, near_nullspace
 
 _INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
 _FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE

@@ -288,6 +288,7 @@ def test_auto_choice():
 @pytest.mark.parametrize("sets, message", [
     (["solver.linear_system='schur'"], "solver.linear_system must be"),
     (["solver.linear_solver='cg'"], "solver.linear_solver must be"),
+    (["solver.line_search='bt'"], "solver.line_search must be"),
     (["solver.linear_system='condensed'", "discretization.contact_quadrature='gauss'"],
      "needs discretization.contact_quadrature = 'nodal'"),
 ])

@@ -70,13 +70,6 @@ def test_the_check_sees_an_upward_import(tmp_path):
     assert list(_imports(bad)) == [(2, "contactvisco.post")]
 
 
-#: Circles inside a floor not broken yet, as sets of modules; an entry goes when its circle does
-#: (test_known_circles_still_exist fails then, so that the entry is removed with it).
-KNOWN_CIRCLES = [
-    {"contactvisco.solver.newton", "contactvisco.solver.interface_newton"},
-]
-
-
 def _module_name(path: pathlib.Path) -> str:
     parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
@@ -122,16 +115,9 @@ def _circles(graph: dict) -> list[set]:
 def test_no_circle_inside_a_floor():
     """Modules of one floor may import each other, but never in a circle (a circle makes the
     import order matter and hides which module owns what)."""
-    circles = [c for c in _circles(_module_graph()) if c not in KNOWN_CIRCLES]
+    circles = _circles(_module_graph())
     assert not circles, "modules that import each other in a circle:\n" + "\n".join(
         " <-> ".join(sorted(c)) for c in circles)
-
-
-def test_known_circles_still_exist():
-    """An entry of KNOWN_CIRCLES whose circle is broken must go, so the list only shrinks."""
-    circles = _circles(_module_graph())
-    gone = [sorted(c) for c in KNOWN_CIRCLES if c not in circles]
-    assert not gone, f"these circles are broken; remove them from KNOWN_CIRCLES: {gone}"
 
 
 def test_the_check_sees_a_circle(tmp_path):
