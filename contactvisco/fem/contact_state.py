@@ -260,3 +260,51 @@ def _nodal_displacement(problem) -> np.ndarray:
         return problem.u.x.array.reshape(-1, d)
     u_p1.interpolate(problem.u)
     return u_p1.x.array.reshape(-1, d)
+
+
+def contact_radius(table) -> dict[str, float]:
+    """The contact radius of an axisymmetric body from its contact table: ``node``, the
+    largest r = x[0] of a node in contact (status compliance or bound; 0 with none), and
+    ``interpolated``, an estimate of the contact edge a between that node r_c and the first
+    open node r_1 beyond it.
+
+    Where the pressure falls to zero as sqrt(a - r) at the edge of a smooth indenter (Hertz's
+    sphere, a paraboloid, a cone's edge), the gap outside opens as g(r) ~ (r - a)^{3/2}
+    (Johnson, Contact Mechanics, 1985, sec 3.9), so g^{2/3} is linear in r near the edge:
+    with the gaps g_1, g_2 > 0 of the first two open nodes r_1 < r_2 (g = -s, s the
+    penetration),
+
+        a = r_1 - g_1^{2/3} (r_2 - r_1) / (g_2^{2/3} - g_1^{2/3}),
+
+    clamped to [r_c, r_1]. Without two open nodes beyond r_c (or with gaps that do not grow),
+    a = r_c.
+
+    Parameters
+    ----------
+    table : dict
+        A contact table (contact_table) of an axisymmetric body: ``x`` (n, 2) in (r, z),
+        ``status`` and ``penetration``.
+
+    Returns
+    -------
+    dict
+        ``node`` and ``interpolated``, floats (0.0 and 0.0 without a node in contact).
+    """
+    r = np.asarray(table["x"])[:, 0]
+    order = np.argsort(r, kind="stable")
+    r, status = r[order], np.asarray(table["status"])[order]
+    gap = -np.asarray(table["penetration"])[order]
+    touching = np.flatnonzero(status > 0)
+    if touching.size == 0:
+        return {"node": 0.0, "interpolated": 0.0}
+    c = int(touching.max())
+    r_c = float(r[c])
+    beyond = np.arange(c + 1, r.size)
+    beyond = beyond[r[beyond] > r_c]
+    if beyond.size < 2:
+        return {"node": r_c, "interpolated": r_c}
+    (r1, r2), (g1, g2) = r[beyond[:2]], np.maximum(gap[beyond[:2]], 0.0) ** (2.0 / 3.0)
+    if not g2 > g1:
+        return {"node": r_c, "interpolated": r_c}
+    a = r1 - g1 * (r2 - r1) / (g2 - g1)
+    return {"node": r_c, "interpolated": float(min(max(a, r_c), r1))}

@@ -63,7 +63,8 @@ GRADIENT_BOUNDS = (1e-3, 1e3)
 
 #: The key that gives each shape's distance, named when it is not defined at a contact node.
 _DISTANCE_KEY = {"plane": "obstacle.normal", "cylinder": "obstacle.centre",
-                 "sphere": "obstacle.centre", "surface": "obstacle.distance"}
+                 "sphere": "obstacle.centre", "cone": "obstacle.point",
+                 "punch": "obstacle.point", "surface": "obstacle.distance"}
 
 
 def signed_distance(obstacle: dict, y, t, d: int):
@@ -74,8 +75,9 @@ def signed_distance(obstacle: dict, y, t, d: int):
     obstacle : dict
         The [obstacle] table: shape "plane" (point p, outward normal n: phi = (y - p) . n/|n|),
         "cylinder" (centre c, radius R, in 3D axis a: phi = |r| - R with r = y - c without its
-        part along a), "sphere" (phi = |y - c| - R) or "surface" (phi = the expression
-        obstacle.distance with x replaced by y).
+        part along a), "sphere" (phi = |y - c| - R), "cone" or "punch" (indenters of a
+        vertical axis through the point p, pressed downwards: indenter_distance) or
+        "surface" (phi = the expression obstacle.distance with x replaced by y).
     y : UFL vector
         The point, in the obstacle's reference frame.
     t : fem.Constant
@@ -100,7 +102,50 @@ def signed_distance(obstacle: dict, y, t, d: int):
             a = ufl.as_vector(a / np.linalg.norm(a))
             r = r - ufl.dot(r, a) * a
         return ufl.sqrt(ufl.dot(r, r) + _TINY) - obstacle["radius"]
+    if shape in ("cone", "punch"):
+        return indenter_distance(obstacle, y)
     return expressions.evaluate(obstacle["distance"], "obstacle.distance", y, t, d)
+
+
+def indenter_distance(obstacle: dict, y):
+    """The signed distance to a rigid indenter of revolution about the vertical line through
+    its point p = (p_r, p_z), pressed downwards (-z) into a body below it, in the meridian
+    plane: with r = |y_0 - p_r| and z = y_1 - p_z,
+
+    - "cone" (tip p, half-angle alpha from the axis): the flank z = r cot(alpha), whose
+      outward normal is (cos alpha, -sin alpha), so phi = r cos(alpha) - z sin(alpha) where
+      the closest point lies on the flank (r sin(alpha) + z cos(alpha) >= 0) and
+      phi = sqrt(r^2 + z^2), the distance to the tip, below it;
+    - "punch" (a flat end of radius a centred at p, with a sharp edge): phi = -z over the
+      face (r <= a) and sqrt((r - a)^2 + z^2), the distance to the edge, beyond it (for the
+      body's points below the face level, z <= 0, and outside the punch).
+
+    Both are exact signed distances (|grad phi| = 1) on the body's side.
+
+    Parameters
+    ----------
+    obstacle : dict
+        The [obstacle] table: shape "cone" (point, angle in degrees) or "punch" (point,
+        radius).
+    y : UFL vector
+        The point (r, z), in the obstacle's reference frame.
+
+    Returns
+    -------
+    UFL expression
+        phi(y).
+    """
+    p = obstacle["point"]
+    r = ufl.sqrt((y[0] - p[0]) ** 2 + _TINY)
+    z = y[1] - p[1]
+    if obstacle["shape"] == "cone":
+        alpha = np.deg2rad(float(obstacle["angle"]))
+        cos, sin = float(np.cos(alpha)), float(np.sin(alpha))
+        flank = r * cos - z * sin
+        return ufl.conditional(ufl.ge(r * sin + z * cos, 0.0), flank,
+                               ufl.sqrt(r * r + z * z + _TINY))
+    a = float(obstacle["radius"])
+    return ufl.conditional(ufl.le(r, a), -z, ufl.sqrt((r - a) ** 2 + z * z + _TINY))
 
 
 def displacement_at(obstacle: dict, t: float, d: int) -> np.ndarray:

@@ -36,7 +36,8 @@ OWN_FILES = ("summary.json", "summary.json.tmp", "steps.jsonl", "steps.jsonl.tmp
              "interface_master.csv", "solution.xdmf",
              "solution.xdmf.tmp", "solution.h5", "obstacle.xdmf", "obstacle.xdmf.tmp", "snapshots.npz", "snapshots.tmp.npz",
              "deformed_mesh.png", "stress.png", "contact_reactions.png",
-             "contact_displacements.png", "contact_status.png", "probes.png")
+             "contact_displacements.png", "contact_status.png", "probes.png",
+             "contact_radius.png")
 OWN_FOLDERS = ("solution", "checkpoint")
 OWN_PATTERNS = ("solution-restart*.xdmf", "solution-restart*.h5")
 

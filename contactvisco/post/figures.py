@@ -262,6 +262,9 @@ def build_all(folder, times=None, edges: bool = False,
         if requested is None and steps and "obstacle" in steps[0]:
             with _reading(folder / "steps.jsonl"):
                 out.append(("obstacle", obstacle_history(steps, units)))
+        if requested is None and steps and "contact_radius" in steps[0]:
+            with _reading(folder / "steps.jsonl"):
+                out.append(("contact_radius", contact_radius_history(steps, units)))
         for _, fig in out:
             fit_labels(fig)
     return out
@@ -800,6 +803,38 @@ def contact_map(table, t: float, units: dict, asked=None):
     ax.set_title(f"contact nodes at {_time_text(t, units)}\n(marker area: normal reaction)"
                  + _asked(asked))
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, frameon=False)
+    return fig
+
+
+def contact_radius_history(steps: list, units: dict) -> Figure:
+    """An axisymmetric body's contact radius against time: the outermost node in contact and
+    the edge interpolated between it and the first open node (the step records'
+    ``contact_radius``, fem.contact_state.contact_radius).
+
+    Parameters
+    ----------
+    steps : list of dict
+        The step records of steps.jsonl, each with ``contact_radius`` = {``node``,
+        ``interpolated``}.
+    units : dict
+        The scene's [units] labels.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One panel: a(t), both estimates.
+    """
+    times = [record["t"] for record in steps]
+    fig = Figure(figsize=(PAGE * 0.5, 2.4), layout="constrained")
+    ax = fig.subplots()
+    for j, (key, name) in enumerate((("node", "outermost node in contact"),
+                                     ("interpolated", "interpolated edge"))):
+        ax.plot(times, [record["contact_radius"][key] for record in steps],
+                marker="os"[j], ls=("-", "--")[j], ms=2.5, lw=0.9, color=f"C{j}",
+                drawstyle="steps-post" if key == "node" else "default", label=name)
+    ax.set_xlabel(label("t", "time", units))
+    ax.set_ylabel(label("contact radius $a$", "length", units))
+    ax.legend(frameon=False)
     return fig
 
 

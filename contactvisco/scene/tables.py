@@ -745,7 +745,10 @@ def _check_samples(table, name, values, upper, t) -> None:
                f"infinite; use powers s**m with m >= 1 (e.g. 'c * s**1.5'), or regularize "
                f"near 0 (e.g. 'c * s / sqrt(s + delta)' for c * s**0.5)")
 #: obstacle.shape: the rigid obstacle's geometry ("none": the body's own normal and contact.gap).
-OBSTACLE_SHAPES = ("none", "plane", "cylinder", "sphere", "surface", "body")
+OBSTACLE_SHAPES = ("none", "plane", "cylinder", "sphere", "cone", "punch", "surface", "body")
+
+#: The shapes of revolution about a vertical axis, pressed downwards (2D only).
+INDENTER_SHAPES = ("cone", "punch")
 
 
 def _vector(x, d) -> bool:
@@ -768,6 +771,7 @@ class Obstacle(Table):
         "normal": Key(None),
         "centre": Key(None),
         "radius": Key(None),
+        "angle": Key(None),
         "axis": Key(None),
         "distance": Key(None),
         "displacement": Key(None),
@@ -781,7 +785,8 @@ class Obstacle(Table):
 
     #: The keys each shape needs (axis: a cylinder in 3D).
     NEEDS = {"none": (), "plane": ("point", "normal"), "cylinder": ("centre", "radius"),
-             "sphere": ("centre", "radius"), "surface": ("distance",), "body": ("boundary",)}
+             "sphere": ("centre", "radius"), "cone": ("point", "angle"),
+             "punch": ("point", "radius"), "surface": ("distance",), "body": ("boundary",)}
 
     #: The shape's keys mean something only for the shapes that take them (NEEDS).
     MEANINGFUL_WHEN = {
@@ -790,7 +795,8 @@ class Obstacle(Table):
                    f"'{s}'" for s in OBSTACLE_SHAPES if _takes(s, 2, name) or _takes(s, 3, name))
                 + (" in 3D" if name == "axis" else "")
                 + f" (this scene's obstacle.shape is '{table['shape']}')"))
-        for name in ("point", "normal", "centre", "radius", "axis", "distance", "boundary")}
+        for name in ("point", "normal", "centre", "radius", "angle", "axis", "distance",
+                     "boundary")}
 
     def rules(self, scene):
         shape, d = self["shape"], scene.dimension
@@ -822,6 +828,15 @@ class Obstacle(Table):
         if self["radius"] is not None:
             self.need(finite(self["radius"]) and self["radius"] > 0, "radius",
                       f"obstacle.radius must be a finite number > 0, got {self['radius']!r}")
+        if self["angle"] is not None:
+            self.need(finite(self["angle"]) and 0 < self["angle"] < 90, "angle",
+                      "obstacle.angle (the cone's half-angle from its axis, in degrees) must be "
+                      f"a number in (0, 90), got {self['angle']!r}")
+        if shape in INDENTER_SHAPES:
+            self.need(d == 2, "shape",
+                      f"obstacle.shape = '{shape}' is an indenter in the (r, z) or (x, y) plane: "
+                      "it needs a 2D mesh (axisymmetric, plane strain or plane stress); in 3D "
+                      "give its distance with obstacle.shape = 'surface'")
         if self["distance"] is not None:
             self.need(isinstance(self["distance"], str), "distance",
                       f"obstacle.distance must be an expression in x (a signed distance), got "
@@ -854,10 +869,14 @@ class Obstacle(Table):
         shape = self["shape"]
         self.need(shape not in ("cylinder", "body"), "shape",
                   f"obstacle.shape = '{shape}' has no axisymmetric version here: with "
-                  "material.model = 'axisymmetric' use 'sphere' (centred on the axis), 'plane' "
-                  "or 'surface' (a distance in (r, z))"
+                  "material.model = 'axisymmetric' use 'sphere' (centred on the axis), 'cone', "
+                  "'punch', 'plane' or 'surface' (a distance in (r, z))"
                   + ("; two deformable bodies in axisymmetry are not supported "
                      "(docs/limitations.md)" if shape == "body" else ""))
+        point = self["point"] if shape in INDENTER_SHAPES else None
+        self.need(point is None or point[0] == 0, "point",
+                  f"obstacle.point = {point!r}: with material.model = 'axisymmetric' a "
+                  f"{shape}'s tip lies on the axis, point = [0, z] (r = 0)")
         centre = self["centre"]
         self.need(centre is None or centre[0] == 0, "centre",
                   f"obstacle.centre = {centre!r}: with material.model = 'axisymmetric' a "

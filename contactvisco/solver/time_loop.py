@@ -231,7 +231,8 @@ class Run:
                 "status_counts": contact_state.status_counts(table),
                 "probes": probes.values(self.problem.u, self.comm) if probes else [],
                 **thermal_record(self.problem, self.comm),
-                **obstacle_record(self.problem, table), **error}
+                **obstacle_record(self.problem, table),
+                **contact_radius_record(self.problem, table), **error}
 
     def _file_observers(self) -> list:
         """The writer (steps.jsonl, contact files, XDMF fields) and the figure snapshots."""
@@ -323,6 +324,15 @@ def thermal_record(problem, comm) -> dict:
         hi = comm.allreduce(float(mine.max()) if mine.size else -math.inf, op=MPI.MAX)
         out[name] = [lo, hi]
     return out
+
+
+def contact_radius_record(problem, table) -> dict:
+    """An axisymmetric body's contact radius as ``contact_radius``: ``node`` (the outermost
+    node in contact) and ``interpolated`` (the edge between it and the first open node:
+    fem.contact_state.contact_radius); {} for other bodies or without contact."""
+    if table is None or not getattr(problem.kinematics, "axisymmetric", False):
+        return {}
+    return {"contact_radius": contact_state.contact_radius(table)}
 
 
 def obstacle_record(problem, table) -> dict:

@@ -97,7 +97,8 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     Returns
     -------
     tuple of numpy.ndarray
-        The times t_n of the scene's grid and the stresses, shape (N + 1, d, d): the mean
+        The times t_n of the scene's grid and the stresses, shape (N + 1, d, d) (d = 3 for an
+        axisymmetric body: the hoop component included): the mean
         over the cells of the stress's values (the stress of a homogeneous state); with per_point, shape
         (N + 1, points, d, d), then the points' coordinates (points, 3).
     """
@@ -105,7 +106,7 @@ def block_stress(raw: dict, comm=MPI.COMM_WORLD, per_point: bool = False):
     geometry = geometry_module.build(scene, comm)
     problem = build(scene, geometry)
     snes = create(problem, comm)
-    d = problem.V.mesh.geometry.dim
+    d = problem.kinematics.tensor_dim          # the stress's: 3 x 3 in axisymmetry
     from dolfinx import fem
     sigma = fem.Function(problem.tensor_space)
     owned = problem.tensor_space.dofmap.index_map.size_local

@@ -115,3 +115,38 @@ def test_sphere_creep_restarts_to_the_uninterrupted_answer(tmp_path_factory, mon
     assert np.array_equal(a["status"], b["status"])
     assert np.allclose(a["reaction_nu"], b["reaction_nu"], rtol=1e-8,
                        atol=1e-8 * np.abs(b["reaction_nu"]).max())
+
+
+def prescribed(law: dict):
+    """The free cylinder of sliding() on a layer whose pressure is the prescribed p_nu =
+    2000 s^2 (bound 0.05 not reached), with the [contact] keys `law` added."""
+    raw = {"name": "cylinder_prescribed",
+           "geometry": {"lower": [0.0, 0.0], "upper": [1.0, 1.0], "cells": [6, 4]},
+           "material": {"model": "axisymmetric", "E": E, "nu": NU},
+           "traction": [{"boundary": "top", "value": [0.0, -Q]}],
+           "contact": {"boundary": "bottom", "stiffness": 0.0, "g": 0.05,
+                       "p_nu": "2000 * s**2", **law},
+           "time": {"T": 1.0, "steps": 1},
+           "output": {"probes": [[1.0, 0.0], [1.0, 1.0], [0.5, 0.5]]}}
+    result = simulate(loader.resolve(raw), comm=COMM, progress=False, keep_tables=True)
+    return result.tables[-1], result.steps[-1]["probes"]
+
+
+def test_prescribed_pressure_and_friction_laws():
+    """contact.p_nu = 2000 s^2 in axisymmetry: without friction the uniaxial state on a
+    penetration s = sqrt(Q/2000) at every node, u_z = -s - Q z / E exact in P1, the ring
+    forces adding up to Q pi; contact.p_tau = "0.05 * p_nu" (the friction bound) slides every
+    node off the axis outwards with r_tau = -0.05 p_nu, friction holding the edge back."""
+    s = np.sqrt(Q / 2000.0)
+    table, probes = prescribed({"mu": 0.0})
+    for probe in probes:
+        r, z = probe["x"]
+        assert probe["u"] == pytest.approx([NU * Q * r / E, -s - Q * z / E], abs=1e-10)
+    assert np.allclose(table["penetration"], s, rtol=1e-9)
+    assert np.sum(table["weight"] * table["reaction_nu"]) == pytest.approx(np.pi * Q, rel=1e-9)
+    law, probes = prescribed({"mu": 0.0, "p_tau": "0.05 * p_nu"})
+    assert np.allclose(law["radius"], 0.05 * law["reaction_nu"], rtol=1e-9)
+    assert 0.5 * NU * Q / E < probes[0]["u"][0] < 0.9 * NU * Q / E     # held back at the edge
+    off = law["x"][:, 0] > 1e-12
+    assert np.allclose(law["reaction_tau"][off], -0.05 * law["reaction_nu"][off], rtol=1e-8)
+    assert set(law["friction"][off]) == {2}

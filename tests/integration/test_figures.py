@@ -261,6 +261,31 @@ def test_pyvista_rendering_shows_the_colour_range():
         assert (np.mean(cosine > 0.98) > 0.001) == present, f"viridis({end})"
 
 
+def test_contact_radius_figure_draws_the_step_records(sphere_creep_folder):
+    """An axisymmetric run draws its contact radius: the figure's two lines are the step
+    records' node and interpolated radii, and under the held force the interpolated radius
+    grows with the creep (a^3 proportional to the creep function, Lee-Radok) as a^2 = R delta
+    of the sphere's depth delta."""
+    if COMM.rank != 0:
+        return
+    steps = figures.step_records(sphere_creep_folder)
+    drawn = dict(figures.build_all(sphere_creep_folder))
+    fig = drawn["contact_radius"]
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    for text in _drawn_texts(fig):
+        assert _inside(text.get_window_extent(renderer), fig.bbox, slack=1.0), text.get_text()
+    assert all("(model units)" in text for text in (fig.axes[0].get_xlabel(),
+                                                   fig.axes[0].get_ylabel()))
+    lines = fig.axes[0].get_lines()
+    for line, key in zip(lines, ("node", "interpolated")):
+        assert np.array_equal(line.get_ydata(), [s["contact_radius"][key] for s in steps])
+    radius = np.array([s["contact_radius"]["interpolated"] for s in steps[1:]])
+    assert np.all(np.diff(radius) >= -1e-12) and radius[-1] > radius[0]
+    depth = -np.array([s["obstacle"]["displacement"][1] for s in steps[1:]])
+    assert np.allclose(radius**2 / depth, 1.0, rtol=0.08)     # R = 1; measured 0.99-1.07
+
+
 def test_the_obstacle_is_drawn_in_the_deformed_mesh(sphere_creep_folder):
     """sphere_creep's deformed mesh at T shows the sphere's meridian where the sphere is at
     T: every drawn point at distance R = 1 from the centre moved by the last step's

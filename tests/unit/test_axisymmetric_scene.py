@@ -36,6 +36,33 @@ def test_obstacle_keys_without_axisymmetric_meaning_are_refused(change, key, wor
     assert caught.value.key == key
 
 
+CONE = {"shape": "cone", "point": [0.0, 1.0], "angle": 70.3, "centre": None, "radius": None}
+
+
+@pytest.mark.parametrize("change, key, words", [
+    ({**CONE, "point": [0.2, 1.0]}, "obstacle.point", "tip lies on the axis"),
+    ({**CONE, "angle": 90}, "obstacle.angle", r"in \(0, 90\)"),
+    ({**CONE, "angle": None}, "obstacle.angle", "needs obstacle.angle"),
+    ({"shape": "punch", "point": [0.0, 1.0], "centre": None, "radius": None},
+     "obstacle.radius", "needs obstacle.radius"),
+    ({"angle": 30.0}, "obstacle.angle", "with obstacle.shape = 'cone'"),
+])
+def test_indenter_keys_are_checked(change, key, words):
+    with pytest.raises(SceneError, match=words) as caught:
+        scene_module.resolve(indentation(**change))
+    assert caught.value.key == key
+
+
+def test_indenters_need_a_2d_mesh():
+    raw = indentation(shape="punch", point=[0.0, 0.0, 1.0], centre=None, radius=0.2,
+                      displacement=None)
+    raw["material"]["model"] = "3d"
+    raw["geometry"] = {"lower": [0.0, 0.0, 0.0], "upper": [1.0, 1.0, 1.0], "cells": [2, 2, 2]}
+    with pytest.raises(SceneError, match="needs a 2D mesh") as caught:
+        scene_module.resolve(raw)
+    assert caught.value.key == "obstacle.shape"
+
+
 def test_two_bodies_are_refused():
     raw = indentation(shape="body", boundary="left", centre=None, radius=None,
                       displacement=None)

@@ -324,6 +324,28 @@ def test_temperature_ramp_and_field():
     assert all(abs(p - 2.0) < 0.1 for p in orders), (errors, orders)
 
 
+
+def test_temperature_ramp_and_field_in_axisymmetry():
+    """The axisymmetric twin of test_temperature_ramp_and_field: the cylinder's block
+    0 <= r, z <= 1 stretched along the axis by e = 0.01 at t = 0 (u = (0, e z): no hoop
+    strain), theta = 50 + 2 t + 1.5 r: at each point sigma_zz - sigma_rr = 2 e G(xi), the
+    Maxwell term in the point's reduced time, with the error falling at order 2."""
+    visco = dict(WLF, temperature="50.0 + 2.0 * t + 1.5 * x[0]",
+                 shear={"instantaneous": 10.0, "tau": [0.5], "fractions": [0.4]},
+                 bulk={"instantaneous": 25.0})
+    errors = []
+    for steps in (20, 40, 80):
+        t, sigma, points = rl.block_stress(rl.block_scene(visco, "axisymmetric",
+                                                          [[0.0, 0.0], [0.0, 0.01]], "step",
+                                                          1.0, steps), MPI.COMM_SELF,
+                                           per_point=True)
+        assert sigma.shape[2:] == (3, 3)
+        exact = [[maxwell_reduced(lambda s, x=p[0]: 50.0 + 2.0 * s + 1.5 * x, tn)
+                  for p in points] for tn in t]
+        errors.append(np.abs(sigma[:, :, 1, 1] - sigma[:, :, 0, 0] - np.array(exact)).max())
+    orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+    assert all(abs(p - 2.0) < 0.1 for p in orders), (errors, orders)
+
 @pytest.mark.parametrize("extra, key, words", [
     ({"temperature": 60.0}, "viscoelastic.temperature", "needs a shift function"),
     (dict(WLF, temperature=-10.0), "viscoelastic.temperature", "outside the range of the WLF"),
