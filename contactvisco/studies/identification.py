@@ -146,6 +146,13 @@ def read_fit(path) -> dict:
                    for i, item in enumerate(_items(raw, "experiment"))]
     parameters = [_parameter(item, f"parameter[{i}].")
                   for i, item in enumerate(_items(raw, "parameter"))]
+    for i, (item, p) in enumerate(zip(_items(raw, "parameter"), parameters)):
+        if "prior" in item and not (p["regularized"] and fit["regularization"] > 0):
+            _fail(f"parameter[{i}].prior", "acts through fit.regularization > 0 on a Prony "
+                  "modulus (a key viscoelastic.<function>.moduli.<i> or .fractions.<i>)")
+    if fit["regularization"] > 0 and not any(p["regularized"] for p in parameters):
+        _fail("fit.regularization", "acts on the Prony moduli (keys viscoelastic.<function>."
+              "moduli.<i> or .fractions.<i>); no parameter is one")
     keys = [p["key"] for p in parameters]
     for i, key in enumerate(keys):
         if key in keys[:i]:

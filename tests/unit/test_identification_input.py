@@ -58,10 +58,28 @@ def test_a_fit_description_is_read_with_its_data_and_weights(tmp_path):
      "fit.jacobian", "finite-differences"),
     (("noise = 1e-5", "noise = 1e-5\ncontrol = \"stress\""), "experiment[0].control",
      "depth"),
+    (("[[experiment]]", "[fit]\nregularization = -1.0\n\n[[experiment]]"),
+     "fit.regularization", ">= 0"),
+    (("initial = 0.4", "initial = 0.4\nprior = 0.5"), "parameter[0].prior",
+     "fit.regularization > 0"),
 ])
 def test_bad_fit_descriptions_name_the_key(tmp_path, change, key, words):
     with pytest.raises(SceneError) as caught:
         ident.read_fit(written(tmp_path, FIT.replace(*change)))
+    assert key in str(caught.value) and words in str(caught.value)
+
+
+@pytest.mark.parametrize("parameter, key, words", [
+    ('key = "viscoelastic.shear.fractions.0"\ninitial = 0.4\nbounds = [0.05, 0.9]\n'
+     'prior = 0.95', "parameter[0].prior", "outside the bounds"),
+    ('key = "contact.mu"\ninitial = 0.1\nbounds = [0.01, 0.9]', "fit.regularization",
+     "no parameter is one"),
+])
+def test_bad_regularizations_name_the_key(tmp_path, parameter, key, words):
+    text = "[fit]\nregularization = 1.0\n" + FIT[:FIT.index("[[parameter]]")] + \
+        "[[parameter]]\n" + parameter + "\n"
+    with pytest.raises(SceneError) as caught:
+        ident.read_fit(written(tmp_path, text))
     assert key in str(caught.value) and words in str(caught.value)
 
 
