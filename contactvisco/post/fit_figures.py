@@ -77,25 +77,36 @@ def band(function: dict, covariance, quantile: float) -> tuple[np.ndarray, np.nd
 
 
 def curves_figure(curves: list) -> Figure:
-    """Measured, FE-fitted and closed-form curves against t, the residuals below."""
-    fig = Figure(figsize=(PAGE / 2, 4.2), layout="constrained")
-    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": (3, 1.3)})
+    """Per experiment (a column each) the measured, FE-fitted and closed-form curves against t,
+    the residuals below; t on a symmetric log axis (linear below the first sample after 0)
+    when the samples span more than two decades."""
+    n = len(curves)
+    fig = Figure(figsize=(min(PAGE, 0.5 * PAGE * max(n, 1) + 0.3), 4.2),
+                 layout="constrained")
+    axes = fig.subplots(2, n, squeeze=False, sharex="col",
+                        gridspec_kw={"height_ratios": (3, 1.3)})
     for i, c in enumerate(curves):
-        color = f"C{i}"
-        top.plot(c["t"], c["measured"], "o", ms=3, color=color, label=f"exp. {i}: data")
-        top.plot(c["t"], c["fitted"], "-", color=color, lw=1, label=f"exp. {i}: FE fit")
-        bottom.plot(c["t"], c["measured"] - c["fitted"], "o-", ms=2.5, lw=0.8, color=color)
+        top, bottom = axes[0, i], axes[1, i]
+        top.plot(c["t"], c["measured"], "o", ms=3, color="C0", label="data")
+        top.plot(c["t"], c["fitted"], "-", color="C1", lw=1, label="FE fit")
+        bottom.plot(c["t"], c["measured"] - c["fitted"], "o-", ms=2.5, lw=0.8, color="C1")
         if c["closed_form"] is not None:
-            top.plot(c["t"], c["closed_form"], "--", color=color, lw=0.9,
-                     label=f"exp. {i}: closed form")
+            top.plot(c["t"], c["closed_form"], "--", color="C2", lw=0.9, label="closed form")
             bottom.plot(c["t"], c["measured"] - c["closed_form"], "x--", ms=3, lw=0.6,
-                        color=color)
-    quantities = " / ".join(sorted({c["quantity"] for c in curves}))
-    top.set_ylabel(quantities + UNITS)
-    top.legend(frameon=False, fontsize="small")
-    bottom.axhline(0.0, color="0.6", lw=0.5)
-    bottom.set_xlabel("t" + UNITS)
-    bottom.set_ylabel("data - fit" + UNITS)
+                        color="C2")
+        positive = c["t"][c["t"] > 0]
+        if positive.size and positive.max() > 100.0 * positive.min():
+            first, last = float(positive.min()), float(positive.max())
+            top.set_xscale("symlog", linthresh=first)
+            # 0 and the decades above the linear part: no tick crowds the 0
+            top.set_xticks([0.0] + [10.0 ** k for k in range(math.ceil(math.log10(first)),
+                                                             math.floor(math.log10(last)) + 1)])
+        top.set_title(f"experiment {i}")
+        top.set_ylabel(c["quantity"] + UNITS)
+        top.legend(frameon=False, fontsize="small")
+        bottom.axhline(0.0, color="0.6", lw=0.5)
+        bottom.set_xlabel("t" + UNITS)
+        bottom.set_ylabel("data - fit" + UNITS)
     return fig
 
 

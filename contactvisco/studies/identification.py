@@ -530,15 +530,22 @@ def _closed_form_start(experiments: list, parameters: list) -> dict:
     chosen = [i for i, p in enumerate(parameters) if p.get("closed_form")]
     if not chosen:
         return {}, None
-    for i, e in enumerate(experiments):
+    # The closed form is one of creep: relaxation experiments are left out of its fit.
+    creep = [i for i, e in enumerate(experiments) if e["control"] == "force"]
+    if not creep:
+        _fail(f"parameter[{chosen[0]}].initial", f"'{CLOSED_FORM}' needs at least one creep "
+              "experiment (control = 'force'); all are under control = 'depth'")
+    for i in creep:
+        e = experiments[i]
         scene = _scene(e, parameters, [p["initial"] for p in parameters])
         obstacle = scene["obstacle"]
-        if (e["control"] != "force" or e["force"] is None or obstacle["shape"] != "sphere"
+        if (e["force"] is None or obstacle["shape"] != "sphere"
                 or scene["material"]["model"] not in ("axisymmetric", "3d")):
             _fail(f"parameter[{chosen[0]}].initial", f"'{CLOSED_FORM}' needs creep "
                   "experiments of a sphere (control = 'force' with a force column, "
                   "obstacle.shape = 'sphere', an axisymmetric or 3D body); experiment"
                   f"[{i}] is not one")
+    used = [experiments[i] for i in creep]
     values = np.array([p["initial"] for p in parameters], float)
 
     def residual(x):
@@ -546,9 +553,9 @@ def _closed_form_start(experiments: list, parameters: list) -> dict:
         return np.concatenate([
             e["w"] * (lee_radok.creep_depth(_scene(e, parameters, values), e["t"], e["force"],
                                             e_radius) - e["depth"])
-            for e, e_radius in zip(experiments, radii)])
+            for e, e_radius in zip(used, radii)])
 
-    radii = [_scene(e, parameters, values)["obstacle"]["radius"] for e in experiments]
+    radii = [_scene(e, parameters, values)["obstacle"]["radius"] for e in used]
     picked = [parameters[i] for i in chosen]
     result = least_squares(
         residual, _to_x(picked, [p["initial"] for p in picked]),
@@ -557,10 +564,10 @@ def _closed_form_start(experiments: list, parameters: list) -> dict:
         method="trf", x_scale="jac", ftol=1e-12, xtol=1e-12, gtol=1e-12)
     out = {}
     depths = residual(result.x)     # at the estimates (values[chosen] set to them)
-    curves, offset = [], 0
-    for e in experiments:
+    curves, offset = [None] * len(experiments), 0
+    for i, e in zip(creep, used):
         k = len(e["t"])
-        curves.append(e["depth"] + depths[offset:offset + k] / e["w"])
+        curves[i] = e["depth"] + depths[offset:offset + k] / e["w"]
         offset += k
     for p, v in zip(picked, _to_values(picked, result.x)):
         p["initial"] = float(v)

@@ -75,7 +75,7 @@ def test_the_curves_show_the_closed_form_fit(fitted):
     assert np.max(np.abs(curve["closed_form"] - curve["fitted"])) > 4 * SIGMA
     (fig,) = [f for stem, f in fit_figures.build(fitted) if stem == "fit"]
     labels = [line.get_label() for line in fig.axes[0].lines]
-    assert "exp. 0: closed form" in labels and "exp. 0: FE fit" in labels
+    assert "closed form" in labels and "FE fit" in labels
 
 
 def test_the_band_has_the_width_the_covariance_gives(fitted):
