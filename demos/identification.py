@@ -28,7 +28,7 @@ import pathlib
 
 import numpy as np
 
-from contactvisco import fit, load_scene, quick, show_images, solve
+from contactvisco import fit, load_scene, show_images, solve
 
 COARSE = ("geometry.parameters={radius = 10.0, height = 10.0, h_contact = 0.04, "
           "h_far = 3.0, refine = 0.3, growth = 0.15}")
