@@ -209,8 +209,10 @@ def test_the_closed_form_start_and_its_bias(tmp_path):
     experiment["depth"] = lee_radok.creep_depth(
         ident._scene(experiment, spec["parameters"], true), experiment["t"],
         experiment["force"], 1.0)
-    closed = ident._closed_form_start(spec["experiments"], spec["parameters"])
+    closed, (curve,) = ident._closed_form_start(spec["experiments"], spec["parameters"])
     assert list(closed.values()) == pytest.approx(true, rel=1e-8)
+    # the closed form's curve at its estimates is the data it was fitted to
+    assert np.max(np.abs(curve - experiment["depth"])) < 1e-8 * np.max(experiment["depth"])
     experiment["depth"] = fe_depth
     for p in spec["parameters"]:
         p["initial"] = p["bounds"][0] * 1.5
