@@ -160,3 +160,14 @@ def test_a_data_file_that_is_not_text_is_refused(tmp_path):
     (tmp_path / "data.csv").write_bytes(b"t,force,depth\n0,1,\xff\n")
     with pytest.raises(SceneError, match="experiment\\[0\\].data.*not a UTF-8 text file"):
         ident.read_fit(path)
+
+
+def test_the_closed_form_start_needs_a_creep_experiment(tmp_path):
+    """initial = "closed-form" fits the creep experiments only: with every experiment under
+    depth control there is none, and the parameter's key is named."""
+    text = FIT.replace("noise = 1e-5", 'noise = 1e-5\ncontrol = "depth"').replace(
+        "initial = 0.4", 'initial = "closed-form"')
+    spec = ident.read_fit(written(tmp_path, text))
+    with pytest.raises(SceneError) as caught:
+        ident._closed_form_start(spec["experiments"], spec["parameters"])
+    assert "parameter[0].initial" in str(caught.value) and "creep" in str(caught.value)
