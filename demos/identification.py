@@ -52,7 +52,7 @@ for name, result in (("creep", creep), ("relaxation", relaxation)):
     force = np.array([s["obstacle"]["force"][1] for s in result.steps])
     depth = -np.array([s["obstacle"]["displacement"][1] for s in result.steps])
     measured = depth if name == "creep" else force
-    sigma[name] = 0.01 * np.mean(np.abs(measured))           # 1 % noise
+    sigma[name] = float(0.01 * np.mean(np.abs(measured)))    # 1 % noise
     noisy = measured + sigma[name] * rng.standard_normal(t.size)
     with open(folder / f"{name}.csv", "w", newline="") as f:
         writer = csv.writer(f)

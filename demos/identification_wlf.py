@@ -50,7 +50,7 @@ for T in temperatures:
     t = np.array([s["t"] for s in result.steps])
     force = np.array([s["obstacle"]["force"][1] for s in result.steps])
     depth = -np.array([s["obstacle"]["displacement"][1] for s in result.steps])
-    sigma[T] = 0.01 * np.mean(depth)                       # 1 % noise
+    sigma[T] = float(0.01 * np.mean(depth))                # 1 % noise
     noisy = depth + sigma[T] * rng.standard_normal(t.size)
     with open(folder / f"creep_{T:g}.csv", "w", newline="") as f:
         writer = csv.writer(f)

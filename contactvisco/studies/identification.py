@@ -513,7 +513,7 @@ def _models(experiments, parameters, mode: str, comm):
         reasons[0] if reasons and mode == "auto" else None)
 
 
-def _closed_form_start(experiments: list, parameters: list) -> dict:
+def _closed_form_start(experiments: list, parameters: list) -> tuple:
     """The Lee-Radok fit of the creep curves (studies.lee_radok: a sphere on a half-space, no
     friction) over the parameters whose initial is "closed-form", the others held at their
     start, by the same least squares and bounds; its estimates become their starts.
@@ -664,8 +664,12 @@ def fit(description, comm=None) -> dict:
         (forward runs of all experiments, differences included), ``residual_evaluations``
         (the optimizer's, at most fit.max_evaluations), ``jacobian_evaluations``,
         ``wall_s``, ``status`` and ``message`` of the optimizer, ``success``, ``warnings``,
-        ``jacobian`` (how J was taken) and ``curves`` (per experiment: t, the fitted
-        ``quantity``, depth or force, measured and fitted).
+        ``jacobian`` (how J was taken), ``curves`` (per experiment: t, the fitted
+        ``quantity``, depth or force, measured, fitted and ``closed_form``), per parameter
+        its 95 % ``interval``; ``covariance`` (C_x), ``confidence`` (level, m - n, the
+        Student quantile q), ``regularization`` (weight w, Tikhonov rows
+        sqrt(w) (x_i - x0_i) on the Prony moduli appended to r) and ``moduli`` (see
+        :func:`moduli`).
     """
     from scipy.optimize import least_squares
 

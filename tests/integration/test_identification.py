@@ -245,7 +245,7 @@ def test_tikhonov_pulls_the_moduli_the_data_cannot_fix_to_their_prior(tmp_path):
             f"[fit]\nregularization = {weight!r}\n\n[[experiment]]\nscene = \"sphere_creep\"\n"
             f"data = \"data.csv\"\nset = ['{COARSE}', '{shear}']\nnoise = 1e-5\n\n" + "".join(
                 f'[[parameter]]\nkey = "viscoelastic.shear.fractions.{i}"\n'
-                f'initial = {g!r}\nbounds = [0.001, 0.4]\n\n' for i, g in enumerate(prior)))
+                f'initial = {float(g)!r}\nbounds = [0.001, 0.4]\n\n' for i, g in enumerate(prior)))
         spec = ident.read_fit(tmp_path / "fit.toml")
         (experiment,) = spec["experiments"]
         experiment["depth"] = ident.forward(experiment, spec["parameters"], true)
