@@ -340,7 +340,8 @@ def fit(description, out=None, comm=None) -> dict:
     description : path-like
         A fit description (TOML): its experiments (scene and CSV data) and parameters.
     out : path-like, optional
-        A folder for ``fit.json``, ``curves.csv`` and ``fit.png``; None writes nothing.
+        A folder for ``fit.json``, ``curves.csv`` and the figures (``fit.png``,
+        ``fit_moduli.png``, ``fit_correlation.png``); None writes nothing.
     comm : mpi4py.MPI.Comm, optional
         The communicator of the forward runs (default COMM_WORLD); rank 0 writes.
 

@@ -65,7 +65,8 @@ def _add_fit(sub) -> None:
                          description="Fit the parameters of a fit description (TOML: "
                          "experiments of a scene and a CSV curve each, the scene keys to "
                          "identify) by weighted least squares with the solver in the loop; "
-                         "write fit.json, curves.csv and fit.png. Exit 3 if the optimizer "
+                         "write fit.json, curves.csv and the figures fit.png, fit_moduli.png, "
+                         "fit_correlation.png. Exit 3 if the optimizer "
                          "stops before converging (the last state written).")
     fit.add_argument("description", help="the fit description (TOML)")
     fit.add_argument("--out", default="results/fit", help="the output folder (default: "

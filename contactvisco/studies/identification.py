@@ -47,7 +47,7 @@ from contactvisco.scene import prony_file
 
 #: The keys of a fit description, by table.
 FIT_KEYS = {"jacobian": "auto", "difference": "central", "step": 1e-3, "max_evaluations": 200,
-            "tolerance": 1e-8}
+            "tolerance": 1e-8, "regularization": 0.0}
 #: fit.jacobian: forward sensitivities through the time loop (contactvisco.solver.sensitivity),
 #: finite differences of forward runs, or the sensitivities where they cover every parameter.
 JACOBIANS = ("auto", "sensitivities", "finite-differences")
@@ -59,7 +59,7 @@ EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight", "control")
 #: obstacle's force-controlled component, the depth is fitted (creep); "depth": the measured
 #: depth drives that component as a displacement, the force is fitted (relaxation).
 CONTROLS = ("force", "depth")
-PARAMETER_KEYS = ("key", "initial", "bounds", "scale")
+PARAMETER_KEYS = ("key", "initial", "bounds", "scale", "prior")
 #: fit.difference: the finite-difference rule of the Jacobian and scipy's name of it.
 DIFFERENCES = {"central": "3-point", "forward": "2-point"}
 SCALES = ("linear", "log")
@@ -71,6 +71,10 @@ RCOND = 1e-6
 NULL_SHARE = 1e-2
 #: A correlation above which two parameters are reported as not separable.
 HIGH_CORRELATION = 0.99
+#: The confidence level of the parameters' intervals and of the moduli's band.
+LEVEL = 0.95
+#: The scene keys fit.regularization acts on: the Prony moduli (absolute or as fractions).
+REGULARIZED = ("moduli", "fractions")
 
 
 def _fail(key: str, message: str):
@@ -130,6 +134,8 @@ def read_fit(path) -> dict:
     if fit["difference"] not in DIFFERENCES:
         _fail("fit.difference", f"must be one of {', '.join(DIFFERENCES)}, got "
               f"{fit['difference']!r}")
+    if _number(fit["regularization"], "fit.regularization", "a number >= 0") < 0:
+        _fail("fit.regularization", f"must be >= 0, got {fit['regularization']!r}")
     for name in ("step", "tolerance"):
         if _number(fit[name], f"fit.{name}") <= 0 or fit[name] >= 1:
             _fail(f"fit.{name}", f"must be in (0, 1), got {fit[name]!r}")
@@ -140,6 +146,13 @@ def read_fit(path) -> dict:
                    for i, item in enumerate(_items(raw, "experiment"))]
     parameters = [_parameter(item, f"parameter[{i}].")
                   for i, item in enumerate(_items(raw, "parameter"))]
+    for i, (item, p) in enumerate(zip(_items(raw, "parameter"), parameters)):
+        if "prior" in item and not (p["regularized"] and fit["regularization"] > 0):
+            _fail(f"parameter[{i}].prior", "acts through fit.regularization > 0 on a Prony "
+                  "modulus (a key viscoelastic.<function>.moduli.<i> or .fractions.<i>)")
+    if fit["regularization"] > 0 and not any(p["regularized"] for p in parameters):
+        _fail("fit.regularization", "acts on the Prony moduli (keys viscoelastic.<function>."
+              "moduli.<i> or .fractions.<i>); no parameter is one")
     keys = [p["key"] for p in parameters]
     for i, key in enumerate(keys):
         if key in keys[:i]:
@@ -301,8 +314,13 @@ def _parameter(item: dict, where: str) -> dict:
                           f"a finite number or '{CLOSED_FORM}'")
     if not lower <= initial <= upper:
         _fail(f"{where}initial", f"{initial!r} is outside the bounds {bounds!r}")
+    prior = _number(item.get("prior", initial), f"{where}prior")
+    if not lower <= prior <= upper:
+        _fail(f"{where}prior", f"{prior!r} is outside the bounds {bounds!r}")
     return {"key": key, "path": key.split("."), "initial": initial, "bounds": (lower, upper),
-            "scale": scale, "closed_form": closed}
+            "scale": scale, "closed_form": closed, "prior": prior,
+            "regularized": len(key.split(".")) >= 3 and key.split(".")[0] == "viscoelastic"
+            and key.split(".")[-2] in REGULARIZED}
 
 
 def _at(scene: dict, path: list):
@@ -495,31 +513,39 @@ def _models(experiments, parameters, mode: str, comm):
         reasons[0] if reasons and mode == "auto" else None)
 
 
-def _closed_form_start(experiments: list, parameters: list) -> dict:
+def _closed_form_start(experiments: list, parameters: list) -> tuple:
     """The Lee-Radok fit of the creep curves (studies.lee_radok: a sphere on a half-space, no
     friction) over the parameters whose initial is "closed-form", the others held at their
     start, by the same least squares and bounds; its estimates become their starts.
 
     Returns
     -------
-    dict
-        key -> closed-form estimate (empty when no parameter asks for it).
+    tuple
+        (key -> closed-form estimate, the closed form's depth per experiment at them); empty
+        and None when no parameter asks for it.
     """
     from scipy.optimize import least_squares
 
     from contactvisco.studies import lee_radok
     chosen = [i for i, p in enumerate(parameters) if p.get("closed_form")]
     if not chosen:
-        return {}
-    for i, e in enumerate(experiments):
+        return {}, None
+    # The closed form is one of creep: relaxation experiments are left out of its fit.
+    creep = [i for i, e in enumerate(experiments) if e["control"] == "force"]
+    if not creep:
+        _fail(f"parameter[{chosen[0]}].initial", f"'{CLOSED_FORM}' needs at least one creep "
+              "experiment (control = 'force'); all are under control = 'depth'")
+    for i in creep:
+        e = experiments[i]
         scene = _scene(e, parameters, [p["initial"] for p in parameters])
         obstacle = scene["obstacle"]
-        if (e["control"] != "force" or e["force"] is None or obstacle["shape"] != "sphere"
+        if (e["force"] is None or obstacle["shape"] != "sphere"
                 or scene["material"]["model"] not in ("axisymmetric", "3d")):
             _fail(f"parameter[{chosen[0]}].initial", f"'{CLOSED_FORM}' needs creep "
                   "experiments of a sphere (control = 'force' with a force column, "
                   "obstacle.shape = 'sphere', an axisymmetric or 3D body); experiment"
                   f"[{i}] is not one")
+    used = [experiments[i] for i in creep]
     values = np.array([p["initial"] for p in parameters], float)
 
     def residual(x):
@@ -527,9 +553,9 @@ def _closed_form_start(experiments: list, parameters: list) -> dict:
         return np.concatenate([
             e["w"] * (lee_radok.creep_depth(_scene(e, parameters, values), e["t"], e["force"],
                                             e_radius) - e["depth"])
-            for e, e_radius in zip(experiments, radii)])
+            for e, e_radius in zip(used, radii)])
 
-    radii = [_scene(e, parameters, values)["obstacle"]["radius"] for e in experiments]
+    radii = [_scene(e, parameters, values)["obstacle"]["radius"] for e in used]
     picked = [parameters[i] for i in chosen]
     result = least_squares(
         residual, _to_x(picked, [p["initial"] for p in picked]),
@@ -537,10 +563,16 @@ def _closed_form_start(experiments: list, parameters: list) -> dict:
                 _to_x(picked, [p["bounds"][1] for p in picked])),
         method="trf", x_scale="jac", ftol=1e-12, xtol=1e-12, gtol=1e-12)
     out = {}
+    depths = residual(result.x)     # at the estimates (values[chosen] set to them)
+    curves, offset = [None] * len(experiments), 0
+    for i, e in zip(creep, used):
+        k = len(e["t"])
+        curves[i] = e["depth"] + depths[offset:offset + k] / e["w"]
+        offset += k
     for p, v in zip(picked, _to_values(picked, result.x)):
         p["initial"] = float(v)
         out[p["key"]] = float(v)
-    return out
+    return out, curves
 
 
 def _to_x(parameters, values):
@@ -572,7 +604,8 @@ def statistics(jacobian: np.ndarray, residual: np.ndarray, parameters: list,
     dict
         ``s2`` (residual variance), ``singular_values``, ``rank``, ``standard_error`` (of
         theta; inf where not determined), ``correlation`` (nan rows where not determined),
-        ``identifiable`` (bool per parameter) and ``warnings`` (text).
+        ``identifiable`` (bool per parameter), ``covariance`` (C_x, of x in the parameters'
+        scale, over the kept singular directions) and ``warnings`` (text).
     """
     m, n = jacobian.shape
     s2 = float(residual @ residual / (m - n)) if m > n else math.nan
@@ -608,7 +641,7 @@ def statistics(jacobian: np.ndarray, residual: np.ndarray, parameters: list,
                                 f"({corr[i, j]:+.4f}): the data hardly separates them")
     return {"s2": s2, "singular_values": S.tolist(), "rank": int(kept.sum()),
             "standard_error": se.tolist(), "correlation": corr.tolist(),
-            "identifiable": identifiable, "warnings": warnings}
+            "identifiable": identifiable, "covariance": cov.tolist(), "warnings": warnings}
 
 
 def fit(description, comm=None) -> dict:
@@ -631,8 +664,12 @@ def fit(description, comm=None) -> dict:
         (forward runs of all experiments, differences included), ``residual_evaluations``
         (the optimizer's, at most fit.max_evaluations), ``jacobian_evaluations``,
         ``wall_s``, ``status`` and ``message`` of the optimizer, ``success``, ``warnings``,
-        ``jacobian`` (how J was taken) and ``curves`` (per experiment: t, the fitted
-        ``quantity``, depth or force, measured and fitted).
+        ``jacobian`` (how J was taken), ``curves`` (per experiment: t, the fitted
+        ``quantity``, depth or force, measured, fitted and ``closed_form``), per parameter
+        its 95 % ``interval``; ``covariance`` (C_x), ``confidence`` (level, m - n, the
+        Student quantile q), ``regularization`` (weight w, Tikhonov rows
+        sqrt(w) (x_i - x0_i) on the Prony moduli appended to r) and ``moduli`` (see
+        :func:`moduli`).
     """
     from scipy.optimize import least_squares
 
@@ -640,7 +677,14 @@ def fit(description, comm=None) -> dict:
     parameters, experiments = spec["parameters"], spec["experiments"]
     settings = spec["fit"]
     runs = [0]
-    closed = _closed_form_start(experiments, parameters)
+    closed, closed_curves = _closed_form_start(experiments, parameters)
+    # Tikhonov rows sqrt(w) (x_i - x0_i) on the Prony moduli (module description)
+    weight = float(settings.get("regularization", 0.0))
+    regularized = [i for i, p in enumerate(parameters) if p["regularized"]] if weight > 0 \
+        else []
+    prior = _to_x(parameters, [p["prior"] for p in parameters])[regularized]
+    prior_rows = np.zeros((len(regularized), len(parameters)))
+    prior_rows[np.arange(len(regularized)), regularized] = math.sqrt(weight)
     models, sensitivities, reason = _models(experiments, parameters, settings["jacobian"],
                                             comm)
     cached = {}
@@ -668,7 +712,9 @@ def fit(description, comm=None) -> dict:
                 err.add_note(f"in the forward run of experiment[{i}] at " + ", ".join(
                     f"{p['key']} = {v!r}" for p, v in zip(parameters, values)))
                 raise
+        out.append(math.sqrt(weight) * (np.asarray(x)[regularized] - prior))
         if with_jacobian:
+            rows.append(prior_rows)
             cached["x"], cached["J"] = np.array(x, copy=True), np.concatenate(rows)
         return np.concatenate(out)
 
@@ -707,14 +753,30 @@ def fit(description, comm=None) -> dict:
                        "quantity": "force" if e["control"] == "depth" else "depth",
                        "measured": _measured(e).tolist(), "fitted": fitted.tolist()})
         offset += k
+    for c, closed_depth in zip(curves, closed_curves or [None] * len(curves)):
+        c["closed_form"] = None if closed_depth is None else closed_depth.tolist()
     misfit = np.concatenate([np.array(c["fitted"]) - c["measured"] for c in curves])
+    from scipy.stats import t as student
+    dof = len(result.fun) - len(parameters)
+    quantile = float(student.ppf(0.5 + LEVEL / 2, dof)) if dof > 0 else math.inf
+    x_se = [se / v if p["scale"] == "log" else se
+            for p, v, se in zip(parameters, values, stats["standard_error"])]
+    intervals = [[math.exp(x - quantile * e), math.exp(x + quantile * e)]
+                 if p["scale"] == "log" else [x - quantile * e, x + quantile * e]
+                 for p, x, e in zip(parameters, result.x, x_se)]
     return {
         "parameters": [{"key": p["key"], "estimate": float(v), "initial": p["initial"],
                         "closed_form": closed.get(p["key"]),
-                        "standard_error": se, "identifiable": ok, "scale": p["scale"],
-                        "bounds": list(p["bounds"])}
-                       for p, v, se, ok in zip(parameters, values, stats["standard_error"],
-                                               stats["identifiable"])],
+                        "standard_error": se, "interval": interval, "identifiable": ok,
+                        "scale": p["scale"], "bounds": list(p["bounds"]),
+                        "prior": p["prior"] if i in regularized else None}
+                       for i, (p, v, se, ok, interval) in enumerate(zip(
+                           parameters, values, stats["standard_error"], stats["identifiable"],
+                           intervals))],
+        "covariance": stats["covariance"],
+        "confidence": {"level": LEVEL, "dof": dof, "quantile": quantile},
+        "regularization": {"weight": weight, "rows": len(regularized)},
+        "moduli": moduli(experiments[0], parameters, values),
         "correlation": stats["correlation"], "singular_values": stats["singular_values"],
         "rank": stats["rank"], "cost": float(result.cost), "s2": stats["s2"],
         "residual_rms": float(np.sqrt(np.mean(misfit ** 2))), "evaluations": runs[0],
@@ -729,10 +791,55 @@ def fit(description, comm=None) -> dict:
     }
 
 
+def moduli(experiment: dict, parameters: list, values) -> dict | None:
+    """The relaxation functions of the fitted material (its [viscoelastic] table, at T_ref:
+    G(t) of the shear series, K(t) of the bulk one, E(t) where the scene gives Young's) on a
+    log grid of t, with their Jacobian in the optimizer's variables x, for the confidence
+    band var phi(t) = g(t)^T C_x g(t), g = dphi(t)/dx (linear propagation).
+
+    dphi/dx by central differences of the scene's conversion (no solve; phi is linear in the
+    moduli, smooth in the times): h = SCENE_STEP max(1, |x_k|).
+
+    Returns
+    -------
+    dict or None
+        ``t`` and per function name (``shear``, ``bulk``, ``young``) its ``value`` and
+        ``jacobian`` (len(t) x n); None for a scene without relaxation functions.
+    """
+    from contactvisco.model import viscoelastic as ve
+
+    def functions(x):
+        scene = _scene(experiment, parameters, _to_values(parameters, x))
+        return dict(getattr(scene.get("viscoelastic"), "functions", None) or {})
+
+    x = _to_x(parameters, values)
+    base = functions(x)
+    if not base:
+        return None
+    taus = [tau for phi in base.values() for tau in phi.taus] or [1.0]
+    t = np.geomspace(min(taus) / 1e2, max(taus) * 1e2, 200)
+    out = {"t": t.tolist()}
+    jacobians = {name: np.zeros((t.size, x.size)) for name in base}
+    for k in range(x.size):
+        h = SCENE_STEP * max(1.0, abs(x[k]))
+        step = np.zeros(x.size)
+        step[k] = h
+        plus, minus = functions(x + step), functions(x - step)
+        for name in base:
+            jacobians[name][:, k] = (ve.relaxation(plus[name], t)
+                                     - ve.relaxation(minus[name], t)) / (2.0 * h)
+    for name, phi in base.items():
+        out[name] = {"value": ve.relaxation(phi, t).tolist(),
+                     "jacobian": jacobians[name].tolist()}
+    return out
+
+
 def write(report: dict, out) -> None:
     """Write a fit's report into folder `out`: ``fit.json`` (the report without the
-    curves), ``curves.csv`` (experiment, t, force, measured and fitted depth) and
-    ``fit.png`` (measured against fitted depth, and the residuals).
+    curves), ``curves.csv`` (experiment, t, force, measured, fitted and closed-form depth,
+    the quantity fitted) and the figures drawn from these two files
+    (contactvisco.post.fit_figures: ``fit.png``, ``fit_moduli.png``,
+    ``fit_correlation.png``).
 
     Parameters
     ----------
@@ -741,9 +848,7 @@ def write(report: dict, out) -> None:
     out : path-like
         The folder (created).
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    from matplotlib import pyplot as plt
+    from contactvisco.post import fit_figures
 
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -752,26 +857,15 @@ def write(report: dict, out) -> None:
     (out / "fit.json").write_text(json.dumps(_finite(summary), indent=2) + "\n")
     with open(out / "curves.csv", "w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(["experiment", "t", "force", "measured_depth", "fitted_depth"])
+        writer.writerow(["experiment", "t", "force", "measured_depth", "fitted_depth",
+                         "closed_form_depth", "quantity"])
         for i, c in enumerate(report["curves"]):
             force = c["force"] or [""] * len(c["t"])
-            for row in zip(c["t"], force, c["measured"], c["fitted"]):
-                writer.writerow([i, *[repr(v) if v != "" else "" for v in row]])
-    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6, 6),
-                                      gridspec_kw={"height_ratios": (3, 1)})
-    for i, c in enumerate(report["curves"]):
-        line, = top.plot(c["t"], c["fitted"], label=f"experiment {i}: fitted")
-        top.plot(c["t"], c["measured"], "o", ms=3, color=line.get_color(),
-                 label=f"experiment {i}: measured")
-        bottom.plot(c["t"], np.array(c["measured"]) - c["fitted"], "o-", ms=3,
-                    color=line.get_color())
-    top.set_ylabel(" / ".join(sorted({c.get("quantity", "depth") for c in report["curves"]})))
-    top.legend()
-    bottom.set_xlabel("t")
-    bottom.set_ylabel("measured - fitted")
-    fig.tight_layout()
-    fig.savefig(out / "fit.png", dpi=120)
-    plt.close(fig)
+            closed = c.get("closed_form") or [""] * len(c["t"])
+            for row in zip(c["t"], force, c["measured"], c["fitted"], closed):
+                writer.writerow([i, *[repr(v) if v != "" else "" for v in row],
+                                 c.get("quantity", "depth")])
+    fit_figures.draw(out)
 
 
 def _finite(value):

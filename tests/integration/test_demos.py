@@ -15,9 +15,10 @@ pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                 reason="starts a Jupyter kernel; run on one rank")
 
 
-#: Over 10 s each (the 3D block; the paper scene at its full size; the obstacle demos).
+#: Over 10 s each (the 3D block; the paper scene at its full size; the obstacle demos; the
+#: fits).
 SLOW = ("block3d", "paper", "creep_indentation", "cattaneo_mindlin", "two_bodies",
-        "sphere_creep")
+        "sphere_creep", "identification", "identification_wlf")
 
 
 @pytest.mark.parametrize("demo", [pytest.param(d, marks=pytest.mark.slow) if d.stem in SLOW
@@ -35,6 +36,9 @@ def test_demo_runs_as_notebook(demo, tmp_path, monkeypatch):
                    for out in cell.get("outputs", []))
     if demo.stem == "paper":
         assert "{'separated': 1, 'compliance': 13, 'bound': 19}" in text
+    if demo.stem in ("identification", "identification_wlf"):   # every truth in its interval
+        assert "MISSES" not in text and text.count(" contains the truth") + \
+            text.count(" yes\n") == 4
     if demo.stem == "two_bodies":       # the patch test: mortar exact, node to segment not
         assert "mortar: interface pressure / p from 1.0000 to 1.0000" in text
         assert "node_to_segment: interface pressure / p from 0.9" in text

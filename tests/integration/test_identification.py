@@ -209,8 +209,10 @@ def test_the_closed_form_start_and_its_bias(tmp_path):
     experiment["depth"] = lee_radok.creep_depth(
         ident._scene(experiment, spec["parameters"], true), experiment["t"],
         experiment["force"], 1.0)
-    closed = ident._closed_form_start(spec["experiments"], spec["parameters"])
+    closed, (curve,) = ident._closed_form_start(spec["experiments"], spec["parameters"])
     assert list(closed.values()) == pytest.approx(true, rel=1e-8)
+    # the closed form's curve at its estimates is the data it was fitted to
+    assert np.max(np.abs(curve - experiment["depth"])) < 1e-8 * np.max(experiment["depth"])
     experiment["depth"] = fe_depth
     for p in spec["parameters"]:
         p["initial"] = p["bounds"][0] * 1.5
@@ -220,3 +222,41 @@ def test_the_closed_form_start_and_its_bias(tmp_path):
     for p, name in zip(report["parameters"], names):
         assert p["estimate"] == pytest.approx(TRUE[name], rel=1e-6), name
         assert p["initial"] == p["closed_form"]
+
+
+@pytest.mark.slow
+def test_tikhonov_pulls_the_moduli_the_data_cannot_fix_to_their_prior(tmp_path):
+    """Five fixed relaxation times (0.5, 2, 1e3, 1e4, 1e5) and creep sampled on [0, 3]: the
+    data fix the fractions of the first two, not those of the three slow terms (the plain fit
+    names them not identifiable). With fit.regularization = w the fit minimizes
+    1/2 |r(x)|^2 + w/2 |x - x0|^2, so at its optimum, with r linear near the truth x* of
+    noise-free data, (J^T J + w I) (x - x*) = w (x0 - x*): the estimates are the truth plus
+    that bias, J^T J + w I = s^2 C_x^-1 from the report itself; the slow fractions sit at
+    their prior 0.05, the fast two stay within 1e-3 of the truth."""
+    taus, true = [0.5, 2.0, 1e3, 1e4, 1e5], [0.3, 0.2, 0.02, 0.02, 0.02]
+    prior = np.array([0.25, 0.25, 0.05, 0.05, 0.05])
+    (tmp_path / "data.csv").write_text("t,force,depth\n" + "".join(
+        f"{t!r},{P!r},0\n" for t in [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0]))
+    shear = (f"viscoelastic.shear={{instantaneous = {MU0!r}, tau = {taus}, "
+             f"fractions = {true}}}")
+    reports = {}
+    for weight in (0.0, 1.0):
+        (tmp_path / "fit.toml").write_text(
+            f"[fit]\nregularization = {weight!r}\n\n[[experiment]]\nscene = \"sphere_creep\"\n"
+            f"data = \"data.csv\"\nset = ['{COARSE}', '{shear}']\nnoise = 1e-5\n\n" + "".join(
+                f'[[parameter]]\nkey = "viscoelastic.shear.fractions.{i}"\n'
+                f'initial = {float(g)!r}\nbounds = [0.001, 0.4]\n\n' for i, g in enumerate(prior)))
+        spec = ident.read_fit(tmp_path / "fit.toml")
+        (experiment,) = spec["experiments"]
+        experiment["depth"] = ident.forward(experiment, spec["parameters"], true)
+        reports[weight] = ident.fit(spec)
+    plain, regular = reports[0.0], reports[1.0]
+    assert [p["identifiable"] for p in plain["parameters"]] == [True] * 2 + [False] * 3
+    assert regular["regularization"] == {"weight": 1.0, "rows": 5}
+    assert all(p["identifiable"] for p in regular["parameters"])
+    estimate = np.array([p["estimate"] for p in regular["parameters"]])
+    normal = regular["s2"] * np.linalg.inv(np.array(regular["covariance"]))
+    predicted = true + np.linalg.solve(normal, 1.0 * (prior - true))
+    assert np.max(np.abs(estimate - predicted)) < 1e-6
+    assert np.max(np.abs(estimate[:2] - true[:2])) < 1e-3
+    assert np.max(np.abs(estimate[2:] - prior[2:])) < 2e-3

@@ -48,7 +48,8 @@ def test_a_fit_stopped_early_writes_its_files_and_exits_3(tmp_path):
     assert report["evaluations"] == 4
     assert report["parameters"][0]["key"] == "viscoelastic.shear.fractions.0"
     rows = (out / "curves.csv").read_text().splitlines()
-    assert rows[0] == "experiment,t,force,measured_depth,fitted_depth" and len(rows) == 4
+    assert rows[0] == ("experiment,t,force,measured_depth,fitted_depth,closed_form_depth,"
+                       "quantity") and len(rows) == 4
     assert (out / "fit.png").stat().st_size > 0
 
 

@@ -58,10 +58,28 @@ def test_a_fit_description_is_read_with_its_data_and_weights(tmp_path):
      "fit.jacobian", "finite-differences"),
     (("noise = 1e-5", "noise = 1e-5\ncontrol = \"stress\""), "experiment[0].control",
      "depth"),
+    (("[[experiment]]", "[fit]\nregularization = -1.0\n\n[[experiment]]"),
+     "fit.regularization", ">= 0"),
+    (("initial = 0.4", "initial = 0.4\nprior = 0.5"), "parameter[0].prior",
+     "fit.regularization > 0"),
 ])
 def test_bad_fit_descriptions_name_the_key(tmp_path, change, key, words):
     with pytest.raises(SceneError) as caught:
         ident.read_fit(written(tmp_path, FIT.replace(*change)))
+    assert key in str(caught.value) and words in str(caught.value)
+
+
+@pytest.mark.parametrize("parameter, key, words", [
+    ('key = "viscoelastic.shear.fractions.0"\ninitial = 0.4\nbounds = [0.05, 0.9]\n'
+     'prior = 0.95', "parameter[0].prior", "outside the bounds"),
+    ('key = "contact.mu"\ninitial = 0.1\nbounds = [0.01, 0.9]', "fit.regularization",
+     "no parameter is one"),
+])
+def test_bad_regularizations_name_the_key(tmp_path, parameter, key, words):
+    text = "[fit]\nregularization = 1.0\n" + FIT[:FIT.index("[[parameter]]")] + \
+        "[[parameter]]\n" + parameter + "\n"
+    with pytest.raises(SceneError) as caught:
+        ident.read_fit(written(tmp_path, text))
     assert key in str(caught.value) and words in str(caught.value)
 
 
@@ -142,3 +160,14 @@ def test_a_data_file_that_is_not_text_is_refused(tmp_path):
     (tmp_path / "data.csv").write_bytes(b"t,force,depth\n0,1,\xff\n")
     with pytest.raises(SceneError, match="experiment\\[0\\].data.*not a UTF-8 text file"):
         ident.read_fit(path)
+
+
+def test_the_closed_form_start_needs_a_creep_experiment(tmp_path):
+    """initial = "closed-form" fits the creep experiments only: with every experiment under
+    depth control there is none, and the parameter's key is named."""
+    text = FIT.replace("noise = 1e-5", 'noise = 1e-5\ncontrol = "depth"').replace(
+        "initial = 0.4", 'initial = "closed-form"')
+    spec = ident.read_fit(written(tmp_path, text))
+    with pytest.raises(SceneError) as caught:
+        ident._closed_form_start(spec["experiments"], spec["parameters"])
+    assert "parameter[0].initial" in str(caught.value) and "creep" in str(caught.value)
