@@ -711,6 +711,9 @@ class CondensedSNES(NewtonSolver):
     def __init__(self, problem, comm, scene_options=None, defaults=None, reuse=False):
         super().__init__(comm, [problem.u], scene_options, defaults, reuse)
         self.system = _condensation(problem)
+        # The node blocks of a residual wait for its Jacobian (NodalCondensation.defer), not
+        # in the two-body system, which transforms the condensed residual further.
+        self.system.defer = type(self.system) is NodalCondensation
         u_vector = compat.petsc_vector(problem.u)
         self.b = u_vector.copy()
         self.x = u_vector.copy()
@@ -732,6 +735,7 @@ class CondensedSNES(NewtonSolver):
         self._error = None               # an error raised inside a SNES callback
         if self.force is not None:
             self._shift, self._u_now = u_vector.copy(), u_vector.copy()
+            self.system.defer = False
         self._finish_setup()
         if self.force is None:           # the bordered solves need P's exact factors
             self.enable_stale()
