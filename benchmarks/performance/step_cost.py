@@ -11,6 +11,7 @@ that two code versions can be compared to round-off (--compare).
 
     python benchmarks/performance/step_cost.py --label after [--ranks 1 2]
         [--configs paper:128:auto block3d:0.03:auto ...] [--steps 4]
+    python benchmarks/performance/step_cost.py --label reference --switch KEEP=0 INEXACT=0
     python benchmarks/performance/step_cost.py --compare before after
 
 Writes benchmarks/results/step_cost_<label>.{json,md}; contact values to
@@ -58,7 +59,7 @@ def contact_values(problem, comm):
     return x[order], values[order]
 
 
-def one(scene_name, size, solver, steps, label):
+def one(scene_name, size, solver, steps, label, switches=()):
     import numpy as np
     from mpi4py import MPI
 
@@ -66,6 +67,21 @@ def one(scene_name, size, solver, steps, label):
     from contactvisco.solver.time_loop import simulate
     from scaling import elastic_floor, overrides
 
+    from contactvisco.solver import linear
+    for switch in switches:                    # e.g. KEEP=0: the reference without the rule
+        name, value = switch.split("=")
+        setattr(linear, name, type(getattr(linear, name))(float(value)))
+    from contactvisco.solver import newton
+    newton_cpu = []                            # CPU seconds of every Newton solve
+    solve = newton.NewtonSolver.solve
+
+    def timed_solve(self):
+        tick = time.process_time()
+        try:
+            return solve(self)
+        finally:
+            newton_cpu.append(time.process_time() - tick)
+    newton.NewtonSolver.solve = timed_solve
     comm = MPI.COMM_WORLD
     scene = scene_module.load(scene_name, overrides(scene_name, size, steps)
                               + [f"solver.linear_solver='{solver}'"])
@@ -97,6 +113,7 @@ def one(scene_name, size, solver, steps, label):
            "step_s": [s["wall_s"] for s in records],
            "elastic_s": {k: v[0] for k, v in elastic.items()}, "elastic_fastest": fastest,
            "unit_s": unit, "run_s": run_s, "run_cpu_s": run_cpu,
+           "newton_cpu_s": sum(newton_cpu),
            "load": os.getloadavg()[0]}
     if comm.rank == 0:
         print("ROW " + json.dumps(row), flush=True)
@@ -118,12 +135,12 @@ def ratios(row):
 def write_table(rows, name):
     lines = ["| scene | size | unknowns (u) | solver | ranks | Newton per step | set-ups per "
              "step | Krylov per step | s per step | elastic solve s (fastest) | first loaded "
-             "step / elastic | later steps / elastic | run CPU s | load |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "step / elastic | later steps / elastic | Newton CPU s | run CPU s | load |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if "failed" in r:
             lines.append(f"| {r['scene']} | {r['size']} | | {r['solver']} | {r['ranks']} | "
-                         "failed | | | | | | | | |")
+                         "failed | | | | | | | | | |")
             continue
         first, later = ratios(r)
         lines.append(
@@ -131,7 +148,8 @@ def write_table(rows, name):
             f"| {' '.join(map(str, r['newton']))} | {' '.join(map(str, r['setups']))} | "
             + " ".join(str(sum(k)) for k in r["krylov"])
             + f" | {' '.join(f'{s:.2f}' for s in r['step_s'])} | {r['unit_s']:.3f} "
-            f"({r['elastic_fastest']}) | {first:.2f} | {later:.2f} | {r['run_cpu_s']:.1f} | "
+            f"({r['elastic_fastest']}) | {first:.2f} | {later:.2f} | "
+            f"{r.get('newton_cpu_s', float('nan')):.2f} | {r['run_cpu_s']:.1f} | "
             f"{r['load']:.1f} |")
     write_markdown(name, lines)
 
@@ -160,6 +178,8 @@ def main():
     parser.add_argument("--configs", nargs="+", default=DEFAULT_CONFIGS,
                         help="scene:size:solver (paper: cells per side; block3d: h)")
     parser.add_argument("--compare", nargs=2, metavar=("BEFORE", "AFTER"))
+    parser.add_argument("--switch", nargs="*", default=[],
+                        help="NAME=VALUE of contactvisco.solver.linear (KEEP=0, INEXACT=0)")
     args = parser.parse_args()
     if args.compare:
         compare(*args.compare)
@@ -167,7 +187,7 @@ def main():
     if args.one:
         scene, size, solver = args.one
         one(scene, float(size) if scene == "block3d" else int(size), solver, args.steps,
-            args.label)
+            args.label, args.switch)
         return
     from contactvisco.io import launcher
     env = mpi_env(oversubscribe=False)
@@ -182,7 +202,7 @@ def main():
                 continue
             command = [*launcher.mpi_launcher(), "-n", str(ranks), sys.executable, __file__,
                        "--one", scene, str(size), solver, "--steps", str(args.steps),
-                       "--label", args.label]
+                       "--label", args.label, "--switch", *args.switch]
             print("running", scene, size, solver, ranks, flush=True)
             proc = subprocess.run(command, env=env, capture_output=True, text=True)
             lines = [line for line in proc.stdout.splitlines() if line.startswith("ROW ")]

@@ -274,6 +274,7 @@ class BulkPart:
         self.cell, self.facet = fem.form(cell_form), fem.form(ufl.Form(facets))
         self.constants = cell_form.constants()
         self.values = None               # the Constants' values of the kept matrix
+        self.assemblies = 0              # of the kept matrix: a new bulk operator each
         self.matrix = A.duplicate()
 
     def assemble_into(self, A, bcs):
@@ -288,6 +289,7 @@ class BulkPart:
             compat.assemble_matrix(self.matrix, self.cell, bcs, diagonal=0.0)
             self.matrix.assemble()
             self.values = values
+            self.assemblies += 1
         self.matrix.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         compat.assemble_matrix(A, self.facet, bcs, diagonal=1.0)
         A.assemble()
@@ -388,6 +390,12 @@ class NodalCondensation:
         self.A.zeroEntries()
         compat.assemble_matrix(self.A, self.J_uu, self.bcs, diagonal=1.0)
         self.A.assemble()
+
+    def bulk_stamp(self):
+        """A value that changes with the bulk operator (the cell integrals of J_uu): the
+        count of its assemblies, or None where it depends on the iterate (not split off,
+        BulkPart) and every Jacobian assembles it anew."""
+        return self._bulk.assemblies if self._bulk is not None and self._bulk.split else None
 
     def _node_values(self, vec, bs):
         vec.ghostUpdate(addv=_ADD, mode=_REVERSE)

@@ -55,7 +55,7 @@ from petsc4py import PETSc
 
 from contactvisco.fem import compat, parts
 from contactvisco.solver.bordered import ObstacleForce
-from contactvisco.solver import floating
+from contactvisco.solver import floating, linear
 from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.errors import SceneError
 
@@ -366,6 +366,7 @@ class NewtonSolver:
         self.nearby = False              # keep P's factors for any nearby J (enable_nearby)
         self._nearby_extra = 0           # FGMRES iterations beyond the first since P's factors
         self.nearby_solves = 0           # solves with an earlier matrix's factors (a run's)
+        self.kept = None                 # the iterative solver's kept preconditioner (linear)
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -410,7 +411,8 @@ class NewtonSolver:
             self.floating.destroy()
             self.floating = None
         owned = ("snes", "b", "x", "A", "_x_jacobian", "_du") + (
-            ("operator",) if self.reuse else ())   # else the operator is A or J_red
+            ("operator",) if self.reuse or self.__dict__.get("kept") is not None
+            else ())                                # else the operator is A or J_red
         for name in owned:
             obj = self.__dict__.get(name)
             if obj is not None:
@@ -426,7 +428,11 @@ class NewtonSolver:
         if self.floating is not None:
             self.floating.prepare(A, self.b)
         if not self.reuse:
-            self.setups += 1
+            if self.kept is None:
+                self.setups += 1
+            elif self.kept.build_next(self.snes.getKSP(), A):
+                A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+                self.setups += 1
             return
         if self.stale_rows > 0:
             self._to_operator_or_stale(A)
@@ -722,7 +728,14 @@ class CondensedSNES(NewtonSolver):
         self._pending = False            # a step from _x_jacobian awaits its multiplier update
         self._residuals_since_jacobian = 0
         self._broken = None              # why the iterates left the coupled method's, if so
-        self.operator = self.system.J_red.duplicate(copy=True) if reuse else self.system.J_red
+        obstacle = problem.contact.obstacle
+        # The iterative solver's preconditioner is built from an operator of its own, copied
+        # from J_red only when linear.KeptPreconditioner says so.
+        if linear.KEEP and not reuse and type(self.system) is NodalCondensation and not (
+                obstacle is not None and obstacle.controlled):
+            self.kept = linear.KeptPreconditioner(self.system.bulk_stamp)
+        self.operator = (self.system.J_red.duplicate(copy=True)
+                         if reuse or self.kept is not None else self.system.J_red)
         self.snes.setFunction(_weak(self._residual), self.b)
         self.snes.setJacobian(_weak(self._jacobian), self.system.J_red, self.operator)
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
@@ -737,6 +750,7 @@ class CondensedSNES(NewtonSolver):
             self._shift, self._u_now = u_vector.copy(), u_vector.copy()
             self.system.defer = False
         self._finish_setup()
+        self._ksp_rtol = self.snes.getKSP().getTolerances()[0]
         if self.force is None:           # the bordered solves need P's exact factors
             self.enable_stale()
 
@@ -863,6 +877,12 @@ class CondensedSNES(NewtonSolver):
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
         self._to_operator(self.system.J_red)
+        if linear.INEXACT and not self.reuse:            # the iterative solver
+            atol, rtol, _, _ = snes.getTolerances()
+            ksp = snes.getKSP()
+            target = max(atol, rtol * self._norm0)
+            ksp.setTolerances(rtol=linear.forcing(self._ksp_rtol, self.system.full_norm,
+                                                  target))
         if (self.floating is not None
                 and self.floating.unbalanced >= floating.UNBALANCED_JACOBIANS):
             self._error = SceneError(floating.UNBALANCED, key="solver.linear_solver")
