@@ -166,9 +166,10 @@ compare-stacks:
 	python3 $(BENCH)/accuracy/stacks.py
 
 # The figures of README.md and docs/ with their signatures (tests/integration/test_figures.py
-# checks them).
+# checks them), and the picture of docs/paraview.md (a run read back as ParaView reads it).
 figures: install
 	$(PY) docs/make_figures.py
+	$(PY) docs/paraview_view.py
 
 # The demos as notebooks in JupyterLab, on a kernel of this environment (the demos declare
 # none: they open on contactvisco-$(STACK)); root needs --allow-root. What the demos write
@@ -188,7 +189,10 @@ notebook: install
 
 # The documentation (docs/, Sphinx + MyST + numpydoc from Debian's packages), built offline
 # into build/docs with the Debian route's Python, so that autodoc imports the package; every
-# warning (a broken internal link or anchor included) fails it. Then the relative file links
+# warning (a broken internal link or anchor included) fails it. The demos are executed as
+# notebooks first, two at a time (docs/demo_pages.py; cached in build/docs-demos/): budget
+# 3 minutes from an empty build/ on an idle 2-core machine, 20 s with the cache
+# (docs/installation.md has the measurements). Then the relative file links
 # of README.md and docs/*.md (tests/unit/test_docs_links.py) and the built pages: no network,
 # MathJax from the build (Debian's libjs-mathjax), no raw math or table (test_docs_built.py).
 DOCS_APT_PACKAGES := python3-sphinx python3-myst-parser python3-numpydoc python3-sphinx-rtd-theme \

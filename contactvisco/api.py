@@ -15,9 +15,6 @@ from contactvisco.scene import loader as scene_module
 from contactvisco.errors import SceneError
 
 #: Scene tables whose keys are free (a nested dict is one value, not more overrides).
-_FREE_FORM = {("geometry", "parameters"), ("solver", "petsc_options")}
-
-
 def load_scene(name_or_path, preset: str | None = None, sets=(), **overrides) -> dict:
     """A scene with its defaults filled in and overrides applied, checked as a whole.
 
@@ -33,7 +30,10 @@ def load_scene(name_or_path, preset: str | None = None, sets=(), **overrides) ->
     **overrides
         Python values nested by table, as in the TOML file:
         ``load_scene("paper", contact={"mu": 0.4}, time={"steps": 20})``. A table given as a
-        dict changes only the keys it names; numpy scalars and arrays are accepted.
+        dict changes only the keys it names, except a free-form table (a relaxation function such
+        as ``viscoelastic={"shear": {...}}``, ``geometry.parameters``,
+        ``solver.petsc_options``), which replaces the scene's whole; numpy scalars and arrays
+        are accepted.
 
     Returns
     -------
@@ -62,7 +62,7 @@ def _assignments(values: dict, path: list):
     """One Override per leaf of the nested dict (lists and free-form tables are leaves)."""
     for key, value in values.items():
         where = path + [str(key)]
-        if isinstance(value, dict) and value and tuple(where) not in _FREE_FORM:
+        if isinstance(value, dict) and value and ".".join(where) not in scene_module.FREE_FORM:
             yield from _assignments(value, where)
         else:
             yield scene_module.Override(where, _plain(value))

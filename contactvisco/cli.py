@@ -413,7 +413,7 @@ def _outcome(err: Exception, args, out) -> tuple[int, str]:
     from contactvisco.io import parallel
     from contactvisco.solver.newton import NewtonFailure
     if isinstance(err, SceneError):
-        from contactvisco.io.checkpoint import Damaged
+        from contactvisco.io.files import Damaged
         from contactvisco.io.files import UnsafeEntry
         from contactvisco.io.lock import FolderError
         from contactvisco.io.output import DamagedFile

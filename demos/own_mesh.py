@@ -93,6 +93,7 @@ if MPI.COMM_WORLD.size == 1:
     plotter.screenshot(picture)
     display(Image(filename=str(picture), width=600))
 plotter.close()
+del plotter        # released now, while pyvista is whole (not among the module's teardown)
 print("largest |u|:", np.abs(result.u.x.array).max())
 
 # %% [markdown]

@@ -3,8 +3,9 @@
 The pages are Markdown (MyST). The Python reference is generated from the docstrings
 (autodoc + numpydoc), which imports the package: build with the Python of an environment
 that has DOLFINx (`.venv/bin/python -m sphinx ...`). The demos (jupytext percent-format
-scripts in demos/) are turned into MyST pages in docs/demos/ when the build starts; they are
-not run: each page shows the committed figures of docs/figures/ that its demo draws.
+scripts in demos/) are executed as notebooks when the build starts and turned into MyST pages
+in docs/demos/ with their outputs and figures (docs/demo_pages.py; the executed notebooks are
+cached in build/docs-demos/).
 """
 import pathlib
 import re
@@ -13,6 +14,7 @@ import sys
 DOCS = pathlib.Path(__file__).resolve().parent
 ROOT = DOCS.parent
 sys.path.insert(0, str(ROOT))          # the package of this tree, not an installed copy
+sys.path.insert(0, str(DOCS))          # demo_pages
 
 project = "contactvisco"
 author = "contactvisco developers"
@@ -22,7 +24,7 @@ release = version = "0.1.0"
 extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.mathjax", "numpydoc"]
 source_suffix = {".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "make_figures.py"]
+exclude_patterns = ["_build", "make_figures.py", "demos/*_files"]
 
 # MyST: $...$ and $$...$$ math (the demos use both, $$ also inside a paragraph), anchors for
 # headings down to ### so that links to #a-section are checked by the build.
@@ -60,84 +62,17 @@ html_show_sourcelink = False
 
 # --- the demos as pages -----------------------------------------------------------------
 
-#: The committed figures of docs/figures/ each demo draws (the same runs, by make figures).
-DEMO_FIGURES = {
-    "paper": [("paper_deformed_mesh", "Deformed mesh at t = 0.1 and t = 1 (the paper's Fig. 2)"),
-              ("paper_contact_reactions", "Reactions of the contact nodes at T = 1, zones "
-                                          "shaded (Fig. 3)"),
-              ("paper_contact_displacements", "Displacements of the contact nodes at T = 1, "
-                                              "zones shaded, bound g drawn (Fig. 4)"),
-              ("paper_probes", "Displacement at the probes against time"),
-              ("paper_stress", "Von Mises stress on the deformed body at T = 1")],
-    "hertz": [("hertz_stress", "Von Mises stress on the quarter cylinder, the contact zone "
-                               "zoomed in a second panel"),
-              ("hertz_contact_reactions", "Contact pressure against Hertz's profile")],
-    "block3d": [("block3d_stress", "Von Mises stress on the deformed block and on its contact "
-                                   "face seen from below"),
-                ("block3d_contact_status", "Contact nodes at T in the plane of the face, "
-                                           "coloured by state")],
-    "coulomb": [("coulomb_cattaneo_mindlin", "Tangential traction of the pulled cylinder at "
-                                             "a/h = 22 against Cattaneo-Mindlin, nu = 0.49 "
-                                             "and 0.3")],
-    "tradeoff": [("tradeoff", "Estimated error of the contact pressure against wall time on "
-                              "the paper scene: the ladder, its Pareto front, the 5 % target "
-                              "and the recommended run")],
-}
-
-_CELL = re.compile(r"^# %%(.*)$")
-
-
-def percent_to_myst(text: str, name: str) -> str:
-    """A jupytext percent-format script as a MyST page: markdown cells as text (their
-    leading '# ' removed), code cells as Python blocks; the jupytext header is dropped."""
-    lines = text.splitlines()
-    if lines and lines[0].startswith("# ---"):
-        end = next(i for i in range(1, len(lines)) if lines[i].startswith("# ---"))
-        lines = lines[end + 1:]
-    cells, kind, body = [], None, []
-    for line in lines:
-        match = _CELL.match(line)
-        if match:
-            if kind is not None:
-                cells.append((kind, body))
-            kind, body = ("markdown" if "[markdown]" in match.group(1) else "code"), []
-        elif kind is not None:
-            body.append(line)
-    if kind is not None:
-        cells.append((kind, body))
-    out = []
-    for kind, body in cells:
-        while body and not body[-1].strip():
-            body.pop()
-        while body and not body[0].strip():
-            body.pop(0)
-        if not body:
-            continue
-        if kind == "markdown":
-            out.append("\n".join(re.sub(r"^# ?", "", line) if line.startswith("#") else line
-                                 for line in body))
-        else:
-            out.append("```python\n" + "\n".join(body) + "\n```")
-    out.append(f"*The script: `demos/{name}.py`; run it with `.venv/bin/python demos/{name}.py`"
-               f" or open it as a notebook ([the demos](../demos.md)).*")
-    figures = DEMO_FIGURES.get(name)
-    if figures:
-        out.append("## Its figures\n\nAs committed in `docs/figures/` (drawn by "
-                   "`make figures`, checked by `tests/integration/test_figures.py`):")
-        out.extend(f"![{caption}](../figures/{stem}.png)" for stem, caption in figures)
-    return "\n\n".join(out) + "\n"
-
-
 def write_demo_pages(app):
-    """docs/demos/<name>.md for every demos/<name>.py; a page is rewritten only when its
-    text changes, so that an unchanged demo is not read again."""
-    target = DOCS / "demos"
-    target.mkdir(exist_ok=True)
-    for script in sorted((ROOT / "demos").glob("*.py")):
-        page = target / f"{script.stem}.md"
-        text = percent_to_myst(script.read_text(), script.stem)
-        if not page.exists() or page.read_text() != text:
-            page.write_text(text)
+    """docs/demos/<name>.md (with <name>.py and the executed <name>.ipynb to download) for
+    every demos/<name>.py, executed as a notebook unless build/docs-demos/ has its outputs
+    (docs/demo_pages.py)."""
+    from sphinx.errors import ExtensionError
+    from sphinx.util import logging
+    import demo_pages
+    try:
+        demo_pages.write_pages(DOCS / "demos", log=logging.getLogger(__name__).info)
+    except RuntimeError as error:
+        raise ExtensionError(str(error)) from None
 
 
 def mathjax_source() -> pathlib.Path:

@@ -3,7 +3,8 @@ python benchmarks/robustness/trust_round.py).
 
 Each case is a scene a hostile but fair user could write: surface obstacles, prescribed laws
 in x and t, friction coefficients, temperatures of a WLF shift, keys that only some scenes use,
-repeated list entries, huge numbers. It is loaded and run through the Python interface (a small
+repeated list entries, huge numbers, force control that cannot be balanced, obstacles that
+start inside the body, whole tables given by --set. It is loaded and run through the Python interface (a small
 mesh, a few steps, its output folder in a fresh working folder) and classed against what it
 should give: refused naming a key, or run. The outcome classes are
 
@@ -13,6 +14,8 @@ should give: refused naming a key, or run. The outcome classes are
 - ``internal error``: any other exception;
 - ``refused documented input``: a SceneError for input the docs allow;
 - ``wrong key``: refused, but naming another key;
+- ``misleading message``: the right key, but not the words of the case's cause (force
+  control's failures share their key, obstacle.force, and differ by cause);
 
 and a case that writes anything outside its output folder is counted apart. The table goes to
 benchmarks/results/trust_round.md (its counts in docs/reliability.md).
@@ -31,6 +34,7 @@ from mpi4py import MPI  # noqa: E402
 
 from contactvisco.errors import SceneError  # noqa: E402
 from contactvisco.scene import loader  # noqa: E402
+from contactvisco.solver.newton import NewtonFailure  # noqa: E402
 from contactvisco.solver.time_loop import simulate  # noqa: E402
 
 SMALL = ["geometry.cells=[6, 3]", "time.steps=3"]
@@ -53,6 +57,115 @@ def wlf(temperature: str) -> dict:
             "traction": [{"boundary": "top", "value": [0.0, -1.0]}],
             "contact": {"boundary": "bottom", "stiffness": 100.0, "g": 0.03},
             "time": {"T": 4.0, "steps": 8}, "output": {"probes": []}}
+
+
+def layer(obstacle: dict, steps: int = 4, mu: float = 0.0, law: str = "compliance") -> dict:
+    """A layer [0, 2] x [0, 1], its top held, on a rigid obstacle below (E = 200)."""
+    return {"name": "layer", "geometry": {"type": "gmsh", "script": "rectangle",
+            "parameters": {"length": 2.0, "height": 1.0, "h": 0.2, "h_bottom": 0.05}},
+            "material": {"model": "plane_strain", "E": 200.0, "nu": 0.3},
+            "dirichlet": [{"boundary": "top", "components": "all"}],
+            "contact": {"boundary": "bottom", "g": 0.0, "mu": mu, "augmentation": 200.0,
+                        "friction_law": law},
+            "obstacle": obstacle, "time": {"T": 1.0, "steps": steps},
+            "output": {"probes": [], "xdmf": False}}
+
+
+def cylinder(dy: float = 0.0, **keys) -> dict:
+    """A cylinder of radius 1 under the layer, touching it at (1, 0) when dy = 0."""
+    return {"shape": "cylinder", "centre": [1.0, -1.0 + dy], "radius": 1.0, **keys}
+
+
+def plane(y: float = 0.0, **keys) -> dict:
+    return {"shape": "plane", "point": [0.0, y], "normal": [0.0, 1.0], **keys}
+
+
+#: The words of each force-control failure (the key alone does not tell them apart).
+PULLS, THROUGH, OUT = "pulls the obstacle away", "passes through the body", "out of contact"
+FRICTION, FLOATS, NEWTON = "acts along the contact surface", "the body floats", "bordered"
+
+
+def force_cases() -> list:
+    """Force control that cannot be balanced, each failure with its words; force control
+    that can; obstacles that start inside the body; whole tables given by --set."""
+    out = []
+    for text, words in [("-0.1 * t", PULLS), ("-1e-3 * t", PULLS), ("-10 * t", PULLS),
+                        ("400 * t", THROUGH), ("2e3 * t", THROUGH), ("1e5 * t", THROUGH)]:
+        out.append(("force", f"cylinder force {text}",
+                    layer(cylinder(force_components=[1], force=[text])), [],
+                    f"obstacle.force|{words}"))
+    out.append(("force", "plane force -0.1 * t", layer(plane(force_components=[1],
+                                                             force=["-0.1 * t"])), [],
+                f"obstacle.force|{PULLS}"))
+    for dy in (-0.01, -0.1):
+        out.append(("force", f"cylinder {-dy} below the layer, force 0.1 * t",
+                    layer(cylinder(dy, force_components=[1], force=["0.1 * t"])), [],
+                    f"obstacle.force|{OUT}"))
+    out.append(("force", "plane 0.05 below the layer, force 0.1 * t",
+                layer(plane(-0.05, force_components=[1], force=["0.1 * t"])), [],
+                f"obstacle.force|{OUT}"))
+    for q, mu in (("0.2 * t", 0.3), ("1.0 * t", 0.1)):
+        out.append(("force", f"plane P = 0.2, Q = {q}, mu = {mu}",
+                    layer(plane(force_components=[1, 0], force=["0.2", q]), mu=mu,
+                          law="coulomb"), [], f"obstacle.force|{FRICTION}"))
+    hertz = ["contact.gap=0", "obstacle.shape='plane'", "obstacle.point=[0.0, 0.0]",
+             "obstacle.normal=[0.0, 1.0]", "obstacle.force_components=[1]", "time.steps=2",
+             "geometry.parameters.h_contact=0.02"]
+    for text in ("0.25 * t", "0.25", "0.5"):
+        out.append(("force", f"hertz disk held by a plane alone, force {text}", "hertz",
+                    hertz + [f"obstacle.force=['{text}']"], f"obstacle.force|{FLOATS}"))
+    newton = layer(cylinder(force_components=[1], force=["80 * t"]), steps=1)
+    newton["solver"] = {"max_cuts": 0, "petsc_options": {"snes_max_it": 2}}
+    out.append(("force", "force 80 in one step, 2 Newton iterations, no cut", newton, [],
+                f"obstacle.force|{NEWTON}"))
+    for label, raw in [
+            ("cylinder force 0.2 * t", layer(cylinder(force_components=[1], force=["0.2 * t"]))),
+            ("cylinder force 8 * t", layer(cylinder(force_components=[1], force=["8 * t"]))),
+            ("cylinder 0.001 inside, force 0.2 * t",
+             layer(cylinder(0.001, force_components=[1], force=["0.2 * t"]))),
+            ("plane P = 0.2, Q = 0.03 * t, mu = 0.3",
+             layer(plane(force_components=[1, 0], force=["0.2", "0.03 * t"]), mu=0.3,
+                   law="coulomb"))]:
+        out.append(("force", label, raw, [], None))
+    # obstacles that start inside the body (L = 2 for the layer, 1 for the disk)
+    for label, raw, key in [
+            ("cylinder 0.5 inside, moved", layer(cylinder(0.5, displacement=[0.0, "1e-3 * t"])),
+             "obstacle.centre"),
+            ("cylinder 0.85 inside, force", layer(cylinder(0.85, force_components=[1],
+                                                           force=["0.1 * t"])),
+             "obstacle.centre"),
+            ("plane 0.3 inside", layer(plane(0.3, displacement=[0.0, "1e-3 * t"])),
+             "obstacle.point"),
+            ("surface 0.5 inside", layer({"shape": "surface", "distance": "x[1] - 0.5",
+                                          "displacement": [0.0, "1e-3 * t"]}),
+             "obstacle.distance")]:
+        out.append(("penetration", label, raw, [], key))
+    out.append(("penetration", "hertz plane 0.3 above the disk's bottom", "hertz",
+                ["contact.gap=0", "obstacle.shape='plane'", "obstacle.point=[0.0, 0.3]",
+                 "obstacle.normal=[0.0, 1.0]", "geometry.parameters.h_contact=0.02"],
+                "obstacle.point"))
+    for label, raw in [
+            ("cylinder 0.001 inside", layer(cylinder(0.001), steps=1)),
+            ("cylinder 0.15 inside", layer(cylinder(0.15), steps=1)),
+            ("plane 0.04 inside a layer g = 0.05",
+             {**layer(plane(0.04), steps=1),
+              "contact": {"boundary": "bottom", "g": 0.05, "stiffness": 100.0, "mu": 0.0}})]:
+        out.append(("penetration", label, raw, [], None))
+    # whole tables by --set, checked as the file's
+    for text, expected in [
+            ("viscoelastic.shear={instantaneous=30.0, tau=[1.0], fractions=[0.3]}", None),
+            ("viscoelastic.bulk={long_term=40.0}", None),
+            ("viscoelastic={shear={instantaneous=30.0, tau=[2.0], moduli=[5.0]}}", None),
+            ("contact={stiffness=200.0, g=0.02}", None),
+            ("time={T=2.0, steps=4}", None),
+            ("geometry={lower=[0.0, 0.0], upper=[2.0, 1.0], cells=[6, 2]}", None),
+            ("viscoelastic.shear={instantaneous=30.0, tau=[1.0], modli=[10.0]}",
+             "viscoelastic.shear"),
+            ("viscoelastic.shear={instantaneous=-30.0}", "viscoelastic.shear"),
+            ("contact={law='signorini'}", "contact.law"),
+            ("time={T=-1.0}", "time.T")]:
+        out.append(("whole table", f"--set {text}", wlf("50 + 2 * t"), [text], expected))
+    return out
 
 
 def cases() -> list:
@@ -176,7 +289,7 @@ def cases() -> list:
         out.append(("energy", energy, "paper",
                     SMALL + ["material.law='energy'", f"material.energy='{energy}'",
                              "time.rule='trapezoid'"], None))
-    return out
+    return out + force_cases()
 
 
 def run_case(family, label, scene, sets, expected) -> dict:
@@ -186,17 +299,25 @@ def run_case(family, label, scene, sets, expected) -> dict:
     os.chdir(work)
     start = time.perf_counter()
     key, message = None, ""
+    expected, _, words = (expected or "").partition("|")
+    expected = expected or None
     try:
         resolved = (loader.load(scene, sets) if isinstance(scene, str)
                     else loader.resolve(scene, sets))
         simulate(resolved, out=work / "out", comm=MPI.COMM_SELF, progress=False)
         outcome = "ran" if expected is None else "silent wrong answer"
-    except SceneError as err:
-        key, message = err.key, str(err).splitlines()[0][:160]
+    except (SceneError, NewtonFailure) as err:
+        # a NewtonFailure (exit 3) counts as refused when it names the expected key
+        key = getattr(err, "key", None) or (expected if expected and expected in str(err)
+                                            else None)
+        message = str(err).splitlines()[0][:160]
         if expected is None:
-            outcome = "refused documented input"
+            outcome = ("refused documented input" if isinstance(err, SceneError)
+                       else "internal error")
+        elif not (key or "").startswith(expected):
+            outcome = "wrong key"
         else:
-            outcome = "refused" if (key or "").startswith(expected) else "wrong key"
+            outcome = "refused" if words in str(err) else "misleading message"
     except Exception as err:             # noqa: BLE001 - the class being counted
         outcome, message = "internal error", f"{type(err).__name__}: {err}"[:160]
     finally:

@@ -369,7 +369,7 @@ def build(scene: dict, geometry, V, Q, W, nodes, length_scale: float) -> BodyCon
         The displacement's space (P1).
     Q, W : dolfinx.fem.FunctionSpace
         The scalar and vector P1 spaces of the contact fields.
-    nodes : contactvisco.fem.problem.ContactNodes
+    nodes : contactvisco.fem.contact_terms.ContactNodes
         The slave nodes; their normals become nu.
     length_scale : float
         The mesh's extent (the default search distance).

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from dolfinx import fem
 
-from contactvisco.fem import problem as problem_module
+from contactvisco.fem.contact_terms import corner_values
 from contactvisco.model import contact_law as law
 
 STATUSES = ("separated", "compliance", "bound")
@@ -152,7 +152,7 @@ def _law_at_nodes(problem, own: np.ndarray, normals: np.ndarray, fields: dict) -
         general = contact.get("p_nu") is not None or contact.get("p_tau") is not None
         at = (np.ones(len(own), dtype=bool) if general
               else np.isin(own, problem.contact.nodes.corners))
-        corner = problem_module.corner_values(problem, own[at])
+        corner = corner_values(problem, own[at])
         if "radius" in corner:
             values["radius"] = np.zeros(len(own))
         for key, corner_key in (("penetration", "s_nu"), ("u_nu", "u_nu"),

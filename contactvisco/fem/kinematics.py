@@ -253,7 +253,7 @@ class Axisymmetric(Cartesian):
         omega_i = w_i / m_i, m_i the node's share, so that the vertex rule of omega f gives
         sum_i w_i f(x_i)."""
         from dolfinx import fem
-        from contactvisco.fem.problem import assembled_values
+        from contactvisco.fem.fields import assembled_values
         exact = dsc.reconstruct(metadata={"quadrature_degree": 2})
         areas = assembled_values(fem.form(self.weight * ufl.TestFunction(Q) * exact))
         omega = fem.Function(Q, name="ring_weight")

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from contactvisco.errors import SceneError
@@ -52,6 +53,10 @@ from contactvisco.scene import expressions
 #: Added under the square root of a distance to a centre or an axis: keeps the closest-point
 #: normal finite at the centre itself (a point deep inside the obstacle, never a contact node).
 _TINY = 1e-300
+
+#: The push into the body, as a fraction of its size, of a force-controlled obstacle's first
+#: guess at each step (ObstaclePart._touch).
+TOUCH = 1e-8
 
 #: The range of |grad phi| accepted at a contact node (module description): a distance has 1.
 GRADIENT_BOUNDS = (1e-3, 1e3)
@@ -139,7 +144,7 @@ class ObstaclePart:
     D: fem.Function
     D_previous: fem.Function
     reference: fem.Constant
-    nodes: object                      # problem.ContactNodes: their normals follow nu
+    nodes: object                      # contact_terms.ContactNodes: their normals follow nu
     t: fem.Constant
     _normal_expression: fem.Expression
     _gap_expression: fem.Expression
@@ -227,6 +232,28 @@ class ObstaclePart:
                 d[j] = self.committed[j]
         self.place(d)
 
+    def _touch(self) -> np.ndarray:
+        """A push of TOUCH times the body's size into the body (along the mean of -nu over the
+        contact nodes), added to a force-controlled obstacle's first guess: an equilibrium
+        that left it touching the body at zero force (an interference pushed out by F = 0)
+        has every node at a gap of round-off, possibly all "separated", and then no node to
+        carry the next force; pushed, the nearest one is in contact. Collective."""
+        nodes = self.nodes
+        local = -(nodes.weights[nodes.owned, None] * nodes.normals[nodes.owned]).sum(axis=0)
+        comm = self.gap.function_space.mesh.comm
+        total = np.zeros_like(local)
+        comm.Allreduce(local, total, op=MPI.SUM)
+        x = self.gap.function_space.mesh.geometry.x[:, :self.dim]
+        upper, lower = np.full(self.dim, -np.inf), np.full(self.dim, np.inf)
+        if len(x):
+            upper, lower = x.max(axis=0), x.min(axis=0)
+        comm.Allreduce(upper.copy(), upper, op=MPI.MAX)
+        comm.Allreduce(lower.copy(), lower, op=MPI.MIN)
+        size = np.linalg.norm(total)
+        if not size > 0:
+            return np.zeros(self.dim)
+        return TOUCH * float(np.max(upper - lower)) * total / size
+
     def force_at(self, t: float) -> np.ndarray:
         """The prescribed resultant contact force F(t) on the force-controlled components
         (the force of the obstacle on the body), shape (len(controlled),)."""
@@ -236,10 +263,18 @@ class ObstaclePart:
                          if isinstance(v, str) else float(v) for j, v in enumerate(values)])
 
     def prepare(self, t_committed: float):
-        """The origin of the step's slip: d at the committed time."""
+        """The origin of the step's slip: d at the committed time; under force control, the
+        first guess of d (the last equilibrium pushed by _touch). Collective."""
         d = (self.committed if self.committed is not None
              else displacement_at(self.scene["obstacle"], t_committed, self.dim))
         self.D_previous.x.array.reshape(-1, self.dim)[:] = d
+        if self.committed is not None and self.controlled:
+            # Newton's first guess: the last equilibrium, pushed into contact (_touch)
+            guess = self.displacement()
+            push = self._touch()
+            for j in self.controlled:
+                guess[j] = self.committed[j] + push[j]
+            self.place(guess)
 
     def commit(self):
         """Keep the converged d (the slip's origin of the next step)."""
@@ -255,7 +290,7 @@ def build(scene: dict, Q, W, nodes, t) -> ObstaclePart:
         The resolved scene.
     Q, W : fem.FunctionSpace
         The scalar and vector P1 spaces of the contact part.
-    nodes : contactvisco.fem.problem.ContactNodes
+    nodes : contactvisco.fem.contact_terms.ContactNodes
         The contact nodes; their normals (and 2D tangents) are set to the obstacle's.
     t : fem.Constant
         The time of the expressions.

@@ -40,6 +40,7 @@ import numpy as np
 from contactvisco.fem import compat
 from contactvisco.errors import SceneError
 from contactvisco.io import files
+from contactvisco.io.files import Damaged  # noqa: F401 - raised here, named by the CLI
 
 META = "meta.json"
 LEGACY = "state.npz"
@@ -310,10 +311,6 @@ def save(folder, problem, comm, t: float, count: int, step: float | None,
                 shutil.rmtree(old, ignore_errors=True)
         (root / LEGACY).unlink(missing_ok=True)
     comm.barrier()
-
-
-class Damaged(SceneError):
-    """A checkpoint file that fails a check."""
 
 
 def _read_meta(root: pathlib.Path) -> dict:

@@ -26,6 +26,10 @@ class UnsafeEntry(SceneError):
     where the package reads or writes one."""
 
 
+class Damaged(SceneError):
+    """A checkpoint or record file of an output folder that fails a check on --restart."""
+
+
 def what(path) -> str | None:
     """What `path` is, without following a link: None if absent, "" for a regular file, else
     words for the user ("a symbolic link to /x", "a FIFO", "a directory", ...)."""

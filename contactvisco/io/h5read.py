@@ -69,6 +69,36 @@ def read_dataset(file: pathlib.Path, path: str) -> np.ndarray:
         lib.H5Fclose(ctypes.c_int64(f))
 
 
+def stored_type(file: pathlib.Path, path: str) -> np.dtype:
+    """The type dataset `path` of HDF5 file `file` is stored as: an integer or float numpy
+    dtype of the same size and sign (byte order left out)."""
+    from contactvisco.io import files
+    files.require_regular(file)
+    lib = _hdf5()
+    for name in ("H5Dget_type",):
+        getattr(lib, name).restype = ctypes.c_int64
+    f = lib.H5Fopen(str(file).encode(), 0, ctypes.c_int64(0))
+    if f < 0:
+        raise OSError(f"{file}: not a readable HDF5 file")
+    try:
+        d = lib.H5Dopen2(ctypes.c_int64(f), path.encode(), ctypes.c_int64(0))
+        if d < 0:
+            raise OSError(f"{file}: no dataset {path}")
+        try:
+            t = lib.H5Dget_type(ctypes.c_int64(d))
+            kind = lib.H5Tget_class(ctypes.c_int64(t))      # 0 integer, 1 float
+            size = lib.H5Tget_size(ctypes.c_int64(t))
+            signed = lib.H5Tget_sign(ctypes.c_int64(t)) == 1 if kind == 0 else True
+            lib.H5Tclose(ctypes.c_int64(t))
+        finally:
+            lib.H5Dclose(ctypes.c_int64(d))
+    finally:
+        lib.H5Fclose(ctypes.c_int64(f))
+    if kind not in (0, 1):
+        raise OSError(f"{file}: dataset {path} is neither integer nor float")
+    return np.dtype(("i" if signed else "u") + str(size) if kind == 0 else f"f{size}")
+
+
 def check_xdmf(path) -> list[tuple[float, dict]]:
     """Every time step of an XDMF file with every dataset it references read back; each
     array's shape must be the Dimensions the XDMF gives and its values finite."""

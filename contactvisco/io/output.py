@@ -31,7 +31,7 @@ from contactvisco.fem import compat
 from contactvisco.errors import SceneError
 from contactvisco.fem.contact_state import (STATUSES, STICK_SLIP_STATES, rows_at_nodes,
                                             status_at_nodes)
-from contactvisco.io import files
+from contactvisco.io import files, h5states
 from contactvisco.io.obstacle_file import DRAWN, OBSTACLE_FILE, ObstacleFile, surface
 
 class Writer:
@@ -68,7 +68,7 @@ class Writer:
                     error = err
             message = comm.bcast(error and str(error), root=0)
             if message is not None:
-                from contactvisco.io.checkpoint import Damaged
+                from contactvisco.io.files import Damaged
                 raise error if error is not None else Damaged(message)
         self.summary = {"scene": problem.scene, "unknowns": problem.count_unknowns(),
                         "ranks": comm.size, "steps_file": STEPS_FILE, "final": None}
@@ -86,7 +86,7 @@ class Writer:
             self.last_record = kept_steps[-1] if kept_steps else None
             if records is not None and [s.get("step") for s in kept_steps] != list(
                     range(restart_count)):
-                from contactvisco.io.checkpoint import Damaged
+                from contactvisco.io.files import Damaged
                 raise Damaged(f"--restart: {self.folder / STEPS_FILE} holds "
                               f"{len(kept_steps)} step records, not the steps 0.."
                               f"{restart_count - 1} of the checkpoint")
@@ -183,6 +183,7 @@ class Writer:
                 f.write_mesh(self.mesh)
                 for field in fields:
                     f.write_function(xdmf_field(field, self._writable), record["t"])
+            self._integer_codes(name, fields)
             if self.rank == 0:
                 self.last_field_bytes = sum(os.stat(path).st_size
                                             for path in (name, name.with_suffix(".h5")))
@@ -212,6 +213,22 @@ class Writer:
         # One line, written whole and flushed: a stop leaves whole lines (and at most a cut
         # last one, which read_summary drops).
         self.steps_file.append(json.dumps(jsonable(record), allow_nan=False) + "\n")
+
+    def _integer_codes(self, name: pathlib.Path, fields):
+        """The state codes of the step file `name` rewritten as integers (h5states), by rank
+        0 once every rank has closed the file; a failure is raised on every rank."""
+        if not any(f.name in h5states.CODE_FIELDS for f in fields):
+            return
+        error = None
+        self.comm.barrier()
+        if self.rank == 0:
+            try:
+                h5states.integer_codes(name)
+            except OSError as err:
+                error = str(err)
+        error = self.comm.bcast(error, root=0)
+        if error is not None:
+            raise OSError(f"the state codes of {name} cannot be written as integers: {error}")
 
     def _check_room(self, name: pathlib.Path):
         """Stop (OSError ENOSPC on every rank) before the fields of a step are written when
@@ -355,7 +372,7 @@ def check_records(folder, records: dict, count: int) -> None:
     bytes differ from what the checkpoint recorded stops the restart (SceneError naming the
     file): the steps it held would be lost. Every HDF5 file the XDMF index lists up to the
     checkpoint must be there. Nothing is changed unless every file passes."""
-    from contactvisco.io.checkpoint import Damaged
+    from contactvisco.io.files import Damaged
     folder = pathlib.Path(folder)
     for name, entry in records.items():
         path = folder / name
@@ -398,7 +415,7 @@ def _check_listed_fields(path: pathlib.Path, text: bytes):
     """Every HDF5 file the XDMF index `text` (of file `path`) points to is a regular file."""
     import xml.etree.ElementTree as ET
 
-    from contactvisco.io.checkpoint import Damaged
+    from contactvisco.io.files import Damaged
     try:
         root = ET.fromstring(text)
     except ET.ParseError as err:
@@ -721,7 +738,7 @@ def body_field(problem):
     dolfinx.fem.Function or None
         b on the cells of body b (ghost cells included).
     """
-    from contactvisco.fem.problem import body_cells
+    from contactvisco.fem.stress import body_cells
     obstacle = problem.contact and problem.contact.obstacle
     two = hasattr(obstacle, "pairing")
     if not problem.scene.get("body") and not two:

@@ -16,7 +16,7 @@ the bound's friction is F_b = p_tau(g). The linear law (stiffness, mu) stays its
 form.
 
 Every function takes the array namespace `ops` it is evaluated in: UFL (the forms of
-contactvisco.fem.problem) or NUMPY (the node values of the contact table, one row per node,
+contactvisco.fem.contact_terms) or NUMPY (the node values of the contact table, one row per node,
 vectors as (n, d) arrays). The law is thus one set of expressions for both.
 
 The kinks and Newton's derivative there. The law is piecewise smooth; Newton differentiates

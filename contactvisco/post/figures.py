@@ -253,7 +253,7 @@ def build_all(folder, times=None, edges: bool = False,
         if files.what(snapshots) is not None:
             with _reading(snapshots):
                 out += _snapshot_figures(load_npz(snapshots), requested, tables, units,
-                                         edges, notes)
+                                         edges, notes, obstacle_at(scene, steps))
         with _reading(folder / "contact_nodes.csv"):
             out += _contact_figures(tables, requested, g, units, notes)
         if requested is None and any(step.get("probes") for step in steps):
@@ -262,10 +262,80 @@ def build_all(folder, times=None, edges: bool = False,
         if requested is None and steps and "obstacle" in steps[0]:
             with _reading(folder / "steps.jsonl"):
                 out.append(("obstacle", obstacle_history(steps, units)))
+        for _, fig in out:
+            fit_labels(fig)
     return out
 
 
-def _snapshot_figures(data, requested, tables, units, edges, notes) -> list:
+def fit_labels(fig: Figure, passes: int = 3) -> None:
+    """Break every axis label (colour bars' included) longer than its axes onto one more
+    line, at the space nearest the middle of its longest line (never inside $...$), until it
+    fits: constrained layout and savefig's tight box count an axis label by its middle only,
+    so the ends of a longer one would be cut from the saved file."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    for _ in range(passes):
+        renderer = FigureCanvasAgg(fig).get_renderer()
+        fig.draw(renderer)
+        changed = False
+        for ax in fig.axes:
+            for label, room, along in ((ax.xaxis.label, ax.bbox.width, "width"),
+                                       (ax.yaxis.label, ax.bbox.height, "height")):
+                text = label.get_text()
+                if not text or not label.get_visible():
+                    continue
+                if getattr(label.get_window_extent(renderer), along) <= room:
+                    continue
+                broken = _break_longest_line(text)
+                if broken != text:
+                    label.set_text(broken)
+                    changed = True
+        if not changed:
+            return
+
+
+def _break_longest_line(text: str) -> str:
+    """`text` with its longest line broken at the space nearest that line's middle outside
+    $...$ (unchanged when there is none)."""
+    lines = text.split("\n")
+    i = max(range(len(lines)), key=lambda k: len(lines[k]))
+    line, spaces, inside = lines[i], [], False
+    for k, char in enumerate(line):
+        if char == "$":
+            inside = not inside
+        elif char == " " and not inside:
+            spaces.append(k)
+    if not spaces:
+        return text
+    k = min(spaces, key=lambda k: abs(k - len(line) / 2))
+    lines[i] = line[:k] + "\n" + line[k + 1:]
+    return "\n".join(lines)
+
+
+def obstacle_at(scene: dict, steps: list):
+    """A function of (t, lower, upper) giving the segments (m, 2, 2) of the scene's rigid
+    obstacle (2D: a plane's line, a cylinder's or an axisymmetric sphere's circle) moved
+    by its displacement at the step record nearest t, drawn to cover the box [lower,
+    upper] (contactvisco.io.obstacle_file.surface); None for a scene without a drawn
+    obstacle or without obstacle records."""
+    from contactvisco.io.obstacle_file import DRAWN, surface
+    obstacle = scene.get("obstacle") or {}
+    moves = [(float(s["t"]), s["obstacle"].get("displacement")) for s in steps
+             if isinstance(s.get("obstacle"), dict)]
+    if obstacle.get("shape") not in DRAWN or not moves:
+        return None
+
+    def segments(t, lower, upper):
+        drawing = surface(obstacle, np.asarray(lower, float), np.asarray(upper, float))
+        if drawing is None or drawing[2] != "Polyline":
+            return None
+        points, cells, _ = drawing
+        shift = min(moves, key=lambda move: abs(move[0] - t))[1]
+        xy = points[:, :2] + (np.asarray(shift, float)[:2] if shift is not None else 0.0)
+        return xy[np.asarray(cells)]
+    return segments
+
+
+def _snapshot_figures(data, requested, tables, units, edges, notes, obstacle=None) -> list:
     """The deformed mesh and stress figures of the snapshots `data` (build_all)."""
     out = []
     available = np.asarray(data["times"], dtype=float)
@@ -280,7 +350,8 @@ def _snapshot_figures(data, requested, tables, units, edges, notes) -> list:
     if data["points"].shape[1] == 2:
         stem = "deformed_mesh" if requested is None else \
             "deformed_mesh_t" + "_".join(f"{available[i]:g}" for i in chosen)
-        out.append((stem, deformed_meshes(data, chosen, units, asked=asked)))
+        out.append((stem, deformed_meshes(data, chosen, units, asked=asked,
+                                          obstacle=obstacle)))
     for i in (chosen if requested else chosen[-1:]):
         t = float(available[i])
         stem = "stress" if requested is None else f"stress_t{t:g}"
@@ -438,9 +509,11 @@ def _under(ax, fig, inches: float):
     return offset_copy(ax.transAxes, fig=fig, y=-inches, units="inches")
 
 
-def deformed_meshes(data, indices, units, scale: float = 1.0, asked=None):
+def deformed_meshes(data, indices, units, scale: float = 1.0, asked=None, obstacle=None):
     """Figure 2: the deformed mesh at the chosen snapshots over the undeformed mesh (2D), the
-    panels side by side, or stacked for a slender body (height < SLENDER x width)."""
+    panels side by side, or stacked for a slender body (height < SLENDER x width); with
+    `obstacle` (obstacle_at), the rigid obstacle where it is at each snapshot, in red, the
+    view kept on the body."""
     from matplotlib.lines import Line2D
     points, cells = data["points"], data["cells"]
     n = len(indices)
@@ -458,6 +531,12 @@ def deformed_meshes(data, indices, units, scale: float = 1.0, asked=None):
     for k, (ax, i) in enumerate(zip(axes, indices)):
         ax.triplot(points[:, 0], points[:, 1], cells, color="0.75", lw=0.3)
         ax.triplot(moved[i][:, 0], moved[i][:, 1], cells, color="C0", lw=0.35)
+        drawn_obstacle = obstacle and obstacle(float(data["times"][i]), points.min(axis=0),
+                                               points.max(axis=0))
+        if drawn_obstacle is not None:
+            ax.autoscale_view()
+            ax.autoscale(False)            # the view stays on the body: a plane is long
+            ax.add_collection(LineCollection(drawn_obstacle, colors="C3", linewidths=1.0))
         ax.set_aspect("equal", adjustable="datalim" if slender else "box")
         ax.set_title(_time_text(float(data["times"][i]), units)
                      + ("" if scale == 1 else f" (displacement x{scale:g})")
@@ -466,11 +545,18 @@ def deformed_meshes(data, indices, units, scale: float = 1.0, asked=None):
             ax.set_xlabel(label("x", "length", units))
         ax.set_ylabel(label("y", "length", units))
     key = axes[-1] if slender else axes[0]
-    key.legend([Line2D([], [], color="0.75", lw=1.0), Line2D([], [], color="C0", lw=1.0)],
-               ["undeformed", "deformed" + ("" if scale == 1 else f" (x{scale:g})")],
+    handles = [Line2D([], [], color="0.75", lw=1.0), Line2D([], [], color="C0", lw=1.0)]
+    names = ["undeformed", "deformed" + ("" if scale == 1 else f" (x{scale:g})")]
+    if drawn_obstacle is not None:
+        handles.append(Line2D([], [], color="C3", lw=1.0))
+        names.append("obstacle")
+    key.legend(handles, names,
                loc="upper center" if slender else "upper left",
                bbox_to_anchor=(0.5 if slender else 0.0, 0.0),
-               bbox_transform=_under(key, fig, 0.36), ncol=2, frameon=False)
+               bbox_transform=_under(key, fig, 0.36),
+               # three entries in one row are wider than one column's figure
+               ncol=len(handles) if size[0] > COLUMN or len(handles) < 3 else 2,
+               frameon=False)
     return fig
 
 

@@ -29,7 +29,7 @@ import operator
 import ufl
 
 from contactvisco.errors import SceneError
-from contactvisco.scene.table import MODULUS_RANGE
+from contactvisco.scene.limits import MODULUS_RANGE
 
 #: UFL's two-argument arctangent (ufl.atan_2 before UFL 2023).
 _ATAN2 = getattr(ufl, "atan2", None) or getattr(ufl, "atan_2")

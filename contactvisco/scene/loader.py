@@ -55,7 +55,20 @@ def builtin_names() -> list[str]:
     return sorted(p.stem for p in SCENE_DIR.glob("*.toml"))
 
 
+#: Tables whose keys are free: a gmsh script's parameters, PETSc options, a relaxation
+#: function (instantaneous, tau with moduli or fractions, a file ...). Given whole (in a file,
+#: by `--set 'viscoelastic.shear={...}'` or as a Python dict) such a table replaces the one it
+#: overrides, as the file's table would; a declared table is merged key by key.
+FREE_FORM = ("geometry.parameters", "solver.petsc_options", "viscoelastic.shear",
+             "viscoelastic.bulk", "viscoelastic.young")
+
+
 def _merge(base: dict, update: dict, where: str = "") -> dict:
+    """`base` with the keys of `update` (each checked against `base`'s keys), recursively in
+    declared tables; a free-form table of `update` (FREE_FORM, or any whose default is empty)
+    replaces its counterpart whole."""
+    if where.rstrip(".") in FREE_FORM:
+        return copy.deepcopy(update)
     out = copy.deepcopy(base)
     for key, value in update.items():
         if key not in base:
@@ -64,7 +77,8 @@ def _merge(base: dict, update: dict, where: str = "") -> dict:
             raise SceneError(f"unknown scene key '{where}{key}'{suggestion}; "
                              f"allowed here: {', '.join(sorted(base))}", key=f"{where}{key}")
         # An empty default table is free-form (geometry.parameters, solver.petsc_options).
-        if isinstance(base[key], dict) and base[key] and isinstance(value, dict):
+        if isinstance(base[key], dict) and base[key] and isinstance(value, dict) \
+                and f"{where}{key}" not in FREE_FORM:
             out[key] = _merge(base[key], value, f"{where}{key}.")
         else:
             out[key] = copy.deepcopy(value)
@@ -145,7 +159,9 @@ def _apply_set(scene: dict, path: list[str], value, source: str = "--set") -> No
         raise SceneError(f"{source}: unknown scene key '{'.'.join(path)}'{suggestion}")
     table = node.get(last) or {"contact": CONTACT_DEFAULTS, "viscoelastic":
                                VISCOELASTIC_DEFAULTS}.get(".".join(path))
-    if isinstance(table, dict) and table and not free_form:
+    if isinstance(table, dict) and ".".join(path) in FREE_FORM and isinstance(value, dict):
+        pass                                   # a free-form table given whole replaces it
+    elif isinstance(table, dict) and table and not free_form:
         # A whole table: its keys are checked and the defaults kept.
         if not isinstance(value, dict):
             raise SceneError(f"{source} {'.'.join(path)}: '{'.'.join(path)}' is a table; set "

@@ -10,11 +10,7 @@ import pathlib
 import sys
 
 from contactvisco.errors import SceneError
-
-#: Scene moduli (E, lambda, mu, stiffness, ...) and box sizes must lie in
-#: [1/MODULUS_RANGE, MODULUS_RANGE]: products of moduli, lengths, displacements and their
-#: squares then stay far inside double precision.
-MODULUS_RANGE = 1e100
+from contactvisco.scene.limits import MODULUS_RANGE
 
 
 # Value tests, shared by the declarations below.

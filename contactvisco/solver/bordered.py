@@ -28,12 +28,31 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from contactvisco.errors import SceneError
+from contactvisco.fem.obstacle import displacement_at
 from contactvisco.solver.condensed import condense_rhs, recover
 
 _ADD, _REVERSE = PETSc.InsertMode.ADD, PETSc.ScatterMode.REVERSE
 
 #: S is singular below this fraction of its natural size r * (the contact boundary's measure).
 SINGULAR = 1e-12
+
+
+def through_the_body(force: str, moved: float, size: float, where: str) -> SceneError:
+    """The message of an obstacle driven more than the body's size in one step."""
+    return SceneError(
+        f"{force}: the force drives the obstacle by {moved:.6g} in one step, more than the "
+        f"body's size {size:.6g}: it passes through the body, which cannot carry such a "
+        f"force ({where}); lower obstacle.force, or reach it in more steps (time.steps) if "
+        f"the body can carry it", key="obstacle.force")
+
+
+def _held(scene: dict, component: int) -> bool:
+    """Whether a [[dirichlet]] condition of the scene prescribes this component somewhere."""
+    for condition in scene.get("dirichlet") or ():
+        given = condition.get("components", "all")
+        if given == "all" or component in list(given):
+            return True
+    return False
 
 
 def _form(a):
@@ -141,14 +160,116 @@ class ObstacleForce:
         S = self.S[np.ix_(self.active, self.active)]
         smallest = np.linalg.svd(S, compute_uv=False).min() if len(self.active) else 0.0
         if not smallest > SINGULAR * self.natural:
-            names = ", ".join(str(j) for j in self.obstacle.controlled)
-            raise SceneError(
-                f"obstacle.force: no equilibrium of the force-controlled obstacle "
-                f"(components {names}) at t = {float(self.obstacle.t.value):g}: no contact "
-                f"node can carry its force (the obstacle is out of contact, d = "
-                f"{np.round(self.obstacle.displacement(), 12).tolist()}); start it in "
-                "contact (a gap of 0 at its first point), or bring it into contact under "
-                "displacement control first", key="obstacle.force")
+            raise self.no_equilibrium()
+
+    def _start(self) -> np.ndarray:
+        """The obstacle's position at the last equilibrium (where the step started)."""
+        obstacle = self.obstacle
+        if obstacle.committed is not None:
+            return np.asarray(obstacle.committed, float)
+        return displacement_at(obstacle.scene["obstacle"], float(obstacle.t.value),
+                               obstacle.dim)
+
+    def pushing_direction(self) -> np.ndarray:
+        """m: the unit direction in which the obstacle pushes the body, the mean of -nu over
+        the contact boundary weighted by the nodes' shares of it (nu, the obstacle's normal,
+        points into the obstacle; the contact force on the body is along -nu). Collective;
+        zero when the normals cancel (an obstacle inside a hole)."""
+        nodes = self.problem.contact.nodes
+        local = -(nodes.weights[nodes.owned, None] * nodes.normals[nodes.owned]).sum(axis=0)
+        total = np.zeros_like(local)
+        self.comm.Allreduce(local, total, op=MPI.SUM)
+        size = np.linalg.norm(total)
+        return total / size if size > 0 else total
+
+    def _force_text(self, t: float) -> str:
+        obstacle = self.obstacle
+        given = ", ".join(f"[{j}] = {v!r}" for j, v in zip(obstacle.controlled,
+                                                          obstacle.scene["obstacle"]["force"]))
+        values = np.round(obstacle.force_at(t), 12).tolist()
+        return (f"obstacle.force (components {given} of obstacle.force_components = "
+                f"{obstacle.controlled}) = {values} at t = {t:g}")
+
+    def no_equilibrium(self) -> SceneError:
+        """Why no contact node can carry the prescribed force (S singular), as one of four
+        messages naming obstacle.force: the force pulls (F . m < 0: contact only pushes),
+        the obstacle went through the body (it moved more than the body's size L since the
+        last equilibrium), a tangential force above what friction carries (the normal block
+        of S regular, a tangential component's row empty: every node slips), or the obstacle
+        out of contact. Collective (every rank reaches the same one)."""
+        obstacle = self.obstacle
+        t = float(obstacle.t.value)
+        controlled = np.asarray(obstacle.controlled, int)
+        F = obstacle.force_at(t)
+        m = self.pushing_direction()[controlled]
+        start, d = self._start(), obstacle.displacement()
+        moved = float(np.linalg.norm((d - start)[controlled]))
+        size = self.problem.length_scale
+        where = (f"the obstacle at d = {np.round(d, 12).tolist()}, the last equilibrium at "
+                 f"d = {np.round(start, 12).tolist()}")
+        force = self._force_text(t)
+        pushing = ", ".join(f"{v:.3g}" for v in self.pushing_direction())
+        if np.linalg.norm(m) > 0.5 and float(F @ m) < 0:
+            return SceneError(
+                f"{force}: the force pulls the obstacle away from the body (its part along "
+                f"the direction in which the obstacle pushes the body, m = ({pushing}), is "
+                f"F . m = {float(F @ m):.6g} < 0), and contact only pushes; give a force "
+                f"with F . m > 0 (the obstacle's force on the body points into the body)",
+                key="obstacle.force")
+        if moved > size:
+            return through_the_body(force, moved, size, where)
+        free = [i for i, j in enumerate(controlled) if not _held(obstacle.scene, int(j))]
+        if free:
+            R = self.problem.load_resultant()
+            parts = ", ".join(
+                f"obstacle.force[{i}] = {F[i]:.6g} (component {controlled[i]}; the loads' "
+                f"resultant along it R = {R[controlled[i]]:.6g})" for i in free)
+            return SceneError(
+                f"{force}: the body floats: no [[dirichlet]] condition holds it along "
+                f"component(s) {[int(controlled[i]) for i in free]}, so only the obstacle "
+                f"does, and the body and the obstacle move together without a force to "
+                f"tell where ({parts}; {where}); hold the body along that component (a "
+                f"[[dirichlet]] condition), or prescribe the obstacle's displacement there "
+                f"(obstacle.displacement) instead of its force", key="obstacle.force")
+        if obstacle.scene["contact"]["mu"] != 0:
+            normal = [i for i, j in enumerate(controlled) if abs(m[i]) >= 0.5]
+            # a tangential component whose column of S vanishes: moving the obstacle along
+            # it changes no force (every node slips; its row keeps mu dP/dd)
+            tangential = [i for i in range(self.k) if i not in normal
+                          and np.max(np.abs(self.S[:, i])) <= SINGULAR * self.natural]
+            block = self.S[np.ix_(normal, normal)]
+            carried = len(normal) == 0 or (
+                np.linalg.svd(block, compute_uv=False).min() > SINGULAR * self.natural)
+            if tangential and carried:
+                names = ", ".join(f"obstacle.force[{i}] (component {controlled[i]})"
+                                  for i in tangential)
+                return SceneError(
+                    f"{force}: {names} acts along the contact surface and exceeds what "
+                    f"friction can carry: every contact node slips (Coulomb: the tangential "
+                    f"force is at most mu times the normal force P; contact.mu = "
+                    f"{obstacle.scene['contact']['mu']!r}), so no position of the obstacle "
+                    f"balances it ({where}); keep the tangential force below mu P, or "
+                    f"prescribe that component's displacement (obstacle.displacement) "
+                    f"instead", key="obstacle.force")
+        return SceneError(
+            f"{force}: no contact node can carry it: the obstacle is out of contact "
+            f"({where}); start it in contact (a gap of 0 at its first point), or bring it "
+            f"into contact under displacement control first", key="obstacle.force")
+
+    def check_move(self) -> None:
+        """Refuse an iterate that moves the obstacle by more than the body's size L since the
+        last equilibrium: the force has driven it through the body (a small-deformation
+        contact cannot follow it there)."""
+        obstacle = self.obstacle
+        controlled = obstacle.controlled
+        start, d = self._start(), obstacle.displacement()
+        moved = float(np.linalg.norm((d - start)[controlled]))
+        if moved > self.problem.length_scale:
+            t = float(obstacle.t.value)
+            raise through_the_body(
+                self._force_text(t), moved, self.problem.length_scale,
+                f"the obstacle at d = {np.round(d, 12).tolist()}, the last equilibrium at "
+                f"d = {np.round(start, 12).tolist()}")
 
     def _active_components(self) -> np.ndarray:
         """The controlled components the step solves for. A component whose row and column of
@@ -185,6 +306,7 @@ class ObstacleForce:
         d = self.obstacle.displacement()
         d[self.obstacle.controlled] += dd
         self.obstacle.set_displacement(d)
+        self.check_move()
         return dd
 
     def replace(self) -> bool:

@@ -8,6 +8,7 @@ of its output.
 """
 from __future__ import annotations
 
+import numpy as np
 from mpi4py import MPI
 
 from contactvisco.fem import geometry as geometry_module
@@ -17,7 +18,7 @@ from contactvisco.model import time_grid
 from contactvisco.model.memory import History
 from contactvisco.model.stability import amplifies, worst_body
 from contactvisco.solver import newton
-from contactvisco.solver.time_loop import FieldSchedule
+from contactvisco.solver.field_schedule import FieldSchedule
 
 #: Bytes of one float64 value.
 FLOAT = 8
@@ -90,6 +91,66 @@ def output_bytes(scene: dict, problem, counts: dict[str, int], tensor_dofs: int)
     extra = sum(functions.get(name, 1) for name in opts["fields"]
                 if name not in ("u", "sigma") and written[name])
     return records + field_steps * (FLOAT * values + XDMF_STEP + XDMF_FIELD * extra)
+
+
+#: A rigid obstacle may start inside the body by what the contact law allows (the layer
+#: contact.g) plus this fraction of the body's size L: an interference the first state
+#: pushes out. Deeper, it is refused (as two bodies' overlap beyond their search distance,
+#: by default the same fraction of L).
+INITIAL_PENETRATION = 0.1
+
+#: The key that places each shape of rigid obstacle.
+_POSITION_KEY = {"plane": "obstacle.point", "cylinder": "obstacle.centre",
+                 "sphere": "obstacle.centre", "surface": "obstacle.distance"}
+
+
+def initial_penetration(problem, comm) -> None:
+    """Refuse a rigid obstacle that starts inside the body deeper than the contact law allows
+    plus INITIAL_PENETRATION times the body's size L: the depth is -h, h the gap at the contact
+    nodes at the obstacle's first position d(t_0) (h < 0: the node lies inside the obstacle).
+    The message names the key that places the obstacle, the deepest node, its depth, how many
+    nodes are that deep and the limit. Collective (the same on every rank).
+
+    Raises
+    ------
+    SceneError
+        Naming obstacle.point, obstacle.centre or obstacle.distance.
+    """
+    from contactvisco.errors import SceneError
+    from contactvisco.fem.obstacle import ObstaclePart
+    contact = problem.contact
+    obstacle = contact and contact.obstacle
+    if not isinstance(obstacle, ObstaclePart):
+        return
+    scene = problem.scene
+    law = float(scene["contact"]["g"] or 0.0)
+    size = problem.length_scale
+    limit = law + INITIAL_PENETRATION * size
+    nodes = contact.nodes
+    own = nodes.nodes[nodes.owned]
+    depth = -obstacle.gap.x.array[own]
+    deep = np.flatnonzero(depth > limit)
+    found = None
+    if len(deep):
+        k = deep[np.argmax(depth[deep])]
+        x = contact.Q_coordinates[own[k], :obstacle.dim]
+        found = (-float(depth[k]), ", ".join(f"{v:.6g}" for v in x))
+    count = comm.allreduce(len(deep), MPI.SUM)
+    if not count:
+        return
+    deepest, where = min(f for f in comm.allgather(found) if f is not None)
+    shape = scene["obstacle"]["shape"]
+    key = _POSITION_KEY[shape]
+    moved = np.asarray(obstacle.reference.value, float)
+    placed = (f" moved by obstacle.displacement to d = {np.round(moved, 12).tolist()}"
+              if np.any(moved) else "")
+    raise SceneError(
+        f"{key}: the {shape} obstacle{placed} starts inside the body at t = "
+        f"{float(obstacle.t.value):g}: {count} contact node(s) lie inside it by more than "
+        f"{limit:.6g} (contact.g = {law:g} that the contact law allows, plus "
+        f"{INITIAL_PENETRATION:g} of the body's size {size:.6g}), the deepest by {-deepest:.6g} "
+        f"at ({where}); place the obstacle outside the body (a gap >= 0 at its first point)",
+        key=key)
 
 
 def output_limit(scene: dict, problem, out) -> str:
@@ -268,6 +329,7 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     mesh = geometry.mesh
     geometry_module.check_probes(mesh, scene["output"]["probes"])
     problem = build(scene, geometry)
+    initial_penetration(problem, comm)
     snes = newton.create(problem, comm)
     try:
         system, solver = snes.system_kind, snes.linear_solver()

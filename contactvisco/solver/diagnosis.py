@@ -24,8 +24,26 @@ def step_failure(problem, comm, t_from, t_to, cuts, err: NewtonFailure, table,
     return NewtonFailure(
         f"{where}: "
         + (f"{limit}; {err}" if limit else
-           f"{err}; {likely_cause(err, problem.scene, step)}"),
+           f"{err}; {likely_cause(err, problem.scene, step)}")
+        + force_control_note(problem, t_to),
         err.reason, err.residuals)
+
+
+def force_control_note(problem, t: float) -> str:
+    """With a force-controlled obstacle, what its Newton system solved for and what to change:
+    the prescribed force at t, the obstacle's position at the last equilibrium and the keys
+    (obstacle.force, time.steps). Empty without force control."""
+    obstacle = problem.contact and problem.contact.obstacle
+    if getattr(obstacle, "force_forms", None) is None:
+        return ""
+    force = np.round(obstacle.force_at(t), 12).tolist()
+    last = obstacle.committed
+    where = ("" if last is None else
+             f"; the obstacle was at d = {np.round(last, 12).tolist()} at the last equilibrium")
+    return (f". With obstacle.force: the Newton system bordered by the obstacle's position "
+            f"(components {obstacle.controlled}) did not converge to the prescribed force "
+            f"{force} at t = {t:g}{where}; give the force in smaller increments (more "
+            f"time.steps, or a slower obstacle.force), or a force the body can carry")
 
 
 def likely_cause(err: NewtonFailure, scene: dict, step: int) -> str:

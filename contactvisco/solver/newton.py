@@ -852,9 +852,15 @@ class CondensedSNES(NewtonSolver):
             x.copy(self._du)
             self._du.axpy(-1.0, self._x_jacobian)
             dl = self.system.update_multipliers(self._du)
-            if self.force is not None:         # the bordered step: d and its share of x
-                self.force.correct([x, self._shift], self._du, dl)
             self._pending = False
+            if self.force is not None:         # the bordered step: d and its share of x
+                try:
+                    self.force.correct([x, self._shift], self._du, dl)
+                except SceneError as err:      # raised by solve() after SNES stops
+                    self._error = err
+                    b.set(np.nan)
+                    self.system.full_norm = float("nan")
+                    return
         elif self._residuals_since_jacobian > 0:
             # A second residual since the last Jacobian (a lagged Jacobian, a line search
             # trying a shorter step): the multipliers would not follow. Stop with NaN, and

@@ -30,6 +30,7 @@ from contactvisco.io import checkpoint, output, parallel
 from contactvisco.io.lock import FolderLock
 from contactvisco.model import time_grid
 from contactvisco.solver import diagnosis, predictor, report, step_control
+from contactvisco.solver.field_schedule import FieldSchedule
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure, SlidingLimit
 
@@ -114,9 +115,10 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     try:
         geometry = geometry or geometry_module.build(scene, comm)
         problem = build(scene, geometry)
+        from contactvisco.solver.check import initial_penetration, output_limit
+        initial_penetration(problem, comm)
         estimate = None
         if out:                           # before a step, and before the solver's set-up
-            from contactvisco.solver.check import output_limit
             estimate = output_limit(scene, problem, out)
         snes = solver_module.create(problem, comm)
         run = Run(scene, out, comm, problem, snes, progress, restart, started)
@@ -408,23 +410,6 @@ def _solve(problem, snes, saved, predict, t_to) -> int:
 def _restore(problem, saved):
     for f, values in zip(problem.unknowns, saved):
         f.x.array[:] = values
-
-
-class FieldSchedule:
-    """Which accepted states get their XDMF fields ([output] field_every, field_times): those
-    whose step number (the record's "step", counting accepted states: the halves of a cut step
-    are two) is a multiple of `every`, those at the grid's step times nearest to `times` (as
-    for figure_times), and the final state t_N."""
-
-    def __init__(self, every: int, times, time: dict):
-        self.every = every
-        # the grid's times as the time loop steps to them: its states land on these floats
-        grid = time_grid.times(time)
-        self.times = {float(grid[n]) for n in time_grid.nearest(time, times)} | {
-            float(grid[-1])}
-
-    def due(self, step: int, t: float) -> bool:
-        return step % self.every == 0 or t in self.times
 
 
 class FieldWriter:

@@ -5,16 +5,19 @@ A fit description (TOML) names experiments, each a scene and a CSV file of measu
 (t_j, F_j, d_j), and the parameters theta to identify, each a scene key. The measured force
 drives each run as the obstacle's force F(t), piecewise linear through the samples, on the
 time grid of the sample times (time.grid = "times"); the fit minimizes the weighted least
-squares of the depth,
+squares of the depth (of the force for an experiment under control = "depth", which the
+measured depth drives as the obstacle's displacement),
 
     r_ej(theta) = w_e (d_e(t_j; theta) - d_ej),     cost = 1/2 sum_e sum_j r_ej^2,
 
 with w_e = 1/sigma_e for a noise level sigma_e (or sqrt(weight_e)), by
 ``scipy.optimize.least_squares`` (trust-region reflective, bounds) over the parameters in
-their scale, x_i = theta_i (linear) or ln theta_i (log). The Jacobian J = dr/dx is taken by
-finite differences of forward runs (scipy's "2-point" or "3-point" rule with the relative step
-fit.step: h_i = step * max(1, |x_i|), one-sided near a bound), not yet by forward
-sensitivities.
+their scale, x_i = theta_i (linear) or ln theta_i (log). Each experiment's problem is built
+once (contactvisco.solver.sensitivity.ForwardModel) and run again at every evaluation. The
+Jacobian J = dr/dx is taken by forward sensitivities through the time loop (fit.jacobian =
+"auto" where they cover every parameter, or "sensitivities"), or by finite differences of
+forward runs (scipy's "2-point" or "3-point" rule with the relative step fit.step:
+h_i = step * max(1, |x_i|), one-sided near a bound).
 
 At the optimum, with m residuals and n parameters, the residual variance
 s^2 = 2 cost / (m - n) scales the covariance of x,
@@ -43,12 +46,25 @@ from contactvisco.scene import loader as scene_module
 from contactvisco.scene import prony_file
 
 #: The keys of a fit description, by table.
-FIT_KEYS = {"difference": "central", "step": 1e-3, "max_evaluations": 200, "tolerance": 1e-8}
-EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight")
+FIT_KEYS = {"jacobian": "auto", "difference": "central", "step": 1e-3, "max_evaluations": 200,
+            "tolerance": 1e-8}
+#: fit.jacobian: forward sensitivities through the time loop (contactvisco.solver.sensitivity),
+#: finite differences of forward runs, or the sensitivities where they cover every parameter.
+JACOBIANS = ("auto", "sensitivities", "finite-differences")
+#: Relative step of the central differences of the scene's conversion of a parameter (its
+#: Constants and Prony terms; no solve): h = SCENE_STEP max(|theta|, 1e-300).
+SCENE_STEP = 1e-5
+EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight", "control")
+#: experiment.control: what the data drives. "force": the measured force drives the
+#: obstacle's force-controlled component, the depth is fitted (creep); "depth": the measured
+#: depth drives that component as a displacement, the force is fitted (relaxation).
+CONTROLS = ("force", "depth")
 PARAMETER_KEYS = ("key", "initial", "bounds", "scale")
 #: fit.difference: the finite-difference rule of the Jacobian and scipy's name of it.
 DIFFERENCES = {"central": "3-point", "forward": "2-point"}
 SCALES = ("linear", "log")
+#: parameter.initial: the start from a Lee-Radok fit of the same curves (studies.lee_radok).
+CLOSED_FORM = "closed-form"
 #: Relative size below which a singular value of J is a direction the data does not fix.
 RCOND = 1e-6
 #: A parameter's share of such a direction that makes it not identifiable.
@@ -109,6 +125,8 @@ def read_fit(path) -> dict:
         _fail("fit", "must be a table")
     _known(given, tuple(FIT_KEYS), "fit.")
     fit.update(given)
+    if fit["jacobian"] not in JACOBIANS:
+        _fail("fit.jacobian", f"must be one of {', '.join(JACOBIANS)}, got {fit['jacobian']!r}")
     if fit["difference"] not in DIFFERENCES:
         _fail("fit.difference", f"must be one of {', '.join(DIFFERENCES)}, got "
               f"{fit['difference']!r}")
@@ -128,6 +146,7 @@ def read_fit(path) -> dict:
             _fail(f"parameter[{i}].key", f"{key!r} is identified twice")
     x0 = [p["initial"] for p in parameters]
     for i, experiment in enumerate(experiments):
+        _component(experiment, i)
         # Every key is a number of the scene (a misspelled key fails with the scene's own
         # message), and the scene runs with the initial values.
         scene = _scene(experiment, [], [])
@@ -140,11 +159,28 @@ def read_fit(path) -> dict:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 _fail(f"parameter[{j}].key", f"{p['key']!r} is not a number of the scene of "
                       f"experiment[{i}] (it holds {value!r})")
-        scene = _scene(experiment, parameters, x0)
-        if not scene["obstacle"]["force_components"]:
-            _fail(f"experiment[{i}].scene", "the scene's obstacle must be under force control "
-                  "(obstacle.force_components): the measured force drives the run")
+        _scene(experiment, parameters, x0)
     return {"fit": fit, "experiments": experiments, "parameters": parameters}
+
+
+def _measured(experiment: dict) -> np.ndarray:
+    """The fitted data of an experiment: its depth, or its force under control = "depth"."""
+    return experiment["force"] if experiment["control"] == "depth" else experiment["depth"]
+
+
+def _component(experiment: dict, i: int) -> None:
+    """The experiment's controlled axis c (the first of obstacle.force_components of its
+    scene) and the space dimension, into `experiment`."""
+    scene = scene_module.load(experiment["scene"], experiment["set"])
+    obstacle = scene.get("obstacle") or {}
+    if not obstacle.get("force_components"):
+        _fail(f"experiment[{i}].scene", "the scene's obstacle must name its axis under force "
+              "control (obstacle.force_components): the measured force (or depth, with "
+              "control = 'depth') drives the run along it")
+    experiment["component"] = int(obstacle["force_components"][0])
+    experiment["dim"] = 3 if scene["material"]["model"] == "3d" or any(
+        isinstance(obstacle.get(k), list) and len(obstacle[k]) == 3
+        for k in ("centre", "point", "normal")) else 2
 
 
 def _items(raw: dict, name: str) -> list:
@@ -177,10 +213,16 @@ def _experiment(item: dict, where: str, base: pathlib.Path) -> dict:
         if weight <= 0:
             _fail(f"{where}weight", f"must be > 0, got {weight!r}")
         w = math.sqrt(weight)
+    control = item.get("control", "force")
+    if control not in CONTROLS:
+        _fail(f"{where}control", f"must be one of {', '.join(CONTROLS)}, got {control!r}")
     data = prony_file.inside_path(item.get("data"), base, f"{where}data")
     t, force, depth = read_data(data, f"{where}data")
+    if control == "depth" and force is None:
+        _fail(f"{where}data", f"{data}: control = 'depth' fits the force: the data needs a "
+              "'force' column")
     return {"scene": scene, "set": list(sets), "t": t, "force": force, "depth": depth, "w": w,
-            "data": str(data)}
+            "data": str(data), "control": control}
 
 
 def read_data(path: pathlib.Path, key: str):
@@ -251,11 +293,16 @@ def _parameter(item: dict, where: str) -> dict:
         _fail(f"{where}bounds", f"lower {lower!r} must be below upper {upper!r}")
     if scale == "log" and lower <= 0:
         _fail(f"{where}bounds", f"with scale = 'log' the bounds must be > 0, got {bounds!r}")
-    initial = _number(item.get("initial"), f"{where}initial")
+    closed = item.get("initial") == CLOSED_FORM
+    if closed:      # checked at the bounds' middle; the closed-form fit starts there too
+        initial = (math.sqrt(lower * upper) if scale == "log" else 0.5 * (lower + upper))
+    else:
+        initial = _number(item.get("initial"), f"{where}initial",
+                          f"a finite number or '{CLOSED_FORM}'")
     if not lower <= initial <= upper:
         _fail(f"{where}initial", f"{initial!r} is outside the bounds {bounds!r}")
     return {"key": key, "path": key.split("."), "initial": initial, "bounds": (lower, upper),
-            "scale": scale}
+            "scale": scale, "closed_form": closed}
 
 
 def _at(scene: dict, path: list):
@@ -265,7 +312,7 @@ def _at(scene: dict, path: list):
     return node
 
 
-def force_expression(t: np.ndarray, force: np.ndarray) -> float | str:
+def force_expression(t: np.ndarray, force: np.ndarray, name: str = "force") -> float | str:
     """The measured force as an expression in t, piecewise linear through the samples:
 
         F(t) = F_0 + sum_i s_i min(max(t - t_i, 0), t_{i+1} - t_i),
@@ -306,9 +353,9 @@ def force_expression(t: np.ndarray, force: np.ndarray) -> float | str:
                      f"{float(t[b] - t[a])!r})")
     text = " + ".join(terms)
     if len(text) > expressions.MAX_LENGTH:
-        _fail("force", f"the measured force has {len(kinks) - 2} kinks; as a piecewise-linear "
-              f"force(t) it would take {len(text)} characters, more than a scene expression's "
-              f"{expressions.MAX_LENGTH}: smooth or resample the force column")
+        _fail(name, f"the measured {name} has {len(kinks) - 2} kinks; as a piecewise-linear "
+              f"function of t it would take {len(text)} characters, more than a scene "
+              f"expression's {expressions.MAX_LENGTH}: smooth or resample the {name} column")
     return text
 
 
@@ -321,7 +368,15 @@ def _scene(experiment: dict, parameters: list, values) -> dict:
              scene_module.Override(["time", "T"], float(t[-1])),
              scene_module.Override(["time", "times"], [float(v) for v in t if v > 0]),
              scene_module.Override(["output", "figures"], False)]
-    if experiment["force"] is not None:
+    if experiment.get("control", "force") == "depth":
+        # the measured depth as the obstacle's displacement along its axis: u_c = -d(t)
+        displacement = [0.0] * experiment["dim"]
+        displacement[experiment["component"]] = force_expression(t, -experiment["depth"],
+                                                                 "depth")
+        sets += [scene_module.Override(["obstacle", "force_components"], []),
+                 scene_module.Override(["obstacle", "force"], []),
+                 scene_module.Override(["obstacle", "displacement"], displacement)]
+    elif experiment["force"] is not None:
         sets.append(scene_module.Override(
             ["obstacle", "force"], [force_expression(t, experiment["force"])]))
     sets += [scene_module.Override(p["path"], float(v)) for p, v in zip(parameters, values)]
@@ -354,9 +409,12 @@ def forward(experiment: dict, parameters: list, values, comm=None) -> np.ndarray
     from contactvisco.solver.time_loop import simulate
     scene = _scene(experiment, parameters, values)
     result = simulate(scene, comm=comm or MPI.COMM_WORLD, progress=False)
-    c = scene["obstacle"]["force_components"][0]
+    c = experiment["component"]
     times = np.array([step["t"] for step in result.steps])
-    depth = -np.array([step["obstacle"]["displacement"][c] for step in result.steps])
+    if experiment.get("control", "force") == "depth":      # the force is observed
+        depth = np.array([step["obstacle"]["force"][c] for step in result.steps])
+    else:
+        depth = -np.array([step["obstacle"]["displacement"][c] for step in result.steps])
     # The grid is the sample times; a cut step adds records between them, never at them.
     tol = 1e-9 * experiment["t"][-1]
     where = np.minimum(np.searchsorted(times, experiment["t"] - tol), len(depth) - 1)
@@ -365,6 +423,124 @@ def forward(experiment: dict, parameters: list, values, comm=None) -> np.ndarray
         raise SceneError(f"{experiment['data']}: the run has no step at the sample time "
                          f"t = {experiment['t'][missed[0]]!r}", key="time.times")
     return depth[where]
+
+
+def _sample_index(times: np.ndarray, experiment: dict) -> np.ndarray:
+    """The grid's states at the data's sample times (the grid is the sample times)."""
+    tol = 1e-9 * experiment["t"][-1]
+    where = np.minimum(np.searchsorted(times, experiment["t"] - tol), len(times) - 1)
+    missed = np.flatnonzero(np.abs(times[where] - experiment["t"]) > tol)
+    if missed.size:
+        raise SceneError(f"{experiment['data']}: the run has no step at the sample time "
+                         f"t = {experiment['t'][missed[0]]!r}", key="time.times")
+    return where
+
+
+def _tangents(experiment: dict, parameters: list, values) -> list:
+    """Per parameter, the experiment's scene at theta_i +- h_i and 2 h_i (SCENE_STEP): the
+    central differences of the scene's conversion that the sensitivities take."""
+    out = []
+    for i, v in enumerate(values):
+        h = SCENE_STEP * max(abs(v), 1e-300)
+        shifted = []
+        for sign in (1.0, -1.0):
+            moved = np.array(values, float)
+            moved[i] = v + sign * h
+            shifted.append(_scene(experiment, parameters, moved))
+        out.append((shifted[0], shifted[1], 2 * h))
+    return out
+
+
+def _models(experiments, parameters, mode: str, comm):
+    """The experiments' forward models (contactvisco.solver.sensitivity.ForwardModel, each
+    built once at the initial values), whether the Jacobian is taken by sensitivities, and
+    why not when fit.jacobian = "auto" falls back to finite differences (None if it does
+    not)."""
+    from mpi4py import MPI
+
+    from contactvisco.solver import sensitivity
+    reasons = [r for r in (sensitivity.unsupported_key(p["key"]) for p in parameters) if r]
+    models = []
+    try:
+        for e in experiments:
+            if reasons:              # a key the built problem cannot follow: whole runs
+                models.append(None)
+                continue
+            model = sensitivity.ForwardModel(
+                _scene(e, parameters, [p["initial"] for p in parameters]),
+                comm or MPI.COMM_WORLD, component=e["component"])
+            if model.memory_reason:
+                reasons.append(model.memory_reason)
+                model.destroy()
+                models.append(None)
+                continue
+            models.append(model)
+            if mode != "finite-differences":
+                try:
+                    model.sensitivity = sensitivity.StepSensitivity(model.problem,
+                                                                    model.newton)
+                except SceneError as err:
+                    reasons.append(str(err))
+    except BaseException:
+        for model in models:
+            if model is not None:
+                model.destroy()
+        raise
+    if mode == "sensitivities" and reasons:
+        for model in models:
+            if model is not None:
+                model.destroy()
+        _fail("fit.jacobian", f"forward sensitivities do not cover this fit: {reasons[0]}")
+    return models, mode != "finite-differences" and not reasons, (
+        reasons[0] if reasons and mode == "auto" else None)
+
+
+def _closed_form_start(experiments: list, parameters: list) -> dict:
+    """The Lee-Radok fit of the creep curves (studies.lee_radok: a sphere on a half-space, no
+    friction) over the parameters whose initial is "closed-form", the others held at their
+    start, by the same least squares and bounds; its estimates become their starts.
+
+    Returns
+    -------
+    dict
+        key -> closed-form estimate (empty when no parameter asks for it).
+    """
+    from scipy.optimize import least_squares
+
+    from contactvisco.studies import lee_radok
+    chosen = [i for i, p in enumerate(parameters) if p.get("closed_form")]
+    if not chosen:
+        return {}
+    for i, e in enumerate(experiments):
+        scene = _scene(e, parameters, [p["initial"] for p in parameters])
+        obstacle = scene["obstacle"]
+        if (e["control"] != "force" or e["force"] is None or obstacle["shape"] != "sphere"
+                or scene["material"]["model"] not in ("axisymmetric", "3d")):
+            _fail(f"parameter[{chosen[0]}].initial", f"'{CLOSED_FORM}' needs creep "
+                  "experiments of a sphere (control = 'force' with a force column, "
+                  "obstacle.shape = 'sphere', an axisymmetric or 3D body); experiment"
+                  f"[{i}] is not one")
+    values = np.array([p["initial"] for p in parameters], float)
+
+    def residual(x):
+        values[chosen] = _to_values([parameters[i] for i in chosen], x)
+        return np.concatenate([
+            e["w"] * (lee_radok.creep_depth(_scene(e, parameters, values), e["t"], e["force"],
+                                            e_radius) - e["depth"])
+            for e, e_radius in zip(experiments, radii)])
+
+    radii = [_scene(e, parameters, values)["obstacle"]["radius"] for e in experiments]
+    picked = [parameters[i] for i in chosen]
+    result = least_squares(
+        residual, _to_x(picked, [p["initial"] for p in picked]),
+        bounds=(_to_x(picked, [p["bounds"][0] for p in picked]),
+                _to_x(picked, [p["bounds"][1] for p in picked])),
+        method="trf", x_scale="jac", ftol=1e-12, xtol=1e-12, gtol=1e-12)
+    out = {}
+    for p, v in zip(picked, _to_values(picked, result.x)):
+        p["initial"] = float(v)
+        out[p["key"]] = float(v)
+    return out
 
 
 def _to_x(parameters, values):
@@ -453,9 +629,10 @@ def fit(description, comm=None) -> dict:
         scale, bounds), ``correlation``, ``singular_values``, ``rank``, ``cost``
         (1/2 sum r^2), ``s2``, ``residual_rms`` (of the unweighted depth), ``evaluations``
         (forward runs of all experiments, differences included), ``residual_evaluations``
-        (the optimizer's, at most fit.max_evaluations), ``jacobian_evaluations``, ``wall_s``, ``status``
-        and ``message`` of the optimizer, ``success``, ``warnings``, and ``curves`` (per
-        experiment: t, measured and fitted depth).
+        (the optimizer's, at most fit.max_evaluations), ``jacobian_evaluations``,
+        ``wall_s``, ``status`` and ``message`` of the optimizer, ``success``, ``warnings``,
+        ``jacobian`` (how J was taken) and ``curves`` (per experiment: t, the fitted
+        ``quantity``, depth or force, measured and fitted).
     """
     from scipy.optimize import least_squares
 
@@ -463,43 +640,77 @@ def fit(description, comm=None) -> dict:
     parameters, experiments = spec["parameters"], spec["experiments"]
     settings = spec["fit"]
     runs = [0]
+    closed = _closed_form_start(experiments, parameters)
+    models, sensitivities, reason = _models(experiments, parameters, settings["jacobian"],
+                                            comm)
+    cached = {}
 
-    def residual(x):
+    def evaluate(x, with_jacobian):
         values = _to_values(parameters, x)
         runs[0] += 1
-        out = []
-        for i, e in enumerate(experiments):
+        out, rows = [], []
+        # dtheta/dx: 1 in linear scale, theta in log scale
+        scale = np.array([v if p["scale"] == "log" else 1.0 for p, v in zip(parameters, values)])
+        for i, (e, model) in enumerate(zip(experiments, models)):
             try:
-                out.append(e["w"] * (forward(e, parameters, values, comm) - e["depth"]))
+                if model is None:     # whole runs (a key the built problem cannot follow)
+                    out.append(e["w"] * (forward(e, parameters, values, comm) - _measured(e)))
+                    continue
+                tangents = _tangents(e, parameters, values) if with_jacobian else ()
+                result = model.run(_scene(e, parameters, values), tangents)
+                where = _sample_index(result["t"], e)
+                name = "force" if e["control"] == "depth" else "depth"
+                out.append(e["w"] * (result[name][where] - _measured(e)))
+                if with_jacobian:
+                    rows.append(e["w"] * result[f"d_{name}"][where] * scale)
             except Exception as err:
                 # The run's own message names the step; this names the parameters.
                 err.add_note(f"in the forward run of experiment[{i}] at " + ", ".join(
                     f"{p['key']} = {v!r}" for p, v in zip(parameters, values)))
                 raise
+        if with_jacobian:
+            cached["x"], cached["J"] = np.array(x, copy=True), np.concatenate(rows)
         return np.concatenate(out)
+
+    def residual(x):
+        return evaluate(x, sensitivities)
+
+    def jacobian(x):
+        if "x" not in cached or not np.array_equal(cached["x"], x):
+            evaluate(x, True)
+        return cached["J"]
 
     lower = _to_x(parameters, [p["bounds"][0] for p in parameters])
     upper = _to_x(parameters, [p["bounds"][1] for p in parameters])
     start = time.perf_counter()
     tol = settings["tolerance"]
-    result = least_squares(residual, _to_x(parameters, [p["initial"] for p in parameters]),
-                           jac=DIFFERENCES[settings["difference"]], bounds=(lower, upper),
-                           method="trf", diff_step=settings["step"], x_scale="jac",
-                           ftol=tol, xtol=tol, gtol=tol, max_nfev=settings["max_evaluations"])
+    try:
+        result = least_squares(residual, _to_x(parameters, [p["initial"] for p in parameters]),
+                               jac=jacobian if sensitivities
+                               else DIFFERENCES[settings["difference"]],
+                               bounds=(lower, upper), method="trf", diff_step=settings["step"],
+                               x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
+                               max_nfev=settings["max_evaluations"])
+    finally:
+        for model in models:
+            if model is not None:
+                model.destroy()
     wall = time.perf_counter() - start
     values = _to_values(parameters, result.x)
     stats = statistics(result.jac, result.fun, parameters, values)
     curves, offset = [], 0
     for e in experiments:
         k = len(e["t"])
-        fitted = e["depth"] + result.fun[offset:offset + k] / e["w"]
+        fitted = _measured(e) + result.fun[offset:offset + k] / e["w"]
         curves.append({"data": e["data"], "t": e["t"].tolist(),
                        "force": None if e["force"] is None else e["force"].tolist(),
-                       "measured": e["depth"].tolist(), "fitted": fitted.tolist()})
+                       "quantity": "force" if e["control"] == "depth" else "depth",
+                       "measured": _measured(e).tolist(), "fitted": fitted.tolist()})
         offset += k
     misfit = np.concatenate([np.array(c["fitted"]) - c["measured"] for c in curves])
     return {
         "parameters": [{"key": p["key"], "estimate": float(v), "initial": p["initial"],
+                        "closed_form": closed.get(p["key"]),
                         "standard_error": se, "identifiable": ok, "scale": p["scale"],
                         "bounds": list(p["bounds"])}
                        for p, v, se, ok in zip(parameters, values, stats["standard_error"],
@@ -511,7 +722,9 @@ def fit(description, comm=None) -> dict:
         "jacobian_evaluations": int(result.njev or 0), "wall_s": wall,
         "status": int(result.status), "message": str(result.message),
         "success": bool(result.success), "warnings": stats["warnings"],
-        "jacobian": {"rule": settings["difference"], "step": settings["step"]},
+        "jacobian": ({"rule": "sensitivities", "scene_step": SCENE_STEP} if sensitivities
+                     else {"rule": settings["difference"], "step": settings["step"],
+                           **({"why": reason} if reason else {})}),
         "curves": curves,
     }
 
@@ -552,7 +765,7 @@ def write(report: dict, out) -> None:
                  label=f"experiment {i}: measured")
         bottom.plot(c["t"], np.array(c["measured"]) - c["fitted"], "o-", ms=3,
                     color=line.get_color())
-    top.set_ylabel("depth")
+    top.set_ylabel(" / ".join(sorted({c.get("quantity", "depth") for c in report["curves"]})))
     top.legend()
     bottom.set_xlabel("t")
     bottom.set_ylabel("measured - fitted")

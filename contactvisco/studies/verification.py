@@ -51,7 +51,8 @@ from contactvisco.model import kernels
 from contactvisco.scene import loader as scene_module
 from contactvisco.fem.kinematics import AXISYMMETRIC
 from contactvisco.model.material import elasticity, energy_stress, lame_constants
-from contactvisco.fem.problem import build, material_energy
+from contactvisco.fem.problem import build
+from contactvisco.fem.stress import material_energy
 from contactvisco.solver.time_loop import simulate
 from contactvisco.solver.newton import BlockSNES
 

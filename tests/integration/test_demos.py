@@ -58,3 +58,19 @@ def test_a_demo_finds_its_data_wherever_the_notebook_runs(layout, tmp_path):
     text = "".join(out.get("text", "") for cell in notebook.cells if cell.cell_type == "code"
                    for out in cell.get("outputs", []))
     assert (data / "sbs_ac13_prony.csv").read_text().splitlines()[1] in text
+
+
+@pytest.mark.processes
+def test_the_own_mesh_demo_leaves_no_traceback_at_exit(tmp_path):
+    """demos/own_mesh.py run as a script (pyvista plotter included) exits 0 with nothing
+    "ignored" on stderr: a plotter left to the interpreter's teardown prints pyvista's
+    __del__ tracebacks there."""
+    import subprocess
+    import sys
+    env = {**os.environ, "CONTACTVISCO_QUICK": "1"}
+    done = subprocess.run([sys.executable, str(ROOT / "demos" / "own_mesh.py")], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "largest |u|" in done.stdout
+    assert "Exception ignored" not in done.stderr and "Traceback" not in done.stderr, \
+        done.stderr[-2000:]

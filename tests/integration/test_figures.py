@@ -34,11 +34,18 @@ def ironing_folder(tmp_path_factory):
     return _shipped_run(tmp_path_factory, "ironing")
 
 
-def _shipped_run(tmp_path_factory, name):
+@pytest.fixture(scope="module")
+def sphere_creep_folder(tmp_path_factory):
+    """The sphere_creep scene on 4 steps: a rigid sphere under a force (obstacle.png) on an
+    axisymmetric block."""
+    return _shipped_run(tmp_path_factory, "sphere_creep", ["time.steps=4"])
+
+
+def _shipped_run(tmp_path_factory, name, overrides=()):
     """A built-in scene as shipped, run into a folder every rank names alike (no XDMF, no
     checkpoint: the figures need neither)."""
     folder = pathlib.Path(COMM.bcast(str(tmp_path_factory.mktemp(name)), root=0))
-    scene = scene_module.load(name)
+    scene = scene_module.load(name, overrides)
     scene["output"].update(xdmf=False, checkpoint=False)
     simulate(scene, folder, progress=False)
     COMM.barrier()
@@ -122,7 +129,7 @@ def _inside(box, area, slack=0.01):
         box.x1 <= area.x1 + slack and box.y1 <= area.y1 + slack
 
 
-@pytest.mark.parametrize("scene", ["paper", "ironing"])
+@pytest.mark.parametrize("scene", ["paper", "ironing", "sphere_creep"])
 def test_units_and_nothing_clipped(scene, request):
     """Every text of every figure (tick labels, titles, axis and colour-bar labels, legends)
     lies inside the canvas and inside what savefig keeps of it (STYLE crops to the tight box
@@ -133,7 +140,10 @@ def test_units_and_nothing_clipped(scene, request):
         return
     with figures.matplotlib.rc_context(figures.STYLE):
         pad = figures.matplotlib.rcParams["savefig.pad_inches"]
-        for stem, fig in figures.build_all(folder):
+        drawn = figures.build_all(folder)
+        if scene == "sphere_creep":
+            assert "obstacle" in dict(drawn)
+        for stem, fig in drawn:
             renderer = FigureCanvasAgg(fig).get_renderer()
             fig.draw(renderer)
             inches = fig.dpi_scale_trans.inverted()
@@ -249,3 +259,24 @@ def test_pyvista_rendering_shows_the_colour_range():
         target = np.array(colormaps["viridis"](end)[:3]) * 255
         cosine = rgb @ target / (np.linalg.norm(rgb, axis=1) * np.linalg.norm(target) + 1e-12)
         assert (np.mean(cosine > 0.98) > 0.001) == present, f"viridis({end})"
+
+
+def test_the_obstacle_is_drawn_in_the_deformed_mesh(sphere_creep_folder):
+    """sphere_creep's deformed mesh at T shows the sphere's meridian where the sphere is at
+    T: every drawn point at distance R = 1 from the centre moved by the last step's
+    displacement (which differs from 0: the sphere sinks), and the legend names it."""
+    if COMM.rank != 0:
+        return
+    from matplotlib.collections import LineCollection
+    fig = dict(figures.build_all(sphere_creep_folder))["deformed_mesh"]
+    steps = figures.step_records(sphere_creep_folder)
+    shift = np.asarray(steps[-1]["obstacle"]["displacement"], float)
+    assert abs(shift[1]) > 1e-3
+    ax = fig.axes[-1]
+    drawn = [c for c in ax.collections if isinstance(c, LineCollection)
+             and np.allclose(c.get_colors()[0][:3], figures.matplotlib.colors.to_rgb("C3"))]
+    assert len(drawn) == 1
+    points = np.concatenate(drawn[0].get_segments())
+    centre = np.array([0.0, 1.0]) + shift
+    assert np.allclose(np.linalg.norm(points - centre, axis=1), 1.0, atol=1e-9)
+    assert "obstacle" in [t.get_text() for t in fig.axes[0].get_legend().get_texts()]

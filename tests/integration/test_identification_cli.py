@@ -15,6 +15,7 @@ pytestmark = [pytest.mark.processes,
 COARSE = ('geometry.parameters={radius = 10.0, height = 10.0, h_contact = 0.04, h_far = 3.0, '
           'refine = 0.3, growth = 0.15}')
 FIT = f"""[fit]
+jacobian = "finite-differences"
 difference = "forward"
 max_evaluations = 2
 

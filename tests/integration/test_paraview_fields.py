@@ -52,8 +52,7 @@ def test_the_index_names_the_contact_fields_and_von_mises(run):
 def test_the_contact_fields_hold_the_contact_table(run):
     """At T, read back from the HDF5: at each contact node the table's contact pressure
     (> 0 where pressed), gap h - u_nu, sigma_nu = -pressure, sigma_tau, slip and the state
-    codes; off the contact boundary 0, and -1 for the states. The states are integers to the
-    round-off of DOLFINx 0.5's vertex values."""
+    codes; off the contact boundary 0, and -1 for the states, stored as 32-bit integers."""
     result, out = run
     if COMM.rank != 0:
         return
@@ -77,9 +76,8 @@ def test_the_contact_fields_hold_the_contact_table(run):
     assert np.ptp(table["u_tau"]) > 1e-3
     for name, codes in (("contact_state", table["status"]),
                         ("friction_state", table["friction"])):
-        assert np.abs(value[name] - np.round(value[name])).max() < 1e-12, name
-        assert np.array_equal(np.round(value[name][rows]), codes), name
-        assert np.array_equal(np.round(value[name][off]), -np.ones(len(off))), name
+        assert np.array_equal(value[name][rows], codes), name
+        assert np.array_equal(value[name][off], -np.ones(len(off))), name
     assert set(table["status"]) == {0, 1, 2} and 2 in set(table["friction"])
     for name in ("contact_pressure", "gap", "slip", "tangential_traction"):
         assert np.all(value[name][off] == 0), name
@@ -101,3 +99,37 @@ def test_the_contact_table_has_a_contact_pressure_column(run):
     pressure = np.array([float(row["contact_pressure"]) for row in rows])
     assert np.array_equal(pressure, table["contact_pressure"])
     assert pressure.max() > 0 and pressure.min() >= 0
+
+
+@pytest.mark.mpi
+def test_the_state_codes_are_stored_as_integers(run):
+    """Every step's contact_state and friction_state are int32 datasets that the index
+    declares NumberType="Int", holding only the codes -1, 0, 1, 2; VTK's XDMF reader (what
+    ParaView uses) lists every contact field by name and gives the states as integers at the
+    last step, the same values."""
+    result, out = run
+    if COMM.rank != 0:
+        return
+    root = ET.parse(f"{out}/solution.xdmf").getroot()
+    seen = 0
+    for attribute in root.iter("Attribute"):
+        if attribute.get("Name") not in ("contact_state", "friction_state"):
+            continue
+        item = attribute.find("DataItem")
+        assert (item.get("NumberType"), item.get("Precision")) == ("Int", "4")
+        file, _, dataset = item.text.strip().partition(":")
+        assert h5read.stored_type(f"{out}/{file}", dataset) == np.dtype("i4")
+        values = h5read.read_dataset(f"{out}/{file}", dataset)
+        assert set(np.unique(values)) <= {-1, 0, 1, 2} and -1 in values
+        seen += 1
+    assert seen == 2 * len(result.steps)
+    pv = pytest.importorskip("pyvista")
+    reader = pv.get_reader(f"{out}/solution.xdmf")
+    reader.set_active_time_value(reader.time_values[-1])
+    mesh = reader.read()
+    mesh = mesh[0] if isinstance(mesh, pv.MultiBlock) else mesh
+    assert set(output.CONTACT_FIELDS) <= set(mesh.point_data.keys())
+    _, arrays = h5read.check_xdmf(f"{out}/solution.xdmf")[-1]
+    for name in ("contact_state", "friction_state"):
+        assert np.issubdtype(mesh.point_data[name].dtype, np.integer), name
+        assert np.array_equal(mesh.point_data[name].ravel(), arrays[name][:, 0]), name

@@ -94,3 +94,35 @@ def test_the_checks_see_what_they_check():
     assert _REMOTE.findall(html) == ["https://cdn.example.org/mathjax.js"]
     text = prose(html)
     assert "\\(x\\)" in text and "\\(y\\)" not in text and "| a | b |" in text
+
+
+def test_every_demo_page_shows_its_executed_outputs_and_offers_both_downloads():
+    """Each demos/<name>.py has a page that links a download of <name>.py and of <name>.ipynb
+    (both in the build, the notebook with the outputs of every code cell that prints or
+    draws, and no error), shows printed output, and shows as many images as the notebook
+    holds; a demo that draws shows them from the build."""
+    import json
+    demos = sorted((ROOT / "demos").glob("*.py"))
+    assert demos
+    pictures = 0
+    for demo in demos:
+        page = BUILD / "demos" / f"{demo.stem}.html"
+        assert page.is_file(), f"no page for demos/{demo.name}"
+        html = page.read_text()
+        links = dict((suffix, re.search(rf'href="([^"]*/{demo.stem}\.{suffix})"', html))
+                     for suffix in ("py", "ipynb"))
+        assert all(links.values()), f"{relative(page)}: downloads {links}"
+        script = page.parent / links["py"].group(1)
+        assert script.read_text() == demo.read_text(), f"{script} is not demos/{demo.name}"
+        notebook = json.loads((page.parent / links["ipynb"].group(1)).read_text())
+        outputs = [o for c in notebook["cells"] if c["cell_type"] == "code"
+                   for o in c.get("outputs", [])]
+        assert outputs and not [o for o in outputs if o["output_type"] == "error"], demo.stem
+        images = sum("image/png" in o.get("data", {}) for o in outputs)
+        shown = re.findall(rf'<img alt="output \d+ of {demo.stem}\.py" src="([^"]+)"', html)
+        assert len(shown) == images, f"{relative(page)}: {len(shown)} images of {images}"
+        assert all((page.parent / src).is_file() for src in shown)
+        pictures += images
+        # printed text: a literal block after the code (highlight-none), not only code
+        assert 'class="highlight-none' in html, f"{relative(page)} shows no printed output"
+    assert pictures >= len(demos)         # the demos draw: at least one figure each on average

@@ -54,11 +54,36 @@ def test_a_fit_description_is_read_with_its_data_and_weights(tmp_path):
     (("noise = 1e-5", "nois = 1e-5"), "experiment[0].nois", "allowed here"),
     (("[[experiment]]", "[fit]\nmax_evaluations = true\n\n[[experiment]]"),
      "fit.max_evaluations", "integer"),
+    (("[[experiment]]", "[fit]\njacobian = \"exact\"\n\n[[experiment]]"),
+     "fit.jacobian", "finite-differences"),
+    (("noise = 1e-5", "noise = 1e-5\ncontrol = \"stress\""), "experiment[0].control",
+     "depth"),
 ])
 def test_bad_fit_descriptions_name_the_key(tmp_path, change, key, words):
     with pytest.raises(SceneError) as caught:
         ident.read_fit(written(tmp_path, FIT.replace(*change)))
     assert key in str(caught.value) and words in str(caught.value)
+
+
+def test_relaxation_needs_a_force_column(tmp_path):
+    with pytest.raises(SceneError, match="experiment\\[0\\].data") as caught:
+        ident.read_fit(written(tmp_path, FIT.replace("noise = 1e-5",
+                                                     "noise = 1e-5\ncontrol = \"depth\""),
+                               data="t,depth\n0,0\n1,0.01\n"))
+    assert "'force' column" in str(caught.value)
+
+
+def test_sensitivities_asked_for_a_key_they_do_not_cover_name_it(tmp_path):
+    """fit.jacobian = "sensitivities" with the sphere's radius as a parameter: refused before
+    any solve, naming fit.jacobian and the key; "auto" would take finite differences."""
+    fit = FIT.replace("[[experiment]]", "[fit]\njacobian = \"sensitivities\"\n\n"
+                      "[[experiment]]").replace(
+        'key = "viscoelastic.shear.fractions.0"\ninitial = 0.4\nbounds = [0.05, 0.9]',
+        'key = "obstacle.radius"\ninitial = 1.0\nbounds = [0.5, 2.0]')
+    spec = ident.read_fit(written(tmp_path, fit))
+    with pytest.raises(SceneError) as caught:
+        ident.fit(spec)
+    assert "fit.jacobian" in str(caught.value) and "obstacle.radius" in str(caught.value)
 
 
 @pytest.mark.parametrize("data, words", [
