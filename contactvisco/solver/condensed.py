@@ -54,6 +54,10 @@ _FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE
 #: Singular values of D_i below this fraction of the node's natural scale w_i / r are zero.
 RANK_TOLERANCE = 1e-10
 
+#: The lifting of the Dirichlet rows is skipped when the iterate x is within this fraction of
+#: |x|_inf of the prescribed values everywhere (NodalCondensation.lifting_needed).
+LIFTING_TOLERANCE = 1e-14
+
 
 def eliminate(B, C, D, F, G, scale, d_scale):
     """The node-wise elimination above, batched over nodes.
@@ -128,37 +132,63 @@ def replace_rows(A, rows, P, L):
     The new rows keep A's column pattern, so L_i needs the node's own columns rows[i] in the
     pattern of each of its rows (the diagonal block of an assembled stiffness matrix has
     them). Raises ValueError naming the row if one is missing, rather than writing L_i into
-    other columns."""
-    d = rows.shape[1]
+    other columns.
+
+    Batched over nodes: the changed rows are read from A as one submatrix (its CSR arrays at
+    once), each node's d rows are laid out on the union of their column patterns, P_i is
+    applied to all nodes in one product and the new rows are written back in one call
+    (MatSetValues over CSR arrays with the rows' global indices). Collective."""
+    n, d = rows.shape
     changed = np.flatnonzero(np.any(np.abs(P - np.eye(d)) > 0, axis=(1, 2))
                              | np.any(L != 0, axis=(1, 2)))
-    new_rows = []
-    for i in changed:
-        columns, values = _node_rows(A, rows[i])
-        where = np.searchsorted(columns, rows[i])
-        present = (where < len(columns)) & (columns[np.minimum(where, len(columns) - 1)]
-                                              == rows[i])
+    wanted, every = row_selection(A, rows[changed])
+    part = A.createSubMatrix(wanted, every)
+    indptr, indices, values = part.getValuesCSR()     # row k: rows[changed].ravel()[k]
+    for obj in (part, wanted, every):
+        obj.destroy()
+    if changed.size:
+        node, columns, table = _node_tables(indptr, indices, values, d)
+        own = rows[changed][node]                     # (u, d): the node's own columns
+        new = np.einsum("ukj,uj->uk", P[changed][node], table)
+        where, which = np.nonzero(own == columns[:, None])   # entry `where` = own column
+        present = np.zeros((changed.size, d), dtype=bool)
+        present[node[where], which] = True
         if not np.all(present):
+            i, c = np.argwhere(~present)[0]
             raise ValueError(
-                f"rows {rows[i].tolist()} of the condensed matrix lack the node's own columns "
-                f"{rows[i][~present].tolist()} in their sparsity pattern; the condensed rows "
-                "need the d x d diagonal block of each contact node")
-        values = P[i] @ values
-        values[:, where] += L[i]
-        new_rows.append((rows[i], columns, values))
-    for node_rows, columns, values in new_rows:
-        A.setValues(node_rows, columns, values)
+                f"rows {rows[changed[i]].tolist()} of the condensed matrix lack the node's own "
+                f"columns {[int(rows[changed[i], c])]} in their sparsity pattern; the "
+                "condensed rows need the d x d diagonal block of each contact node")
+        new[where] += L[changed][node[where], :, which]
+        # CSR of the new rows: node i's d rows, each on the node's union of columns.
+        width = np.bincount(node, minlength=changed.size)
+        first = np.concatenate([[0], np.cumsum(width)])
+        row_width = np.repeat(width, d)
+        row_ptr = np.concatenate([[0], np.cumsum(row_width)]).astype(PETSc.IntType)
+        entry_node = np.repeat(np.arange(changed.size), d * width)
+        entry_row = np.repeat(np.tile(np.arange(d), changed.size), row_width)
+        offset = np.arange(entry_node.size) - row_ptr[:-1][np.repeat(
+            np.arange(changed.size * d), row_width)]
+        entry = first[entry_node] + offset
+        A.setValuesIJV(row_ptr, columns[entry].astype(PETSc.IntType),
+                       new[entry, entry_row],
+                       rowmap=rows[changed].ravel().astype(PETSc.IntType))
     A.assemble()
 
 
-def _node_rows(A, rows):
-    """The d rows `rows` of A on the union of their column patterns: (columns, (d, n))."""
-    pattern = [A.getRow(int(row)) for row in rows]
-    columns = np.unique(np.concatenate([c for c, _ in pattern]))
-    values = np.zeros((len(rows), len(columns)))
-    for c, (cols, vals) in enumerate(pattern):
-        values[c, np.searchsorted(columns, cols)] = vals
-    return columns.astype(PETSc.IntType), values
+def _node_tables(indptr, indices, values, d):
+    """The CSR arrays of d consecutive rows per node laid out on each node's union of
+    columns: (node (u,), columns (u,), table (u, d)) with one entry u per (node, column) of
+    the union, sorted by node and column, and table[u, j] the value of the node's row j
+    there (0 outside its pattern)."""
+    row = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+    node_of = row // d
+    key = node_of.astype(np.int64) * (int(indices.max(initial=0)) + 1) + indices
+    union, position = np.unique(key, return_inverse=True)
+    table = np.zeros((union.size, d))
+    table[position, row % d] = values
+    width = int(indices.max(initial=0)) + 1
+    return union // width, union % width, table
 
 
 def node_blocks(block, rows, columns, name="a contact block"):
@@ -244,6 +274,7 @@ class BulkPart:
         self.cell, self.facet = fem.form(cell_form), fem.form(ufl.Form(facets))
         self.constants = cell_form.constants()
         self.values = None               # the Constants' values of the kept matrix
+        self.assemblies = 0              # of the kept matrix: a new bulk operator each
         self.matrix = A.duplicate()
 
     def assemble_into(self, A, bcs):
@@ -258,6 +289,7 @@ class BulkPart:
             compat.assemble_matrix(self.matrix, self.cell, bcs, diagonal=0.0)
             self.matrix.assemble()
             self.values = values
+            self.assemblies += 1
         self.matrix.copy(A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         compat.assemble_matrix(A, self.facet, bcs, diagonal=1.0)
         A.assemble()
@@ -335,6 +367,12 @@ class NodalCondensation:
         self.J_red = self.A
         self.parts = None
         self.full_norm = 0.0
+        #: Leave the node blocks and F_red of a residual to the next Jacobian
+        #: (condense_residual); the residual's vector must then stay the one the linear
+        #: solve reads, as SNES's function vector does.
+        self.defer = False
+        self._uncondensed = None
+        self._gap = None
 
     #: The attributes whose PETSc objects belong to the problem, not to this system.
     BORROWED: tuple = ()
@@ -352,6 +390,12 @@ class NodalCondensation:
         self.A.zeroEntries()
         compat.assemble_matrix(self.A, self.J_uu, self.bcs, diagonal=1.0)
         self.A.assemble()
+
+    def bulk_stamp(self):
+        """A value that changes with the bulk operator (the cell integrals of J_uu): the
+        count of its assemblies, or None where it depends on the iterate (not split off,
+        BulkPart) and every Jacobian assembles it anew."""
+        return self._bulk.assemblies if self._bulk is not None and self._bulk.split else None
 
     def _node_values(self, vec, bs):
         vec.ghostUpdate(addv=_ADD, mode=_REVERSE)
@@ -397,18 +441,39 @@ class NodalCondensation:
         self.condense_residual(b)
 
     def assemble_u_residual(self, x, b):
-        """b = F_u(x) with the Dirichlet rows set to x - g (lifting applied)."""
+        """b = F_u(x) with the Dirichlet rows set to x - g: the lifting b += J_uu (g - x)
+        applied only where x differs from g on a prescribed component (lifting_needed)."""
         with b.localForm() as local:
             local.set(0.0)
         assemble_vector(b, self.F_u)
-        compat.apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
+        if self.lifting_needed(x):
+            compat.apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
         b.ghostUpdate(addv=_ADD, mode=_REVERSE)
         compat.set_bc(b, self.bcs, x, -1.0)
+
+    def lifting_needed(self, x) -> bool:
+        """Whether x misses the prescribed values g somewhere: max |g - x| over the
+        Dirichlet components of all ranks above LIFTING_TOLERANCE |x|_inf. Below it the
+        lifting J_uu (g - x) changes the residual by less than that fraction of J_uu x
+        (round-off of the Newton update x - (x - g)), and is skipped: after the first Newton
+        iteration of a step the iterate holds g. Collective."""
+        if not self.bcs:
+            return False
+        if self._gap is None:
+            self._gap = x.duplicate()
+        gap = self._gap
+        gap.set(0.0)
+        compat.set_bc(gap, self.bcs, x, 1.0)
+        return gap.norm(PETSc.NormType.INFINITY) > LIFTING_TOLERANCE * x.norm(
+            PETSc.NormType.INFINITY)
 
     def condense_residual(self, b):
         """Eliminate the multipliers' residual G node by node from the u residual b (in
         place): the owned contact rows of b become F_red; the blocks are kept for the
-        Jacobian, and the coupled residual's norm in `full_norm`."""
+        Jacobian, and the coupled residual's norm in `full_norm`. With `defer` set, only G
+        and the norm are computed here: the node blocks and F_red wait for the Jacobian at
+        the same iterate (finish_condensation), so that the last residual of a solve, which
+        only tells Newton that it has converged, assembles no coupling block."""
         G = np.zeros((len(self.own), self.m))
         for a, (form, vec) in enumerate(zip(self.G, self.G_vecs)):
             self._assemble_vector(vec, form)
@@ -417,6 +482,17 @@ class NodalCondensation:
         comm = self.V.mesh.comm
         self.full_norm = float(np.sqrt(b.norm() ** 2 + comm.allreduce(float(np.sum(G * G)),
                                                                        MPI.SUM)))
+        self._uncondensed = (b, G)
+        if not self.defer:
+            self.finish_condensation()
+
+    def finish_condensation(self):
+        """The node blocks at the iterate of the last residual and its owned contact rows
+        replaced by F_red (condense_residual); nothing if that is done already."""
+        if self._uncondensed is None:
+            return
+        b, G = self._uncondensed
+        self._uncondensed = None
         B, C, D = self.local_blocks()
         array = b.array.reshape(-1, self.d)
         F = array[self.own].copy()
@@ -426,7 +502,9 @@ class NodalCondensation:
 
     def jacobian(self):
         """J_red = S J + L, in place: J is assembled, its contact rows saved, and the rows of
-        every node where P_i != I or L_i != 0 replaced by P_i (J rows) + L_i."""
+        every node where P_i != I or L_i != 0 replaced by P_i (J rows) + L_i; a deferred
+        condensation of the last residual is done first (its vector then holds F_red)."""
+        self.finish_condensation()
         self._assemble_J()
         self.A.createSubMatrix(self._contact_rows, self._columns, submat=self.J_contact)
         replace_rows(self.A, self.rows, self.parts["P"], self.parts["L"])

@@ -27,7 +27,7 @@ from petsc4py import PETSc
 
 from contactvisco.errors import SceneError
 from contactvisco.fem import compat, parts
-from contactvisco.solver import floating
+from contactvisco.solver import floating, linear
 from contactvisco.solver.bordered import ObstacleForce
 from contactvisco.solver.condensed import NodalCondensation
 from contactvisco.solver.interface_newton import InterfaceCondensation, InterfaceSNES
@@ -210,6 +210,9 @@ class CondensedSNES(NewtonSolver):
     def __init__(self, problem, comm, scene_options=None, defaults=None, reuse=False):
         super().__init__(comm, [problem.u], scene_options, defaults, reuse)
         self.system = _condensation(problem)
+        # The node blocks of a residual wait for its Jacobian (NodalCondensation.defer), not
+        # in the two-body system, which transforms the condensed residual further.
+        self.system.defer = type(self.system) is NodalCondensation
         u_vector = compat.petsc_vector(problem.u)
         self.b = u_vector.copy()
         self.x = u_vector.copy()
@@ -218,7 +221,14 @@ class CondensedSNES(NewtonSolver):
         self._pending = False            # a step from _x_jacobian awaits its multiplier update
         self._residuals_since_jacobian = 0
         self._broken = None              # why the iterates left the coupled method's, if so
-        self.operator = self.system.J_red.duplicate(copy=True) if reuse else self.system.J_red
+        obstacle = problem.contact.obstacle
+        # The iterative solver's preconditioner is built from an operator of its own, copied
+        # from J_red only when linear.KeptPreconditioner says so.
+        if linear.KEEP and not reuse and type(self.system) is NodalCondensation and not (
+                obstacle is not None and obstacle.controlled):
+            self.kept = linear.KeptPreconditioner(self.system.bulk_stamp)
+        self.operator = (self.system.J_red.duplicate(copy=True)
+                         if reuse or self.kept is not None else self.system.J_red)
         self.snes.setFunction(_weak(self._residual), self.b)
         self.snes.setJacobian(_weak(self._jacobian), self.system.J_red, self.operator)
         # Converged when the residual of the coupled problem (u and multiplier rows) is small,
@@ -231,7 +241,9 @@ class CondensedSNES(NewtonSolver):
         self._error = None               # an error raised inside a SNES callback
         if self.force is not None:
             self._shift, self._u_now = u_vector.copy(), u_vector.copy()
+            self.system.defer = False
         self._finish_setup()
+        self._ksp_rtol = self.snes.getKSP().getTolerances()[0]
         if self.force is None:           # the bordered solves need P's exact factors
             self.enable_stale()
         # The line search on the coupled residual (none with force control, whose bordered
@@ -466,6 +478,12 @@ class CondensedSNES(NewtonSolver):
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
         self._to_operator(self.system.J_red)
+        if linear.INEXACT and not self.reuse:            # the iterative solver
+            atol, rtol, _, _ = snes.getTolerances()
+            ksp = snes.getKSP()
+            target = max(atol, rtol * self._norm0)
+            ksp.setTolerances(rtol=linear.forcing(self._ksp_rtol, self.system.full_norm,
+                                                  target))
         if (self.floating is not None
                 and self.floating.unbalanced >= floating.UNBALANCED_JACOBIANS):
             self._error = SceneError(floating.UNBALANCED, key="solver.linear_solver")

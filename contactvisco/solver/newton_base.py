@@ -288,6 +288,7 @@ class NewtonSolver:
         self.nearby = False              # keep P's factors for any nearby J (enable_nearby)
         self._nearby_extra = 0           # FGMRES iterations beyond the first since P's factors
         self.nearby_solves = 0           # solves with an earlier matrix's factors (a run's)
+        self.kept = None                 # the iterative solver's kept preconditioner (linear)
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -332,7 +333,8 @@ class NewtonSolver:
             self.floating.destroy()
             self.floating = None
         owned = ("snes", "b", "x", "A", "_x_jacobian", "_du", "_trial", "_trial_b") + (
-            ("operator",) if self.reuse else ())   # else the operator is A or J_red
+            ("operator",) if self.reuse or self.__dict__.get("kept") is not None
+            else ())                                # else the operator is A or J_red
         for name in owned:
             obj = self.__dict__.get(name)
             if obj is not None:
@@ -348,7 +350,11 @@ class NewtonSolver:
         if self.floating is not None:
             self.floating.prepare(A, self.b)
         if not self.reuse:
-            self.setups += 1
+            if self.kept is None:
+                self.setups += 1
+            elif self.kept.build_next(self.snes.getKSP(), A):
+                A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+                self.setups += 1
             return
         if self.stale_rows > 0:
             self._to_operator_or_stale(A)

@@ -1,0 +1,125 @@
+"""The iterative solver's preconditioner kept across Newton iterations and steps.
+
+With a linear bulk law and a constant step size, the Newton matrix of the condensed system is
+J_red = K + E: K, the bulk operator (A plus the memory's weight on the current strain, the
+cell integrals), is the same in every iteration of every step, and E changes only the rows of
+the contact nodes whose branch of the law changed (free, compliant, at the bound, stick,
+slip). An algebraic multigrid hierarchy M built from an earlier matrix J_0 = K + E_0 is then a
+preconditioner of J_red whose error J_red M^-1 - I has the rank of E - E_0 added to that of
+J_0 M^-1 - I, and GMRES pays for the difference with a few more iterations instead of a new
+set-up (BoomerAMG's set-up costs about as much as 5 GMRES iterations, docs/scaling.md).
+
+KeptPreconditioner decides, before each linear solve, whether the hierarchy is built again
+(the Newton matrix copied into the preconditioner's own operator, whose changed state makes
+PCSetUp build it) or kept (that operator left as it is: PCSetUp then keeps the hierarchy):
+
+- built again when the Newton matrix differs from the one of the build in more than ROWS
+  rows (over all ranks);
+- built again when the bulk operator changed since the build (another step size: the memory's
+  weight; a Constant of the cell integrals), always when the bulk operator depends on the
+  iterate (a nonlinear bulk law: `stamp` gives None);
+- built again when the last solve with it did not converge, or when the iterations the
+  solves with the kept hierarchy took beyond n_0 (the iterations of the first solve after the
+  build) add up to more than BUDGET, about what a set-up costs in iterations: renting before
+  buying, at most twice the cost of the better choice made in hindsight;
+- kept otherwise.
+
+The solves are the same to the Krylov tolerance; only the preconditioner differs. Measured
+on the paper scene and block3d (docs/scaling.md), the set-ups saved were paid back in Krylov
+iterations, so the rule is off by default (KEEP); so are the inexact solves of `forcing`
+(INEXACT), which added Newton iterations.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: The iterations beyond n_0 that the solves with a kept hierarchy may add up to: a
+#: BoomerAMG set-up costs about 4.5 to 5 GMRES iterations (V-cycles) in 2D and 3D
+#: (docs/scaling.md).
+BUDGET = 5
+
+#: A kept hierarchy is built again for a Newton matrix that differs from the one of the
+#: build in more than this many rows (over all ranks).
+ROWS = 16
+
+#: On: the rule above (an extra matrix of the system's size for the preconditioner). Off by
+#: default: on the paper scene and block3d it saved set-ups but not time (docs/scaling.md).
+KEEP = False
+#: On: the inexact solves of `forcing`. Off by default: they added Newton iterations on the
+#: paper scene (docs/scaling.md); every solve is then to the solver's own tolerance.
+INEXACT = False
+
+
+class KeptPreconditioner:
+    """The rule above for one KSP.
+
+    Parameters
+    ----------
+    stamp : callable
+        () -> a value that changes whenever the bulk operator changes (compared with ==),
+        or None when it depends on the iterate (the hierarchy is then built for every
+        Newton matrix).
+    """
+
+    def __init__(self, stamp):
+        self.stamp = stamp
+        self.built = None        # the stamp of the build
+        self.first = None        # Krylov iterations of the first solve after the build
+        self.solves = 0          # solves since the build
+        self.extra = 0           # iterations beyond the first solve's, since the build
+        self.kept = 0            # solves with a kept hierarchy, over the object's life
+        self.values = None       # the CSR values of the matrix of the build
+
+    def build_next(self, ksp, A) -> bool:
+        """Decide for the next solve of `ksp` (called once per Newton matrix, before its
+        solve; the same on every rank): True if the preconditioner is built again, from the
+        new matrix."""
+        stamp = self.stamp()
+        iterations, reason = ksp.getIterationNumber(), ksp.getConvergedReason()
+        if self.solves == 1:
+            self.first = iterations
+        elif self.solves > 1:
+            self.extra += max(iterations - self.first, 0)
+        keep = (KEEP and stamp is not None and self.solves > 0 and stamp == self.built
+                and reason > 0 and self.extra <= BUDGET)
+        try:
+            indptr, _, values = A.getValuesCSR()
+        except Exception:                      # a matrix type without CSR access
+            indptr = values = None
+        if keep:
+            rows = -1
+            if values is not None and self.values is not None and \
+                    len(values) == len(self.values):
+                entries = np.flatnonzero(values != self.values)
+                rows = int(np.unique(np.searchsorted(indptr, entries, side="right")).size)
+            counts = A.getComm().tompi4py().allgather(rows)
+            keep = min(counts) >= 0 and sum(counts) <= ROWS
+        if keep:
+            self.solves += 1
+            self.kept += 1
+            return False
+        self.built, self.solves, self.first, self.extra = stamp, 1, None, 0
+        self.values = None if values is None else values.copy()
+        return True
+
+
+#: The inexact solves: the linear residual is asked for SAFETY times the residual at which
+#: Newton stops, and never more loosely than ETA_MAX times the current one (docs/scaling.md).
+SAFETY = 0.1
+ETA_MAX = 1e-2
+
+
+def forcing(rtol: float, norm: float, target: float) -> float:
+    """The relative tolerance of the linear solve of a Newton iteration at residual `norm`
+    when Newton stops at residual `target` (max(atol, rtol_N |F_0|)):
+
+        eta = min(ETA_MAX, max(rtol, SAFETY * target / norm)),
+
+    so that the linear residual |J dx + F| <= eta |F| is at most SAFETY * target where
+    `rtol` (the solver's own tolerance) allows it: a step that leaves Newton's stopping test
+    to the nonlinear error alone, the last one included, and never a tighter solve than
+    `rtol`. Near the solution a Newton iteration needs only as many Krylov iterations as
+    the remaining reduction to the target takes, not the full `rtol`."""
+    if not (norm > 0.0 and target > 0.0):
+        return rtol
+    return min(ETA_MAX, max(rtol, SAFETY * target / norm))

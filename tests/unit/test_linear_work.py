@@ -1,0 +1,172 @@
+"""The per-iteration work of the condensed Newton system: the batched row replacement, the
+lifting skipped where the iterate holds the prescribed values, the iterative solver's kept
+preconditioner and inexact solves (contactvisco.solver.linear)."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from contactvisco.fem import compat
+from contactvisco.scene import loader as scene_module
+from contactvisco.solver import condensed, linear
+from contactvisco.solver.condensed import replace_rows
+from contactvisco.solver.time_loop import simulate
+
+
+def test_batched_rows_equal_the_node_formula():
+    """Rows of node i become P_i (rows) + L_i on the node's own columns, for nodes whose d
+    rows have different column patterns; the other nodes' rows (P = I, L = 0) are kept."""
+    rng = np.random.default_rng(3)
+    d, nodes = 3, 7
+    size = d * nodes
+    pattern = rng.random((size, size)) < 0.3
+    for i in range(nodes):                       # each node's own d x d block is present
+        pattern[i * d:(i + 1) * d, i * d:(i + 1) * d] = True
+    dense = np.where(pattern, rng.normal(size=(size, size)), 0.0)
+    A = PETSc.Mat().createAIJ((size, size), nnz=size, comm=MPI.COMM_SELF)
+    A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    for row in range(size):
+        cols = np.flatnonzero(pattern[row]).astype(PETSc.IntType)
+        A.setValues([row], cols, dense[row, cols])
+    A.assemble()
+    rows = np.arange(size, dtype=PETSc.IntType).reshape(nodes, d)
+    P = np.broadcast_to(np.eye(d), (nodes, d, d)).copy()
+    L = np.zeros((nodes, d, d))
+    for i in (1, 4, 5):
+        q = np.linalg.qr(rng.normal(size=(d, 1)))[0]
+        P[i] -= q @ q.T
+        L[i] = rng.normal(size=(d, d))
+    expected = dense.copy()
+    for i in range(nodes):
+        r = rows[i]
+        expected[r] = P[i] @ dense[r]
+        expected[np.ix_(r, r)] += L[i]
+    replace_rows(A, rows, P, L)
+    got = A.getValues(range(size), range(size))
+    assert np.max(np.abs(got - expected)) < 1e-13 * np.max(np.abs(expected))
+    A.destroy()
+
+
+def _paper(sets=()):
+    scene = scene_module.load("paper", ["geometry.cells=[16, 16]", "time.steps=4", "time.T=0.4",
+                                        *sets])
+    scene["output"]["probes"] = []
+    return scene
+
+
+def _block3d():
+    """block3d on a coarse mesh: its top face is prescribed with values that move in time."""
+    scene = scene_module.load("block3d", ["geometry.parameters.h=0.25", "time.T=0.4",
+                                          "time.steps=4"])
+    scene["output"]["probes"] = []
+    return scene
+
+
+def _contact_values(problem):
+    nodes = problem.contact.nodes
+    own = nodes.nodes[nodes.owned]
+    d = problem.V.dofmap.index_map_bs
+    parts = [problem.u.x.array.reshape(-1, d)[own]]
+    parts += [f.x.array.reshape(-1, f.function_space.dofmap.index_map_bs)[own]
+              for f in problem.multipliers.values()]
+    return np.hstack(parts)
+
+
+def test_lifting_skipped_where_the_iterate_holds_g(monkeypatch):
+    """With prescribed values that move in time (block3d's top face), the lifting is
+    skipped in some residuals (those after a step's first Newton iteration) and is applied
+    in others, and the converged contact values are those of a run that always lifts, to
+    round-off; the Newton counts are the same."""
+    calls = {"lift": 0}
+    lift = compat.apply_lifting
+
+    def counted(*args, **kwargs):
+        calls["lift"] += 1
+        return lift(*args, **kwargs)
+    monkeypatch.setattr(compat, "apply_lifting", counted)
+    skipped = simulate(_block3d(), comm=MPI.COMM_WORLD, progress=False)
+    lifts = calls["lift"]
+    residuals = sum(len(s["residual_history"]) for s in skipped.steps)
+    assert 0 < lifts < residuals
+    monkeypatch.setattr(condensed, "LIFTING_TOLERANCE", -1.0)     # always lift
+    always = simulate(_block3d(), comm=MPI.COMM_WORLD, progress=False)
+    assert calls["lift"] - lifts > 2 * lifts           # the run that always lifts
+    assert [s["newton_iterations"] for s in skipped.steps] == \
+        [s["newton_iterations"] for s in always.steps]
+    a, b = _contact_values(skipped.problem), _contact_values(always.problem)
+    assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(b))
+
+
+def test_forcing_ties_the_tolerance_to_newtons_target():
+    """eta = min(ETA_MAX, max(rtol, SAFETY target / |F|)): the solver's own tolerance far
+    from the solution, the target's share near it, never looser than ETA_MAX."""
+    rtol, target = 1e-10, 1e-10
+    assert linear.forcing(rtol, 1.0, target) == rtol
+    assert linear.forcing(rtol, 1e-6, target) == pytest.approx(linear.SAFETY * 1e-4)
+    assert linear.forcing(rtol, 1e-11, target) == linear.ETA_MAX
+    assert linear.forcing(rtol, 0.0, target) == rtol
+
+
+class _KSP:
+    def __init__(self):
+        self.iterations, self.reason = 0, 2
+
+    def getIterationNumber(self):
+        return self.iterations
+
+    def getConvergedReason(self):
+        return self.reason
+
+
+def _matrix(values):
+    A = PETSc.Mat().createAIJ((len(values), len(values)), nnz=1, comm=MPI.COMM_SELF)
+    for i, v in enumerate(values):
+        A.setValue(i, i, v)
+    A.assemble()
+    return A
+
+
+def test_kept_preconditioner_rule(monkeypatch):
+    """Built at the first matrix; kept while the bulk stamp, the Krylov budget and the
+    changed-row count allow; built again when any of them does not."""
+    monkeypatch.setattr(linear, "KEEP", True)
+    monkeypatch.setattr(linear, "ROWS", 2)
+    stamp = {"value": 0}
+    rule = linear.KeptPreconditioner(lambda: stamp["value"])
+    ksp = _KSP()
+    base = np.ones(10)
+    assert rule.build_next(ksp, _matrix(base))            # the first matrix
+    ksp.iterations = 10
+    changed = base.copy()
+    changed[:2] = 3.0
+    assert not rule.build_next(ksp, _matrix(changed))     # 2 rows changed
+    ksp.iterations = 10 + linear.BUDGET + 1               # a kept solve over the budget
+    assert rule.build_next(ksp, _matrix(changed))
+    ksp.iterations = 10
+    assert not rule.build_next(ksp, _matrix(changed))
+    changed[:3] = 4.0                                     # 3 rows changed
+    assert rule.build_next(ksp, _matrix(changed))
+    ksp.iterations = 10
+    stamp["value"] = 1                                    # another step size
+    assert rule.build_next(ksp, _matrix(changed))
+    ksp.iterations, ksp.reason = 10, -3                   # a solve that did not converge
+    assert rule.build_next(ksp, _matrix(changed))
+    stamp["value"] = None                                 # a nonlinear bulk law
+    ksp.reason = 2
+    assert rule.build_next(ksp, _matrix(changed))
+    assert rule.kept == 2
+
+
+def test_kept_preconditioner_and_inexact_solves_keep_the_answer(monkeypatch):
+    """The iterative solver with the kept preconditioner and the inexact solves switched on
+    builds fewer preconditioners and converges to the contact values of every solve to
+    the full tolerance, within the Newton tolerance's effect on them."""
+    sets = ["solver.linear_solver='iterative'"]
+    reference = simulate(_paper(sets), comm=MPI.COMM_WORLD, progress=False)
+    monkeypatch.setattr(linear, "KEEP", True)
+    monkeypatch.setattr(linear, "INEXACT", True)
+    kept = simulate(_paper(sets), comm=MPI.COMM_WORLD, progress=False)
+    setups = [sum(s["preconditioner_setups"] for s in r.steps) for r in (reference, kept)]
+    assert setups[1] < setups[0]
+    a, b = _contact_values(kept.problem), _contact_values(reference.problem)
+    assert np.max(np.abs(a - b)) <= 1e-7 * np.max(np.abs(b))
