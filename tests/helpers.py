@@ -81,6 +81,27 @@ def layer_on_surface(distance: str, h: float = 0.25, h_bottom: float = 0.1,
             "time": {"T": 1.0, "steps": steps}, "output": {"probes": []}}
 
 
+def axisymmetric_blocks(folder, a: float, size: float, divisions=(8, 16)) -> dict:
+    """n -> the .msh file of an axisymmetric block of radius and height `size` whose mesh size
+    is a/n under a contact of radius `a`, made on rank 0 in `folder` (the same on every rank)."""
+    from mpi4py import MPI
+    from contactvisco.fem import geometry
+    comm = MPI.COMM_WORLD
+    folder = pathlib.Path(comm.bcast(str(folder) if comm.rank == 0 else None, root=0))
+    out = {}
+    for n in divisions:
+        path = folder / f"block{n}.msh"
+        if comm.rank == 0:
+            geometry._generate(
+                {"script": "axisymmetric_block",
+                 "parameters": {"radius": size, "height": size, "h_contact": a / n,
+                                "h_far": size / 10, "refine": 1.5 * a, "growth": 0.4 / n}},
+                path, 2)
+        comm.barrier()
+        out[n] = path
+    return out
+
+
 def run_cli(*args, ranks: int = 1, timeout: float = 300, cwd=None, env=None):
     """Run the command line to its end (killed after `timeout` s): the finished process, its
     output captured as text."""

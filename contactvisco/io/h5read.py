@@ -7,6 +7,7 @@ raises OSError naming the file and dataset that cannot be read.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import pathlib
@@ -37,10 +38,12 @@ def _hdf5():
     return _lib
 
 
-def read_dataset(file: pathlib.Path, path: str) -> np.ndarray:
-    """The dataset `path` of HDF5 file `file`, as float64."""
+@contextlib.contextmanager
+def _dataset(file: pathlib.Path, path: str):
+    """The HDF5 library and the open dataset `path` of file `file` (a regular file: the
+    library opens the path itself), both closed on leaving."""
     from contactvisco.io import files
-    files.require_regular(file)          # the HDF5 library opens the path itself
+    files.require_regular(file)
     lib = _hdf5()
     f = lib.H5Fopen(str(file).encode(), 0, ctypes.c_int64(0))
     if f < 0:
@@ -50,50 +53,40 @@ def read_dataset(file: pathlib.Path, path: str) -> np.ndarray:
         if d < 0:
             raise OSError(f"{file}: no dataset {path}")
         try:
-            space = lib.H5Dget_space(ctypes.c_int64(d))
-            rank = lib.H5Sget_simple_extent_ndims(ctypes.c_int64(space))
-            dims = (ctypes.c_uint64 * max(rank, 1))()
-            lib.H5Sget_simple_extent_dims(ctypes.c_int64(space), dims, None)
-            lib.H5Sclose(ctypes.c_int64(space))
-            out = np.empty([dims[i] for i in range(rank)], dtype=np.float64)
-            double = ctypes.c_int64.in_dll(lib, "H5T_NATIVE_DOUBLE_g")
-            status = lib.H5Dread(ctypes.c_int64(d), double, ctypes.c_int64(0),
-                                 ctypes.c_int64(0), ctypes.c_int64(0),
-                                 out.ctypes.data_as(ctypes.c_void_p))
-            if status < 0:
-                raise OSError(f"{file}: dataset {path} cannot be read")
-            return out
+            yield lib, ctypes.c_int64(d)
         finally:
             lib.H5Dclose(ctypes.c_int64(d))
     finally:
         lib.H5Fclose(ctypes.c_int64(f))
+
+
+def read_dataset(file: pathlib.Path, path: str) -> np.ndarray:
+    """The dataset `path` of HDF5 file `file`, as float64."""
+    with _dataset(file, path) as (lib, d):
+        space = lib.H5Dget_space(d)
+        rank = lib.H5Sget_simple_extent_ndims(ctypes.c_int64(space))
+        dims = (ctypes.c_uint64 * max(rank, 1))()
+        lib.H5Sget_simple_extent_dims(ctypes.c_int64(space), dims, None)
+        lib.H5Sclose(ctypes.c_int64(space))
+        out = np.empty([dims[i] for i in range(rank)], dtype=np.float64)
+        double = ctypes.c_int64.in_dll(lib, "H5T_NATIVE_DOUBLE_g")
+        status = lib.H5Dread(d, double, ctypes.c_int64(0), ctypes.c_int64(0),
+                             ctypes.c_int64(0), out.ctypes.data_as(ctypes.c_void_p))
+        if status < 0:
+            raise OSError(f"{file}: dataset {path} cannot be read")
+        return out
 
 
 def stored_type(file: pathlib.Path, path: str) -> np.dtype:
     """The type dataset `path` of HDF5 file `file` is stored as: an integer or float numpy
     dtype of the same size and sign (byte order left out)."""
-    from contactvisco.io import files
-    files.require_regular(file)
-    lib = _hdf5()
-    for name in ("H5Dget_type",):
-        getattr(lib, name).restype = ctypes.c_int64
-    f = lib.H5Fopen(str(file).encode(), 0, ctypes.c_int64(0))
-    if f < 0:
-        raise OSError(f"{file}: not a readable HDF5 file")
-    try:
-        d = lib.H5Dopen2(ctypes.c_int64(f), path.encode(), ctypes.c_int64(0))
-        if d < 0:
-            raise OSError(f"{file}: no dataset {path}")
-        try:
-            t = lib.H5Dget_type(ctypes.c_int64(d))
-            kind = lib.H5Tget_class(ctypes.c_int64(t))      # 0 integer, 1 float
-            size = lib.H5Tget_size(ctypes.c_int64(t))
-            signed = lib.H5Tget_sign(ctypes.c_int64(t)) == 1 if kind == 0 else True
-            lib.H5Tclose(ctypes.c_int64(t))
-        finally:
-            lib.H5Dclose(ctypes.c_int64(d))
-    finally:
-        lib.H5Fclose(ctypes.c_int64(f))
+    with _dataset(file, path) as (lib, d):
+        lib.H5Dget_type.restype = ctypes.c_int64
+        t = lib.H5Dget_type(d)
+        kind = lib.H5Tget_class(ctypes.c_int64(t))      # 0 integer, 1 float
+        size = lib.H5Tget_size(ctypes.c_int64(t))
+        signed = lib.H5Tget_sign(ctypes.c_int64(t)) == 1 if kind == 0 else True
+        lib.H5Tclose(ctypes.c_int64(t))
     if kind not in (0, 1):
         raise OSError(f"{file}: dataset {path} is neither integer nor float")
     return np.dtype(("i" if signed else "u") + str(size) if kind == 0 else f"f{size}")

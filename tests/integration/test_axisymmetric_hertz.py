@@ -24,6 +24,7 @@ from contactvisco.model.material import lame_constants
 from contactvisco.scene import loader as scene_module
 from contactvisco.solver.time_loop import simulate
 from contactvisco.studies.indentation import SphereLeeRadok
+from helpers import axisymmetric_blocks
 
 COMM = MPI.COMM_WORLD
 E, NU, R, A = 1.0, 0.3, 1.0, 0.1
@@ -35,20 +36,7 @@ SIZE = 80.0 * R
 @pytest.fixture(scope="module")
 def meshes(tmp_path_factory):
     """n -> the .msh file of the block with h = a/n at the contact (made on rank 0)."""
-    folder = pathlib.Path(COMM.bcast(str(tmp_path_factory.mktemp("axi_block"))
-                                     if COMM.rank == 0 else None, root=0))
-    out = {}
-    for n in (8, 16):
-        path = folder / f"block{n}.msh"
-        if COMM.rank == 0:
-            geometry_module._generate(
-                {"script": "axisymmetric_block",
-                 "parameters": {"radius": SIZE, "height": SIZE, "h_contact": A / n,
-                                "h_far": SIZE / 10, "refine": 1.5 * A, "growth": 0.4 / n}},
-                path, 2)
-        COMM.barrier()
-        out[n] = path
-    return out
+    return axisymmetric_blocks(tmp_path_factory.mktemp("axi_block"), A, SIZE)
 
 
 def indentation(mesh: pathlib.Path, n: int, obstacle: dict | None = None) -> dict:

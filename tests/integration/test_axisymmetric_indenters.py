@@ -14,15 +14,14 @@ the contact, a = 0.1):
   edge as (a - r)^(-1/2).
 """
 import math
-import pathlib
 
 import numpy as np
 import pytest
 from mpi4py import MPI
 
-from contactvisco.fem import geometry as geometry_module
 from contactvisco.scene import loader as scene_module
 from contactvisco.solver.time_loop import simulate
+from helpers import axisymmetric_blocks
 
 COMM = MPI.COMM_WORLD
 E, NU, A = 1.0, 0.3, 0.1
@@ -39,20 +38,7 @@ P_PUNCH = 2 * E_STAR * A * DELTA_PUNCH
 @pytest.fixture(scope="module")
 def meshes(tmp_path_factory):
     """n -> the .msh file of the block with h = a/n at the contact (made on rank 0)."""
-    folder = pathlib.Path(COMM.bcast(str(tmp_path_factory.mktemp("axi_indenters"))
-                                     if COMM.rank == 0 else None, root=0))
-    out = {}
-    for n in (8, 16):
-        path = folder / f"block{n}.msh"
-        if COMM.rank == 0:
-            geometry_module._generate(
-                {"script": "axisymmetric_block",
-                 "parameters": {"radius": SIZE, "height": SIZE, "h_contact": A / n,
-                                "h_far": SIZE / 10, "refine": 1.5 * A, "growth": 0.4 / n}},
-                path, 2)
-        COMM.barrier()
-        out[n] = path
-    return out
+    return axisymmetric_blocks(tmp_path_factory.mktemp("axi_indenters"), A, SIZE)
 
 
 def run(mesh, n, obstacle=None, gap=0.0):
