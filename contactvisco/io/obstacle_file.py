@@ -1,8 +1,11 @@
-"""obstacle.xdmf: the surface of a rigid obstacle (plane, cylinder, sphere) at every step, beside
+"""obstacle.xdmf: the surface of a rigid obstacle (plane, cylinder, sphere, cone, punch) at every
+step, beside
 solution.xdmf, so that ParaView shows it with the body (open both; same time values).
 
 The surface is drawn once in the reference position, large enough to cover the body (a plane:
-a segment or square twice the body's size; a cylinder: its length twice the body's), and moved
+a segment or square twice the body's size; a cylinder: its length twice the body's; a cone or a
+flat punch, which exist in 2D: their profile in the plane, its sides as long as the body's
+size, on both sides of their axis), and moved
 by the obstacle's displacement d(t) of each step record. The data are written inline (XDMF
 XML format): the file is read without HDF5 and grows by one small grid per step, appended in
 place before its closing tags like solution.xdmf. A signed-distance surface (`surface`) has no
@@ -21,7 +24,7 @@ OBSTACLE_FILE = "obstacle.xdmf"
 #: Segments around a circle.
 AROUND = 96
 #: The shapes that have a drawing.
-DRAWN = ("plane", "cylinder", "sphere")
+DRAWN = ("plane", "cylinder", "sphere", "cone", "punch")
 
 
 def _unit(v) -> np.ndarray:
@@ -72,6 +75,17 @@ def surface(obstacle: dict, lower: np.ndarray, upper: np.ndarray):
         corners = [foot + size * (sa * a + sb * b) for sa, sb in ((-1, -1), (1, -1), (1, 1),
                                                                    (-1, 1))]
         return np.array(corners), np.array([[0, 1, 2, 3]]), "Quadrilateral"
+    if shape in ("cone", "punch"):     # 2D only (fem.obstacle.indenter_distance)
+        tip = np.concatenate([np.asarray(obstacle["point"], float), pad])
+        if shape == "cone":            # the two flanks z = |r| cot(alpha) from the tip
+            alpha = np.deg2rad(float(obstacle["angle"]))
+            flank = size * np.array([np.sin(alpha), np.cos(alpha), 0.0])
+            points = [tip + flank * [-1, 1, 0], tip, tip + flank]
+        else:                          # the flat end of radius a and the sides above it
+            a = float(obstacle["radius"])
+            points = [tip + [-a, size, 0], tip + [-a, 0, 0], tip + [a, 0, 0], tip + [a, size, 0]]
+        i = np.arange(len(points) - 1)
+        return np.array(points), np.stack([i, i + 1], axis=1), "Polyline"
     centre = np.concatenate([np.asarray(obstacle["centre"], float), pad])
     radius = float(obstacle["radius"])
     angle = np.linspace(0.0, 2 * np.pi, AROUND, endpoint=False)

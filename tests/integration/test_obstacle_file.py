@@ -68,7 +68,13 @@ def test_a_sphere_on_a_block_writes_its_surface_at_every_step(tmp_path_factory):
     ({"shape": "sphere", "centre": [0.5, 0.5, 2.0], "radius": 1.0},
      lambda p: np.linalg.norm(p - [0.5, 0.5, 2.0], axis=1) - 1.0),
     ({"shape": "plane", "point": [0, -0.1], "normal": [0, 1]}, lambda p: p[:, 1] + 0.1),
-], ids=["plane-3d", "cylinder-3d", "sphere-3d", "plane-2d"])
+    ({"shape": "cone", "point": [0.0, 1.0], "angle": 70.3},
+     lambda p: np.abs(p[:, 0]) * np.cos(np.deg2rad(70.3))
+     - (p[:, 1] - 1.0) * np.sin(np.deg2rad(70.3))),
+    ({"shape": "punch", "point": [0.0, 1.0], "radius": 0.25},
+     lambda p: np.minimum(np.abs(p[:, 1] - 1.0) + (np.abs(p[:, 0]) > 0.25),
+                          np.abs(np.abs(p[:, 0]) - 0.25) + (p[:, 1] < 1.0))),
+], ids=["plane-3d", "cylinder-3d", "sphere-3d", "plane-2d", "cone-2d", "punch-2d"])
 def test_the_drawn_surfaces_lie_on_the_obstacle_and_cover_the_body(obstacle, distance):
     """Every point of a drawing is on the obstacle; planes and cylinders reach beyond the
     body's box [0, 1]^d along the surface."""
@@ -76,7 +82,7 @@ def test_the_drawn_surfaces_lie_on_the_obstacle_and_cover_the_body(obstacle, dis
     points, cells, _ = obstacle_file.surface(obstacle, np.zeros(d), np.ones(d))
     assert np.allclose(distance(points[:, :d] if d == 2 else points), 0, atol=1e-12)
     assert cells.max() == len(points) - 1 and cells.min() == 0
-    if obstacle["shape"] != "sphere":
+    if obstacle["shape"] not in ("sphere", "punch"):
         spread = np.ptp(points[:, :d], axis=0)
         assert np.sort(spread)[-1] > 2.0
 
