@@ -254,6 +254,8 @@ class CondensedSNES(NewtonSolver):
         self._trial_b = u_vector.copy()         # and its condensed residual
         self._trial_norm = None                 # its coupled residual norm (None: no trial)
         if self.line_search:
+            # Each trial's merit needs its own residual's node blocks, now.
+            self.system.defer = False
             self.snes.setLineSearchPreCheck(_weak(self._line_search))
 
     def _check_options(self):
