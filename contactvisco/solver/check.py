@@ -134,6 +134,7 @@ def initial_penetration(problem, comm) -> None:
     if len(deep):
         k = deep[np.argmax(depth[deep])]
         x = contact.Q_coordinates[own[k], :obstacle.dim]
+        x = np.where(np.abs(x) < 1e-12 * size, 0.0, x)      # a mesh's round-off shown as 0
         found = (-float(depth[k]), ", ".join(f"{v:.6g}" for v in x))
     count = comm.allreduce(len(deep), MPI.SUM)
     if not count:

@@ -172,7 +172,8 @@ def test_contact_radius_in_the_step_records_follows_hertz(meshes):
     raw = indentation(mesh, n)
     raw["time"] = {"T": 1.0, "steps": 5}
     result = simulate(scene_module.resolve(raw), comm=COMM, progress=False, keep_tables=True)
-    assert result.steps[0]["contact_radius"]["node"] == 0.0       # t = 0: nothing pressed
+    # t = 0: nothing pressed (the axis node touches; its r is 0 up to the mesh's round-off)
+    assert abs(result.steps[0]["contact_radius"]["node"]) <= 1e-12 * A
     worst_node = 0.0
     for record, table in zip(result.steps[1:], result.tables[1:]):
         exact = math.sqrt(R * DELTA * record["t"])
