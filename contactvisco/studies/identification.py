@@ -434,13 +434,7 @@ def forward(experiment: dict, parameters: list, values, comm=None) -> np.ndarray
     else:
         depth = -np.array([step["obstacle"]["displacement"][c] for step in result.steps])
     # The grid is the sample times; a cut step adds records between them, never at them.
-    tol = 1e-9 * experiment["t"][-1]
-    where = np.minimum(np.searchsorted(times, experiment["t"] - tol), len(depth) - 1)
-    missed = np.flatnonzero(np.abs(times[where] - experiment["t"]) > tol)
-    if missed.size:
-        raise SceneError(f"{experiment['data']}: the run has no step at the sample time "
-                         f"t = {experiment['t'][missed[0]]!r}", key="time.times")
-    return depth[where]
+    return depth[_sample_index(times, experiment)]
 
 
 def _sample_index(times: np.ndarray, experiment: dict) -> np.ndarray:

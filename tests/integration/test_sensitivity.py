@@ -49,6 +49,13 @@ def scene(sets, values):
     return loader.load("sphere_creep", BASE + sets + [f"{k}={v!r}" for k, v in values.items()])
 
 
+def central_scenes(sets, theta, step=1e-5):
+    """(scene at theta_k + h, scene at theta_k - h, 2 h) for each parameter k, h = step theta_k:
+    the central differences that ForwardModel.run takes as tangents."""
+    return [(scene(sets, {**theta, key: v + step * v}), scene(sets, {**theta, key: v - step * v}),
+             2 * step * v) for key, v in theta.items()]
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("case", ["bound", "wlf",
                                   pytest.param("coulomb", marks=pytest.mark.slow),
@@ -58,11 +65,7 @@ def test_sensitivities_match_central_differences(case):
     sets, theta = CASES[case]
     model = ForwardModel(scene(sets, theta), MPI.COMM_WORLD)
     try:
-        tangents = []
-        for key, v in theta.items():
-            h = 1e-5 * v
-            tangents.append((scene(sets, {**theta, key: v + h}),
-                             scene(sets, {**theta, key: v - h}), 2 * h))
+        tangents = central_scenes(sets, theta)
         out = model.run(scene(sets, theta), tangents)
         assert out["d_depth"].shape == (5, len(theta))
         for i, (key, v) in enumerate(theta.items()):
@@ -117,11 +120,7 @@ def test_force_sensitivities_under_a_held_depth():
     theta = dict(MODULI)
     model = ForwardModel(scene(sets, theta), MPI.COMM_WORLD, component=1)
     try:
-        tangents = []
-        for key, v in theta.items():
-            h = 1e-5 * v
-            tangents.append((scene(sets, {**theta, key: v + h}),
-                             scene(sets, {**theta, key: v - h}), 2 * h))
+        tangents = central_scenes(sets, theta)
         out = model.run(scene(sets, theta), tangents)
         recorded = np.array([s["obstacle"]["force"][1]
                              for s in simulate(scene(sets, theta), progress=False).steps])
