@@ -48,7 +48,7 @@ from contactvisco.scene import prony_file
 #: The keys of a fit description, by table.
 FIT_KEYS = {"jacobian": "auto", "difference": "central", "step": 1e-3, "max_evaluations": 200,
             "tolerance": 1e-8, "regularization": 0.0, "reduction": False,
-            "reduction_threshold": 1e-4}
+            "reduction_threshold": 1e-4, "communicators": "auto"}
 #: fit.jacobian: forward sensitivities through the time loop (contactvisco.solver.sensitivity),
 #: finite differences of forward runs, or the sensitivities where they cover every parameter.
 JACOBIANS = ("auto", "sensitivities", "finite-differences")
@@ -61,6 +61,10 @@ EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight", "control")
 #: depth drives that component as a displacement, the force is fitted (relaxation).
 CONTROLS = ("force", "depth")
 PARAMETER_KEYS = ("key", "initial", "bounds", "scale", "prior")
+#: fit.communicators: how the ranks share the experiments. "shared": every rank runs every
+#: experiment; "split": the fit's communicator is split into min(P, n) groups, experiment i
+#: run by group i mod k; "auto": split when P >= 2 and n >= 2.
+COMMUNICATORS = ("auto", "shared", "split")
 #: fit.difference: the finite-difference rule of the Jacobian and scipy's name of it.
 DIFFERENCES = {"central": "3-point", "forward": "2-point"}
 SCALES = ("linear", "log")
@@ -133,6 +137,9 @@ def read_fit(path) -> dict:
     fit.update(given)
     if fit["jacobian"] not in JACOBIANS:
         _fail("fit.jacobian", f"must be one of {', '.join(JACOBIANS)}, got {fit['jacobian']!r}")
+    if fit["communicators"] not in COMMUNICATORS:
+        _fail("fit.communicators", f"must be one of {', '.join(COMMUNICATORS)}, got "
+              f"{fit['communicators']!r}")
     if fit["difference"] not in DIFFERENCES:
         _fail("fit.difference", f"must be one of {', '.join(DIFFERENCES)}, got "
               f"{fit['difference']!r}")
@@ -509,48 +516,136 @@ def _tangents(experiment: dict, parameters: list, values) -> list:
     return out
 
 
-def _models(experiments, parameters, mode: str, comm):
-    """The experiments' forward models (contactvisco.solver.sensitivity.ForwardModel, each
-    built once at the initial values), whether the Jacobian is taken by sensitivities, and
-    why not when fit.jacobian = "auto" falls back to finite differences (None if it does
-    not)."""
-    from mpi4py import MPI
+def groups_of(mode: str, ranks: int, experiments: int) -> int:
+    """How many groups of ranks run the experiments (fit.communicators): "shared" one (every
+    rank on every experiment), "split" min(P, n), "auto" min(P, n) when P >= 2 and n >= 2.
 
+    Parameters
+    ----------
+    mode : str
+        fit.communicators.
+    ranks, experiments : int
+        P, the size of the fit's communicator, and n.
+    """
+    if mode == "shared":
+        return 1
+    return max(1, min(ranks, experiments))
+
+
+class _Groups:
+    """The fit's communicator split into groups (comm.Split), experiment i run by group
+    i mod k on its sub-communicator; every rank gathers the residual and Jacobian blocks of
+    all experiments, so the optimizer runs the same on every rank."""
+
+    def __init__(self, comm, count: int, n: int):
+        self.comm, self.count = comm, count
+        self.color = comm.rank * count // comm.size
+        self.sub = comm.Split(self.color, comm.rank) if count > 1 else comm
+        self.owned = [i % count == self.color for i in range(n)]
+
+    def free(self):
+        if self.sub is not self.comm:
+            self.sub.Free()
+            self.sub = None
+
+    def gather(self, blocks: dict, failure) -> dict:
+        """Every experiment's block on every rank (allgather over the fit's communicator; a
+        group's first rank gives its blocks), or the first failure, by experiment, raised on
+        every rank: the ranks of the failing run raise their own exception, the others one of
+        the same class and message."""
+        if self.count == 1:
+            if failure is not None:
+                raise failure[1]
+            return blocks
+        summary = None if failure is None else (failure[0], _describe(failure[1]))
+        gathered = self.comm.allgather((blocks if self.sub.rank == 0 else {}, summary))
+        failures = sorted((f for _, f in gathered if f is not None), key=lambda f: f[0])
+        if failures:
+            if failure is not None and failure[0] == failures[0][0]:
+                raise failure[1]
+            raise _rebuilt(failures[0][1])
+        out = {}
+        for part, _ in gathered:
+            out.update(part)
+        return out
+
+
+def _describe(err: BaseException) -> dict:
+    """What rebuilds an exception on another rank: its class (NewtonFailure, SceneError, or
+    another as RuntimeError), message with its notes, and the fields of its class."""
+    from contactvisco.solver.newton import NewtonFailure
+    text = "\n".join([str(err), *getattr(err, "__notes__", [])])
+    if isinstance(err, NewtonFailure):
+        return {"kind": "newton", "message": text, "reason": err.reason,
+                "residuals": list(getattr(err, "residuals", []))}
+    if isinstance(err, SceneError):
+        return {"kind": "scene", "message": text, "key": getattr(err, "key", None)}
+    return {"kind": "other", "message": f"{type(err).__name__}: {text}"}
+
+
+def _rebuilt(described: dict) -> BaseException:
+    from contactvisco.solver.newton import NewtonFailure
+    if described["kind"] == "newton":
+        return NewtonFailure(described["message"], described["reason"], described["residuals"])
+    if described["kind"] == "scene":
+        return SceneError(described["message"], key=described["key"])
+    return RuntimeError(described["message"])
+
+
+def _models(experiments, parameters, mode: str, groups: _Groups):
+    """The forward models of the experiments this rank's group runs
+    (contactvisco.solver.sensitivity.ForwardModel, each built once at the initial values, on
+    the group's communicator; None elsewhere), whether the Jacobian is taken by
+    sensitivities, and why not when fit.jacobian = "auto" falls back to finite differences
+    (None if it does not). The reasons and a failing build are shared by every rank."""
     from contactvisco.solver import sensitivity
-    reasons = [r for r in (sensitivity.unsupported_key(p["key"]) for p in parameters) if r]
-    models = []
-    try:
-        for e in experiments:
-            if reasons:              # a key the built problem cannot follow: whole runs
-                models.append(None)
-                continue
+    reasons = [(-1, r) for r in (sensitivity.unsupported_key(p["key"]) for p in parameters)
+               if r]
+    whole = bool(reasons)            # a key the built problem cannot follow: whole runs
+    models, failure = [], None
+    for i, e in enumerate(experiments):
+        if whole or failure is not None or not groups.owned[i]:
+            models.append(None)      # whole runs, or another group's experiment
+            continue
+        try:
             model = sensitivity.ForwardModel(
                 _scene(e, parameters, [p["initial"] for p in parameters]),
-                comm or MPI.COMM_WORLD, component=e["component"])
-            if model.memory_reason:
-                reasons.append(model.memory_reason)
-                model.destroy()
-                models.append(None)
-                continue
-            models.append(model)
-            if mode != "finite-differences":
-                try:
-                    model.sensitivity = sensitivity.StepSensitivity(model.problem,
-                                                                    model.newton)
-                except SceneError as err:
-                    reasons.append(str(err))
+                groups.sub, component=e["component"])
+        except Exception as err:
+            failure = (i, err)
+            models.append(None)
+            continue
+        if model.memory_reason:
+            reasons.append((i, model.memory_reason))
+            model.destroy()
+            models.append(None)
+            continue
+        models.append(model)
+        if mode != "finite-differences":
+            try:
+                model.sensitivity = sensitivity.StepSensitivity(model.problem, model.newton)
+            except SceneError as err:
+                reasons.append((i, str(err)))
+    if groups.count > 1:             # the same decision on every rank
+        shared = groups.comm.allgather(reasons)
+        reasons = sorted({r for part in shared for r in part})
+    reasons = [r for _, r in sorted(reasons)]
+    try:
+        groups.gather({}, failure)
     except BaseException:
-        for model in models:
-            if model is not None:
-                model.destroy()
+        _destroy(models)
         raise
     if mode == "sensitivities" and reasons:
-        for model in models:
-            if model is not None:
-                model.destroy()
+        _destroy(models)
         _fail("fit.jacobian", f"forward sensitivities do not cover this fit: {reasons[0]}")
     return models, mode != "finite-differences" and not reasons, (
         reasons[0] if reasons and mode == "auto" else None)
+
+
+def _destroy(models: list) -> None:
+    for model in models:
+        if model is not None:
+            model.destroy()
 
 
 def _closed_form_start(experiments: list, parameters: list) -> tuple:
@@ -869,36 +964,50 @@ def _fit_round(spec: dict, comm=None) -> dict:
     prior = _to_x(parameters, [p["prior"] for p in parameters])[regularized]
     prior_rows = np.zeros((len(regularized), len(parameters)))
     prior_rows[np.arange(len(regularized)), regularized] = math.sqrt(weight)
-    models, sensitivities, reason = _models(experiments, parameters, settings["jacobian"],
-                                            comm)
+    from mpi4py import MPI
+    comm = comm or MPI.COMM_WORLD
+    count = groups_of(settings.get("communicators", "auto"), comm.size, len(experiments))
+    groups = _Groups(comm, count, len(experiments))
+    try:
+        models, sensitivities, reason = _models(experiments, parameters,
+                                                settings["jacobian"], groups)
+    except BaseException:
+        groups.free()
+        raise
     cached = {}
 
     def evaluate(x, with_jacobian):
         values = _to_values(parameters, x)
         runs[0] += 1
-        out, rows = [], []
+        blocks, failure = {}, None
         # dtheta/dx: 1 in linear scale, theta in log scale
         scale = np.array([v if p["scale"] == "log" else 1.0 for p, v in zip(parameters, values)])
         for i, (e, model) in enumerate(zip(experiments, models)):
+            if not groups.owned[i]:
+                continue             # another group's experiment
             try:
                 if model is None:     # whole runs (a key the built problem cannot follow)
-                    out.append(e["w"] * (forward(e, parameters, values, comm) - _measured(e)))
+                    blocks[i] = (e["w"] * (forward(e, parameters, values, groups.sub)
+                                           - _measured(e)), None)
                     continue
                 tangents = _tangents(e, parameters, values) if with_jacobian else ()
                 result = model.run(_scene(e, parameters, values), tangents)
                 where = _sample_index(result["t"], e)
                 name = "force" if e["control"] == "depth" else "depth"
-                out.append(e["w"] * (result[name][where] - _measured(e)))
-                if with_jacobian:
-                    rows.append(e["w"] * result[f"d_{name}"][where] * scale)
+                blocks[i] = (e["w"] * (result[name][where] - _measured(e)),
+                             e["w"] * result[f"d_{name}"][where] * scale
+                             if with_jacobian else None)
             except Exception as err:
                 # The run's own message names the step; this names the parameters.
                 err.add_note(f"in the forward run of experiment[{i}] at " + ", ".join(
                     f"{p['key']} = {v!r}" for p, v in zip(parameters, values)))
-                raise
+                failure = (i, err)
+                break
+        blocks = groups.gather(blocks, failure)
+        out = [blocks[i][0] for i in range(len(experiments))]
         out.append(math.sqrt(weight) * (np.asarray(x)[regularized] - prior))
         if with_jacobian:
-            rows.append(prior_rows)
+            rows = [blocks[i][1] for i in range(len(experiments))] + [prior_rows]
             cached["x"], cached["J"] = np.array(x, copy=True), np.concatenate(rows)
         return np.concatenate(out)
 
@@ -922,9 +1031,10 @@ def _fit_round(spec: dict, comm=None) -> dict:
                                x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
                                max_nfev=settings["max_evaluations"])
     finally:
-        for model in models:
-            if model is not None:
-                model.destroy()
+        _destroy(models)
+        models.clear()
+        cached.clear()
+        groups.free()
     wall = time.perf_counter() - start
     values = _to_values(parameters, result.x)
     stats = statistics(result.jac, result.fun, parameters, values)
@@ -968,6 +1078,8 @@ def _fit_round(spec: dict, comm=None) -> dict:
         "jacobian_evaluations": int(result.njev or 0), "wall_s": wall,
         "status": int(result.status), "message": str(result.message),
         "success": bool(result.success), "warnings": stats["warnings"],
+        "communicators": {"mode": settings.get("communicators", "auto"), "groups": count,
+                          "ranks": comm.size},
         "jacobian": ({"rule": "sensitivities", "scene_step": SCENE_STEP} if sensitivities
                      else {"rule": settings["difference"], "step": settings["step"],
                            **({"why": reason} if reason else {})}),

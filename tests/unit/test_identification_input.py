@@ -120,6 +120,16 @@ def test_a_reduction_fit_description_is_accepted(tmp_path):
     assert spec["fit"]["reduction"] is True and spec["fit"]["reduction_threshold"] == 1e-4
 
 
+def test_the_groups_of_ranks_per_fit_communicators(tmp_path):
+    """shared: one group; split: min(P, n); auto: split from 2 ranks and 2 experiments; any
+    other fit.communicators is refused with the allowed values."""
+    assert [ident.groups_of("shared", 4, 3), ident.groups_of("split", 4, 3),
+            ident.groups_of("split", 2, 3), ident.groups_of("auto", 2, 1),
+            ident.groups_of("auto", 1, 3), ident.groups_of("auto", 2, 2)] == [1, 3, 2, 1, 1, 2]
+    with pytest.raises(SceneError, match="fit.communicators.*auto, shared, split"):
+        ident.read_fit(written(tmp_path, "[fit]\ncommunicators = \"world\"\n" + FIT))
+
+
 def test_relaxation_needs_a_force_column(tmp_path):
     with pytest.raises(SceneError, match="experiment\\[0\\].data") as caught:
         ident.read_fit(written(tmp_path, FIT.replace("noise = 1e-5",
