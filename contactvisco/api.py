@@ -329,7 +329,7 @@ def check(scene: dict, mesh=None, facet_tags=None, boundaries=None, comm=None) -
         raise _located(scene, err) from None
 
 
-def fit(description, out=None, comm=None) -> dict:
+def fit(description, out=None, comm=None, progress=False) -> dict:
     """Identify material parameters from indentation curves by weighted least squares with
     the contact solver in the loop (docs/identification.md): minimize
     1/2 sum_e sum_j (w_e (d_e(t_j; theta) - d_ej))^2 over the parameters theta of a fit
@@ -344,6 +344,8 @@ def fit(description, out=None, comm=None) -> dict:
         ``fit_moduli.png``, ``fit_correlation.png``); None writes nothing.
     comm : mpi4py.MPI.Comm, optional
         The communicator of the forward runs (default COMM_WORLD); rank 0 writes.
+    progress : bool, optional
+        Print a line per Prony term dropped by fit.reduction and per round.
 
     Returns
     -------
@@ -361,7 +363,7 @@ def fit(description, out=None, comm=None) -> dict:
 
     from contactvisco.studies import identification
     comm = comm or MPI.COMM_WORLD
-    report = identification.fit(description, comm=comm)
+    report = identification.fit(description, comm=comm, progress=progress)
     if out is not None and comm.rank == 0:
         identification.write(report, out)
     return report

@@ -477,7 +477,7 @@ def _fit(args) -> int:
     from contactvisco import api
     from contactvisco.io import parallel
     try:
-        report = api.fit(args.description, out=args.out)
+        report = api.fit(args.description, out=args.out, progress=True)
     except SceneError as err:
         if parallel.first_rank():
             print(f"contactvisco: fit error: {err}", file=sys.stderr)
@@ -488,6 +488,8 @@ def _fit(args) -> int:
     for p in report["parameters"]:
         print(f"{p['key']} = {p['estimate']:.8g} +- {p['standard_error']:.3g}"
               + ("" if p["identifiable"] else "  (not identifiable)"))
+    for d in report["reduction"]["dropped"]:
+        print(f"dropped {d['key']} (tau = {d['tau']:.6g}, round {d['round']}): {d['why']}")
     for warning in report["warnings"]:
         print(f"warning: {warning}", file=sys.stderr)
     print(f"cost {report['cost']:.6g}, {report['evaluations']} forward runs, "

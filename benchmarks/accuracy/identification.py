@@ -13,13 +13,25 @@
    Jacobian evaluations, wall time and the largest relative error of the estimates
    (1 rank only).
 
+2b. The fit of two experiments (creep under P and 2P, 13 samples each, mu_0 and the
+   fraction 20 % off, sensitivities) with fit.communicators = "split" and "shared": wall time
+   of the whole fit, best of 3 (on 1 rank both are the same fit; on 2 ranks "split" runs one
+   experiment per rank, "shared" both on both ranks).
+
+Wall and CPU times are the largest over the ranks, best of 3; the 1-minute load average is
+written before and after each part (the machine is shared). Under Open MPI a rank waiting
+in a collective spins: with OMPI_MCA_mpi_yield_when_idle=1 (written in the header when set)
+it yields the core, so that its CPU time is closer to its work.
+
 3. Coverage (`identification.py coverage`, 1 rank): mu_0 and the fraction from 13 samples
    of creep with 1 % Gaussian noise on the depth (sigma = 1e-4, noise = sigma in the fit),
    20 seeds, sensitivities: how often the truth lies in the 95 % interval
    estimate +- t_0.975(m - n) standard error (the issue's goal: at least 17 of 20).
 
 Writes benchmarks/results/identification[_np<ranks>].{json,md} (parts 1 and 2) or
-identification_coverage.{json,md} (part 3).
+identification_coverage.{json,md} (part 3). identification_np2_spin.{json,md} is the 2-rank
+output without OMPI_MCA_mpi_yield_when_idle (Open MPI's default busy waiting), renamed;
+identification_np2 the one with it.
 """
 import os
 import pathlib
@@ -52,10 +64,20 @@ def scene(values, sets=()):
 
 def cpu(run) -> float:
     """CPU seconds of run(), the largest over the ranks."""
+    return timed(run)[0]
+
+
+def timed(run) -> tuple:
+    """(CPU s, wall s) of run(), each the largest over the ranks."""
     COMM.Barrier()
-    tick = time.process_time()
+    tick, wall = time.process_time(), time.perf_counter()
     run()
-    return COMM.allreduce(time.process_time() - tick, op=MPI.MAX)
+    return (COMM.allreduce(time.process_time() - tick, op=MPI.MAX),
+            COMM.allreduce(time.perf_counter() - wall, op=MPI.MAX))
+
+
+def load() -> float:
+    return os.getloadavg()[0]
 
 
 def cost() -> list:
@@ -72,14 +94,19 @@ def cost() -> list:
                                  scene({**THETA, key: THETA[key] - h}), 2 * h))
             model.run(base, tangents)                      # compiles the forms
             plain, sens = [], []
+            before_load = load()
             for _ in range(3):
-                plain.append(cpu(lambda: model.run(base)))
+                plain.append(timed(lambda: model.run(base)))
                 before = model.sensitivity.factorizations
-                sens.append(cpu(lambda: model.run(base, tangents)))
+                sens.append(timed(lambda: model.run(base, tangents)))
                 factorizations = model.sensitivity.factorizations - before
-            ratio = min(sens) / min(plain)
-            rows.append({"parameters": n, "plain_cpu_s": min(plain),
-                         "sensitivities_cpu_s": min(sens), "ratio": ratio,
+            plain_cpu, sens_cpu = min(c for c, _ in plain), min(c for c, _ in sens)
+            plain_wall, sens_wall = min(w for _, w in plain), min(w for _, w in sens)
+            rows.append({"parameters": n, "plain_cpu_s": plain_cpu,
+                         "sensitivities_cpu_s": sens_cpu, "ratio": sens_cpu / plain_cpu,
+                         "plain_wall_s": plain_wall, "sensitivities_wall_s": sens_wall,
+                         "wall_ratio": sens_wall / plain_wall,
+                         "load": [before_load, load()],
                          "goal": 1 + 0.3 * n, "factorizations": factorizations,
                          "steps": len(model.run(base)["t"]) - 1,
                          "unknowns": model.problem.count_unknowns()})
@@ -118,6 +145,44 @@ def fits() -> list:
                      "jacobian_evaluations": report["jacobian_evaluations"],
                      "wall_s": report["wall_s"], "max_relative_error": error,
                      "success": report["success"]})
+    return rows
+
+
+def split_fits(repeats: int = 3) -> list:
+    """Part 2b: the two-experiment fit, split and shared, wall time best of `repeats`."""
+    names = {"viscoelastic.shear.instantaneous": ("log", [0.05, 2.0], 0.31),
+             "viscoelastic.shear.fractions.0": ("linear", [0.05, 0.9], 0.4)}
+    times = np.linspace(0.0, 3.0, 13)
+    rows = []
+    folder = pathlib.Path(tempfile.mkdtemp() if COMM.rank == 0 else "")
+    folder = pathlib.Path(COMM.bcast(str(folder), root=0)) / f"rank{COMM.rank}"
+    folder.mkdir(parents=True, exist_ok=True)
+    text = '[fit]\ncommunicators = "MODE"\n\n'
+    for k, factor in enumerate((1.0, 2.0)):
+        (folder / f"data{k}.csv").write_text("t,force,depth\n" + "".join(
+            f"{float(t)!r},{-0.0015 * factor!r},0\n" for t in times))
+        text += (f'[[experiment]]\nscene = "sphere_creep"\ndata = "data{k}.csv"\n'
+                 f"set = ['{COARSE}']\nweight = 1e10\n\n")
+    for key, (scale, bounds, initial) in names.items():
+        text += (f'[[parameter]]\nkey = "{key}"\ninitial = {initial!r}\n'
+                 f'bounds = {bounds!r}\nscale = "{scale}"\n\n')
+    for mode in ("split", "shared") if COMM.size > 1 else ("shared",):
+        (folder / "fit.toml").write_text(text.replace("MODE", mode))
+        spec = ident.read_fit(folder / "fit.toml")
+        for e in spec["experiments"]:
+            e["depth"] = ident.forward(e, spec["parameters"],
+                                       [THETA[k] for k in names], MPI.COMM_SELF)
+        walls, before_load = [], load()
+        for _ in range(repeats):
+            COMM.Barrier()
+            report = ident.fit(spec, comm=COMM)
+            walls.append(COMM.allreduce(report["wall_s"], op=MPI.MAX))
+        error = max(abs(p["estimate"] / THETA[p["key"]] - 1) for p in report["parameters"])
+        rows.append({"mode": mode, "groups": report["communicators"]["groups"],
+                     "wall_s": min(walls), "walls_s": walls,
+                     "evaluations": report["evaluations"], "max_relative_error": error,
+                     "estimates": [p["estimate"] for p in report["parameters"]],
+                     "load": [before_load, load()]})
     return rows
 
 
@@ -179,22 +244,39 @@ def main_coverage():
 
 
 def main():
-    load = os.getloadavg()[0]
-    rows = {"ranks": COMM.size, "load": load, "cost": cost()}
+    start_load = load()
+    yield_idle = os.environ.get("OMPI_MCA_mpi_yield_when_idle")
+    rows = {"ranks": COMM.size, "load": start_load, "yield_when_idle": yield_idle,
+            "cost": cost(), "split_fits": split_fits()}
     if COMM.size == 1:
         rows["fits"] = fits()
+    rows["end_load"] = load()
     if COMM.rank:
         return
     lines = [f"# Forward sensitivities: cost and fits ({COMM.size} rank(s), load average "
-             f"{load:.1f} on 2 cores)", "",
-             "One run of sphere_creep (12 steps) with the sensitivities of n parameters "
-             "against one plain run of the same built problem (CPU s, best of 3):", "",
-             "| n | plain run | with sensitivities | ratio | goal 1 + 0.3 n | "
-             "factorizations for the sensitivities |", "|---|---|---|---|---|---|"]
+             f"{start_load:.1f} at the start, {rows['end_load']:.1f} at the end, on 2 cores"
+             + (f"; OMPI_MCA_mpi_yield_when_idle={yield_idle}" if yield_idle else "") + ")",
+             "", "One run of sphere_creep (12 steps) with the sensitivities of n parameters "
+             "against one plain run of the same built problem (best of 3, the largest over "
+             "the ranks; load average before and after each row):", "",
+             "| n | plain run CPU s | with sensitivities CPU s | CPU ratio | plain run wall s | "
+             "with sensitivities wall s | wall ratio | goal 1 + 0.3 n | factorizations for "
+             "the sensitivities | load |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows["cost"]:
         lines.append(f"| {r['parameters']} | {r['plain_cpu_s']:.3f} | "
-                     f"{r['sensitivities_cpu_s']:.3f} | {r['ratio']:.2f} | {r['goal']:.1f} | "
-                     f"{r['factorizations']} of {r['steps'] + 1} states |")
+                     f"{r['sensitivities_cpu_s']:.3f} | {r['ratio']:.2f} | "
+                     f"{r['plain_wall_s']:.3f} | {r['sensitivities_wall_s']:.3f} | "
+                     f"{r['wall_ratio']:.2f} | {r['goal']:.1f} | "
+                     f"{r['factorizations']} of {r['steps'] + 1} states | "
+                     f"{r['load'][0]:.1f}-{r['load'][1]:.1f} |")
+    lines += ["", "Fit of mu_0 and the fraction from two creep experiments (P and 2P, 13 "
+              "samples each, 20 % off, sensitivities), fit.communicators, wall s best of 3:",
+              "", "| mode | groups | wall s | runs of the fit (walls) | forward runs | largest "
+              "relative error | load |", "|---|---|---|---|---|---|---|"]
+    for r in rows["split_fits"]:
+        lines.append(f"| {r['mode']} | {r['groups']} | {r['wall_s']:.2f} | "
+                     f"{', '.join(f'{w:.2f}' for w in r['walls_s'])} | {r['evaluations']} | "
+                     f"{r['max_relative_error']:.1e} | {r['load'][0]:.1f}-{r['load'][1]:.1f} |")
     if "fits" in rows:
         lines += ["", "Fit of mu_0, fraction, tau from 30 % off (13 noise-free samples, coarse "
                   "mesh):", "", "| Jacobian | forward runs | residual evaluations | Jacobian "

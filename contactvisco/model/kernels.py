@@ -144,6 +144,52 @@ def power_soe(alpha: float, beta: float, tau: float, T: float, tol: float) -> SO
     return SOE(alpha * fit.weights * np.exp(-fit.rates), fit.rates / tau, fit.error, 0.0, T)
 
 
+class PowerTerms:
+    """The power kernel's sum of exponentials with its rates frozen, for parameters that move:
+    with v = t/tau, the fit of `fit` (power_soe at alpha_0, beta_0, tau_0 over [0, end])
+
+        alpha (1 + v)^-beta ~ sum_j c_j exp(-S_j v),   S_j = rates_j tau_0,
+
+    keeps the dimensionless rates S_j, and the coefficients for (alpha, beta) are the fit's
+    own plus the least squares fit of the change of the kernel,
+
+        c = alpha [c_0 + Q^+ (q ((1 + v)^-beta - (1 + v)^-beta_0))],   c_0 = weights / alpha_0,
+
+    Q = diag(q) [exp(-S_j v_i)], q = (1 + v)^beta_0 (relative error), on a log grid of
+    1 + v over [1, 1 + end/tau_0]. Q^+ is computed once, so the terms (c_j, tau / S_j) are
+    the fit's at the reference, linear in alpha and in (1 + v)^-beta, smooth in beta and tau,
+    with as many terms as the fit: what forward sensitivities differentiate
+    (contactvisco.solver.sensitivity). The change's fit adds an error of the order of
+    |beta - beta_0| times the fit's tolerance (`error` at beta_0 +- 0.05, measured).
+
+    Parameters
+    ----------
+    fit : SOE
+        power_soe(alpha_0, beta_0, tau_0, end, tol).
+    alpha, beta, tau, end : float
+        The reference parameters and the fitted span.
+    """
+
+    def __init__(self, fit: SOE, alpha: float, beta: float, tau: float, end: float):
+        self.S = np.asarray(fit.rates, float) * tau
+        self.c0 = np.asarray(fit.weights, float) / alpha
+        self.beta0 = beta
+        self.v = np.geomspace(1.0, 1.0 + end / tau, 2000) - 1.0
+        self.q = (1.0 + self.v) ** beta
+        E = np.exp(-np.outer(self.v, self.S))
+        # a truncated pseudo-inverse: the rates are nearly dependent (condition about 1e15);
+        # cut at 1e-8 the change is fitted to about the tolerance and the roundoff of
+        # central differences of the change is not amplified beyond 1e-9 relative
+        self.pinv = np.linalg.pinv(self.q[:, None] * E, rcond=1e-8)
+        self.error = max(float(np.max(np.abs(self.q ** (b / beta) * (E @ self(1.0, b, 1.0)[0])
+                                             - 1.0))) for b in (beta - 0.05, beta + 0.05))
+
+    def __call__(self, alpha: float, beta: float, tau: float):
+        """(coefficients c_j, relaxation times tau / S_j) of alpha (1 + t/tau)^-beta."""
+        change = self.q * ((1.0 + self.v) ** -beta - (1.0 + self.v) ** -self.beta0)
+        return alpha * (self.c0 + self.pinv @ change), tau / self.S
+
+
 def fractional_soe(alpha: float, beta: float, lo: float, T: float, tol: float) -> SOE:
     """alpha t^(-beta) / Gamma(1 - beta) on [lo, T] (lo the smallest step)."""
     fit = soe_power(beta, lo, T, tol)

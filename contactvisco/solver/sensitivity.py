@@ -62,7 +62,8 @@ from contactvisco.model import time_grid
 from contactvisco.model.material import lame_constants
 from contactvisco.model.memory import History, ReducedTimeHistory
 from contactvisco.model.viscoelastic import inverse_shift
-from contactvisco.model.memory_kernel import memory_terms
+from contactvisco.model.kernels import PowerTerms
+from contactvisco.model.memory_kernel import memory_power, memory_terms
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver import predictor
 from contactvisco.solver.condensed import condense_rhs, recover
@@ -127,10 +128,17 @@ def scene_constants(scene: dict) -> dict:
     return out
 
 
-def _prony_terms(scene: dict, reference: list | None = None) -> list:
+def _prony_terms(scene: dict, reference: list | None = None, power=None) -> list:
     """The Prony terms of a scene, checked against the built problem's (same parts, same
-    count: a modulus set to zero drops its term, which a built problem cannot follow)."""
-    terms = [(float(a), float(tau), part) for a, tau, part in memory_terms(scene)]
+    count: a modulus set to zero drops its term, which a built problem cannot follow). For a
+    power kernel, `power` (model.kernels.PowerTerms of the built fit) gives its sum of
+    exponentials with the built rates at the scene's alpha, beta and tau."""
+    if power is not None:
+        mem = scene["memory"]
+        c, taus = power(float(mem["alpha"]), float(mem["beta"]), float(mem["tau"]))
+        terms = [(float(a), float(tau), mem["part"]) for a, tau in zip(c, taus)]
+    else:
+        terms = [(float(a), float(tau), part) for a, tau, part in memory_terms(scene)]
     if reference is not None and [p for *_, p in terms] != [p for *_, p in reference]:
         raise SceneError("viscoelastic: the parameters changed the number or the parts of the "
                          f"Prony terms ({len(reference)} -> {len(terms)}); a modulus or "
@@ -611,12 +619,23 @@ class ForwardModel:
         self.base = history.history if self.reduced else history
         if memory is not None and type(history) is not History and not self.reduced:
             self.memory_reason = ("forward sensitivities follow a Prony history (in time, or "
-                                  "in reduced time with a shift) only, not a power-law, "
+                                  "in reduced time with a shift) or a power kernel's sum of "
+                                  "exponentials only, not a power kernel summed directly, a "
                                   "table or fractional kernel or two bodies")
             self.base = None
         else:
             self.memory_reason = None
         self.terms = list(self.base.terms) if self.base is not None else None
+        # a power kernel's sum of exponentials: its rates kept, its coefficients refitted
+        # for the parameters' alpha, beta, tau (model.kernels.PowerTerms)
+        self.power = None
+        power = memory_power(scene) if self.base is not None else None
+        if power is not None and power["kernel"] == "power" and \
+                getattr(self.base, "fit", None) is not None:
+            span = getattr(self.base, "span", None)
+            self.power = PowerTerms(self.base.fit, float(power["alpha"]),
+                                    float(power["beta"]), float(power["tau"]),
+                                    float(scene["time"]["T"] if span is None else span))
         self.built = scene_constants(scene)
         self.sensitivity = None
         self.runs = 0
@@ -642,7 +661,7 @@ class ForwardModel:
                                  f"{built.get(name)!r}, which has no term of it; start the "
                                  "parameter away from 0", key=f"contact.{name}")
         if self.terms is not None:
-            self.base.terms = _prony_terms(scene, self.terms)
+            self.base.terms = _prony_terms(scene, self.terms, self.power)
         if self.reduced:
             # the shift of the stage (fem.problem) reads the built scene's table: updated in
             # place
@@ -718,8 +737,9 @@ class ForwardModel:
                 for plus, minus, two_h in tangents]
         histories = []
         if tangents and self.terms is not None:
-            histories = [HistoryTangent(problem.memory.history, _prony_terms(plus, self.terms),
-                                        _prony_terms(minus, self.terms), two_h,
+            histories = [HistoryTangent(problem.memory.history,
+                                        _prony_terms(plus, self.terms, self.power),
+                                        _prony_terms(minus, self.terms, self.power), two_h,
                                         (plus["viscoelastic"], minus["viscoelastic"]))
                          for plus, minus, two_h in tangents]
         state = {"u": [None] * len(tangents), "d": [None] * len(tangents),

@@ -47,7 +47,8 @@ from contactvisco.scene import prony_file
 
 #: The keys of a fit description, by table.
 FIT_KEYS = {"jacobian": "auto", "difference": "central", "step": 1e-3, "max_evaluations": 200,
-            "tolerance": 1e-8, "regularization": 0.0}
+            "tolerance": 1e-8, "regularization": 0.0, "reduction": False,
+            "reduction_threshold": 1e-4, "communicators": "auto"}
 #: fit.jacobian: forward sensitivities through the time loop (contactvisco.solver.sensitivity),
 #: finite differences of forward runs, or the sensitivities where they cover every parameter.
 JACOBIANS = ("auto", "sensitivities", "finite-differences")
@@ -60,6 +61,10 @@ EXPERIMENT_KEYS = ("scene", "data", "set", "noise", "weight", "control")
 #: depth drives that component as a displacement, the force is fitted (relaxation).
 CONTROLS = ("force", "depth")
 PARAMETER_KEYS = ("key", "initial", "bounds", "scale", "prior")
+#: fit.communicators: how the ranks share the experiments. "shared": every rank runs every
+#: experiment; "split": the fit's communicator is split into min(P, n) groups, experiment i
+#: run by group i mod k; "auto": split when P >= 2 and n >= 2.
+COMMUNICATORS = ("auto", "shared", "split")
 #: fit.difference: the finite-difference rule of the Jacobian and scipy's name of it.
 DIFFERENCES = {"central": "3-point", "forward": "2-point"}
 SCALES = ("linear", "log")
@@ -73,7 +78,8 @@ NULL_SHARE = 1e-2
 HIGH_CORRELATION = 0.99
 #: The confidence level of the parameters' intervals and of the moduli's band.
 LEVEL = 0.95
-#: The scene keys fit.regularization acts on: the Prony moduli (absolute or as fractions).
+#: The scene keys fit.regularization and fit.reduction act on: the Prony moduli (absolute or
+#: as fractions).
 REGULARIZED = ("moduli", "fractions")
 
 
@@ -131,6 +137,9 @@ def read_fit(path) -> dict:
     fit.update(given)
     if fit["jacobian"] not in JACOBIANS:
         _fail("fit.jacobian", f"must be one of {', '.join(JACOBIANS)}, got {fit['jacobian']!r}")
+    if fit["communicators"] not in COMMUNICATORS:
+        _fail("fit.communicators", f"must be one of {', '.join(COMMUNICATORS)}, got "
+              f"{fit['communicators']!r}")
     if fit["difference"] not in DIFFERENCES:
         _fail("fit.difference", f"must be one of {', '.join(DIFFERENCES)}, got "
               f"{fit['difference']!r}")
@@ -153,6 +162,7 @@ def read_fit(path) -> dict:
     if fit["regularization"] > 0 and not any(p["regularized"] for p in parameters):
         _fail("fit.regularization", "acts on the Prony moduli (keys viscoelastic.<function>."
               "moduli.<i> or .fractions.<i>); no parameter is one")
+    _check_reduction(fit, parameters)
     keys = [p["key"] for p in parameters]
     for i, key in enumerate(keys):
         if key in keys[:i]:
@@ -172,8 +182,51 @@ def read_fit(path) -> dict:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 _fail(f"parameter[{j}].key", f"{p['key']!r} is not a number of the scene of "
                       f"experiment[{i}] (it holds {value!r})")
+            if fit["reduction"] and p["regularized"] and not isinstance(
+                    _at(scene, p["path"][:-2]).get("tau"), list):
+                _fail("fit.reduction", f"drops terms of a Prony grid given inline: "
+                      f"{'.'.join(p['path'][:-2])} of experiment[{i}] has no list tau (a file "
+                      "gives its terms); write its tau and moduli (or fractions) in the scene")
         _scene(experiment, parameters, x0)
     return {"fit": fit, "experiments": experiments, "parameters": parameters}
+
+
+def _check_reduction(fit: dict, parameters: list) -> None:
+    """fit.reduction: a bool; with it the Prony moduli are bounded below by 0 in linear scale,
+    the relaxation times stay fixed and no Tikhonov rows pull the moduli (the bound is where a
+    term is dropped)."""
+    if not isinstance(fit["reduction"], bool):
+        _fail("fit.reduction", f"must be true or false, got {fit['reduction']!r}")
+    rho = _number(fit["reduction_threshold"], "fit.reduction_threshold", "a number in (0, 1)")
+    if not 0 < rho < 1:
+        _fail("fit.reduction_threshold", f"must be in (0, 1), got {fit['reduction_threshold']!r}")
+    if not fit["reduction"]:
+        return
+    if fit["regularization"] > 0:
+        _fail("fit.reduction", "drops the Prony terms whose moduli reach the bound 0; "
+              f"fit.regularization = {fit['regularization']!r} pulls them to their prior "
+              "instead: use one of the two (fit.regularization = 0 with fit.reduction)")
+    if not any(p["regularized"] for p in parameters):
+        _fail("fit.reduction", "drops Prony terms: it needs a parameter "
+              "viscoelastic.<function>.moduli.<i> or .fractions.<i>; no parameter is one")
+    for k, p in enumerate(parameters):
+        parts = p["path"]
+        if len(parts) >= 3 and parts[0] == "viscoelastic" and parts[-2] == "tau":
+            _fail("fit.reduction", f"works on a fixed grid of relaxation times; "
+                  f"parameter[{k}].key = {p['key']!r} frees one (fix the times, or set "
+                  "fit.reduction = false)")
+        if not p["regularized"]:
+            continue
+        if p["scale"] != "linear":
+            _fail(f"parameter[{k}].scale", f"{p['key']!r}: with fit.reduction a Prony modulus "
+                  "is fitted in linear scale (its bound 0 is outside the log scale), got "
+                  f"{p['scale']!r}")
+        if p["bounds"][0] != 0:
+            _fail(f"parameter[{k}].bounds", f"{p['key']!r}: with fit.reduction the lower "
+                  f"bound of a Prony modulus is 0 (non-negativity), got {list(p['bounds'])!r}")
+        if p["initial"] <= 0:
+            _fail(f"parameter[{k}].initial", f"{p['key']!r}: must be > 0 (a modulus of 0 "
+                  f"leaves its term out of the scene), got {p['initial']!r}")
 
 
 def _measured(experiment: dict) -> np.ndarray:
@@ -463,48 +516,136 @@ def _tangents(experiment: dict, parameters: list, values) -> list:
     return out
 
 
-def _models(experiments, parameters, mode: str, comm):
-    """The experiments' forward models (contactvisco.solver.sensitivity.ForwardModel, each
-    built once at the initial values), whether the Jacobian is taken by sensitivities, and
-    why not when fit.jacobian = "auto" falls back to finite differences (None if it does
-    not)."""
-    from mpi4py import MPI
+def groups_of(mode: str, ranks: int, experiments: int) -> int:
+    """How many groups of ranks run the experiments (fit.communicators): "shared" one (every
+    rank on every experiment), "split" min(P, n), "auto" min(P, n) when P >= 2 and n >= 2.
 
+    Parameters
+    ----------
+    mode : str
+        fit.communicators.
+    ranks, experiments : int
+        P, the size of the fit's communicator, and n.
+    """
+    if mode == "shared":
+        return 1
+    return max(1, min(ranks, experiments))
+
+
+class _Groups:
+    """The fit's communicator split into groups (comm.Split), experiment i run by group
+    i mod k on its sub-communicator; every rank gathers the residual and Jacobian blocks of
+    all experiments, so the optimizer runs the same on every rank."""
+
+    def __init__(self, comm, count: int, n: int):
+        self.comm, self.count = comm, count
+        self.color = comm.rank * count // comm.size
+        self.sub = comm.Split(self.color, comm.rank) if count > 1 else comm
+        self.owned = [i % count == self.color for i in range(n)]
+
+    def free(self):
+        if self.sub is not self.comm:
+            self.sub.Free()
+            self.sub = None
+
+    def gather(self, blocks: dict, failure) -> dict:
+        """Every experiment's block on every rank (allgather over the fit's communicator; a
+        group's first rank gives its blocks), or the first failure, by experiment, raised on
+        every rank: the ranks of the failing run raise their own exception, the others one of
+        the same class and message."""
+        if self.count == 1:
+            if failure is not None:
+                raise failure[1]
+            return blocks
+        summary = None if failure is None else (failure[0], _describe(failure[1]))
+        gathered = self.comm.allgather((blocks if self.sub.rank == 0 else {}, summary))
+        failures = sorted((f for _, f in gathered if f is not None), key=lambda f: f[0])
+        if failures:
+            if failure is not None and failure[0] == failures[0][0]:
+                raise failure[1]
+            raise _rebuilt(failures[0][1])
+        out = {}
+        for part, _ in gathered:
+            out.update(part)
+        return out
+
+
+def _describe(err: BaseException) -> dict:
+    """What rebuilds an exception on another rank: its class (NewtonFailure, SceneError, or
+    another as RuntimeError), message with its notes, and the fields of its class."""
+    from contactvisco.solver.newton import NewtonFailure
+    text = "\n".join([str(err), *getattr(err, "__notes__", [])])
+    if isinstance(err, NewtonFailure):
+        return {"kind": "newton", "message": text, "reason": err.reason,
+                "residuals": list(getattr(err, "residuals", []))}
+    if isinstance(err, SceneError):
+        return {"kind": "scene", "message": text, "key": getattr(err, "key", None)}
+    return {"kind": "other", "message": f"{type(err).__name__}: {text}"}
+
+
+def _rebuilt(described: dict) -> BaseException:
+    from contactvisco.solver.newton import NewtonFailure
+    if described["kind"] == "newton":
+        return NewtonFailure(described["message"], described["reason"], described["residuals"])
+    if described["kind"] == "scene":
+        return SceneError(described["message"], key=described["key"])
+    return RuntimeError(described["message"])
+
+
+def _models(experiments, parameters, mode: str, groups: _Groups):
+    """The forward models of the experiments this rank's group runs
+    (contactvisco.solver.sensitivity.ForwardModel, each built once at the initial values, on
+    the group's communicator; None elsewhere), whether the Jacobian is taken by
+    sensitivities, and why not when fit.jacobian = "auto" falls back to finite differences
+    (None if it does not). The reasons and a failing build are shared by every rank."""
     from contactvisco.solver import sensitivity
-    reasons = [r for r in (sensitivity.unsupported_key(p["key"]) for p in parameters) if r]
-    models = []
-    try:
-        for e in experiments:
-            if reasons:              # a key the built problem cannot follow: whole runs
-                models.append(None)
-                continue
+    reasons = [(-1, r) for r in (sensitivity.unsupported_key(p["key"]) for p in parameters)
+               if r]
+    whole = bool(reasons)            # a key the built problem cannot follow: whole runs
+    models, failure = [], None
+    for i, e in enumerate(experiments):
+        if whole or failure is not None or not groups.owned[i]:
+            models.append(None)      # whole runs, or another group's experiment
+            continue
+        try:
             model = sensitivity.ForwardModel(
                 _scene(e, parameters, [p["initial"] for p in parameters]),
-                comm or MPI.COMM_WORLD, component=e["component"])
-            if model.memory_reason:
-                reasons.append(model.memory_reason)
-                model.destroy()
-                models.append(None)
-                continue
-            models.append(model)
-            if mode != "finite-differences":
-                try:
-                    model.sensitivity = sensitivity.StepSensitivity(model.problem,
-                                                                    model.newton)
-                except SceneError as err:
-                    reasons.append(str(err))
+                groups.sub, component=e["component"])
+        except Exception as err:
+            failure = (i, err)
+            models.append(None)
+            continue
+        if model.memory_reason:
+            reasons.append((i, model.memory_reason))
+            model.destroy()
+            models.append(None)
+            continue
+        models.append(model)
+        if mode != "finite-differences":
+            try:
+                model.sensitivity = sensitivity.StepSensitivity(model.problem, model.newton)
+            except SceneError as err:
+                reasons.append((i, str(err)))
+    if groups.count > 1:             # the same decision on every rank
+        shared = groups.comm.allgather(reasons)
+        reasons = sorted({r for part in shared for r in part})
+    reasons = [r for _, r in sorted(reasons)]
+    try:
+        groups.gather({}, failure)
     except BaseException:
-        for model in models:
-            if model is not None:
-                model.destroy()
+        _destroy(models)
         raise
     if mode == "sensitivities" and reasons:
-        for model in models:
-            if model is not None:
-                model.destroy()
+        _destroy(models)
         _fail("fit.jacobian", f"forward sensitivities do not cover this fit: {reasons[0]}")
     return models, mode != "finite-differences" and not reasons, (
         reasons[0] if reasons and mode == "auto" else None)
+
+
+def _destroy(models: list) -> None:
+    for model in models:
+        if model is not None:
+            model.destroy()
 
 
 def _closed_form_start(experiments: list, parameters: list) -> tuple:
@@ -638,14 +779,159 @@ def statistics(jacobian: np.ndarray, residual: np.ndarray, parameters: list,
             "identifiable": identifiable, "covariance": cov.tolist(), "warnings": warnings}
 
 
-def fit(description, comm=None) -> dict:
+def fit(description, comm=None, progress: bool = False) -> dict:
     """Identify the parameters of a fit description by weighted least squares over all its
-    experiments (module description).
+    experiments (module description), with fit.reduction = true repeated on the reduced
+    Prony grid until no term is dropped (:func:`reduce_terms`).
 
     Parameters
     ----------
     description : path-like or dict
         A fit TOML file, or what ``read_fit`` returned.
+    comm : mpi4py.MPI.Comm, optional
+        The communicator of the forward runs.
+    progress : bool
+        Print a line per dropped term and per round (first rank only).
+
+    Returns
+    -------
+    dict
+        What :func:`_fit_round` returns for the last round, with ``reduction`` (``enabled``,
+        ``threshold``, ``rounds``, ``dropped``: per dropped term its key in the description,
+        function, tau, estimate, the sum it is compared with, the cost's gradient and why)
+        and ``fitted_scene`` (per experiment the scene and the ``key=value`` texts that make
+        the fitted scene: the kept terms only).
+    """
+    import copy
+
+    spec = description if isinstance(description, dict) else read_fit(description)
+    spec = copy.deepcopy(spec) if spec["fit"].get("reduction") else spec
+    settings = spec["fit"]
+    origin = [p["key"] for p in spec["parameters"]]    # each parameter's key as given
+    report = _fit_round(spec, comm)
+    first = report
+    dropped, rounds = [], 1
+    while settings.get("reduction"):
+        drops = reduce_terms(spec, report, float(settings["reduction_threshold"]))
+        if not drops:
+            break
+        for d in drops:
+            d["key"], d["round"] = origin[d.pop("index")], rounds
+            dropped.append(d)
+            _say(progress, f"fit: round {rounds}: dropped {d['key']} (tau = {d['tau']:.6g}): "
+                 f"{d['why']}")
+        gone = {origin.index(d["key"]) for d in drops}
+        origin = [k for i, k in enumerate(origin) if i not in gone]
+        rounds += 1
+        _say(progress, f"fit: round {rounds} with {len(spec['parameters'])} parameters")
+        previous = report
+        report = _fit_round(spec, comm)
+        report["evaluations"] += previous["evaluations"]     # all rounds' runs and time
+        report["wall_s"] += previous["wall_s"]
+    closed = {p["key"]: p["closed_form"] for p in first["parameters"]}
+    for p, key in zip(report["parameters"], origin):
+        p["closed_form"] = closed.get(key)
+        p["description_key"] = key
+    if report is not first:          # the closed-form start is the first round's
+        for c, c0 in zip(report["curves"], first["curves"]):
+            c["closed_form"] = c0.get("closed_form")
+    report["reduction"] = {"enabled": bool(settings.get("reduction")),
+                           "threshold": float(settings["reduction_threshold"]),
+                           "rounds": rounds, "dropped": dropped}
+    report["fitted_scene"] = [
+        {"scene": e["scene"], "set": [str(v) for v in e["set"]] + [
+            f"{p['key']}={float(v['estimate'])!r}"
+            for p, v in zip(spec["parameters"], report["parameters"])]}
+        for e in spec["experiments"]]
+    return report
+
+
+def _say(progress: bool, line: str) -> None:
+    from contactvisco.io import parallel
+    if progress and parallel.first_rank():
+        print(line, flush=True)
+
+
+def reduce_terms(spec: dict, report: dict, threshold: float) -> list:
+    """Drop from `spec` (in place) the Prony terms whose fitted modulus sits at its bound 0:
+    a parameter viscoelastic.<function>.<moduli|fractions>.<i> with estimate
+
+        theta_i <= threshold * sum_j theta_j,
+
+    the sum over the entries of that list in the first experiment's scene at the estimates
+    (fitted and fixed terms). The term's tau and modulus leave the lists of every
+    experiment's scene (overrides appended to its ``set``), the other parameters of the list
+    are renumbered and start again from their estimates.
+
+    Returns
+    -------
+    list of dict
+        Per dropped term: ``index`` (its parameter's position), ``function``, ``tau``,
+        ``estimate``, ``sum``, ``gradient`` (the cost's, (J^T r)_i: >= 0 when the bound is
+        active) and ``why``.
+    """
+    parameters, experiments = spec["parameters"], spec["experiments"]
+    values = np.array([p["estimate"] for p in report["parameters"]], float)
+    jac = np.asarray(report["jacobian_matrix"])
+    gradient = jac.T @ np.asarray(report["residual"]) if jac.size else np.zeros(values.size)
+    scene = _scene(experiments[0], parameters, values)
+    drops = []
+    for i, p in enumerate(parameters):
+        if not p["regularized"]:
+            continue
+        listed = [float(v) for v in _at(scene, p["path"][:-1])]
+        total = sum(abs(v) for v in listed)
+        if values[i] <= threshold * total:
+            tau = float(_at(scene, p["path"][:-2] + ["tau"])[int(p["path"][-1])])
+            drops.append({"index": i, "function": p["path"][1], "tau": tau,
+                          "estimate": float(values[i]), "sum": total,
+                          "gradient": float(gradient[i]),
+                          "why": f"{p['path'][-2][:-1]} {values[i]:.3g} <= {threshold:g} of "
+                                 f"the sum {total:.6g} of {'.'.join(p['path'][:-1])} (at the "
+                                 f"bound 0; the cost's gradient {gradient[i]:+.3g})"})
+    if not drops:
+        return drops
+    gone = {d["index"] for d in drops}
+    lists = {}                       # (function path, kind) -> dropped list indices
+    for i in sorted(gone):
+        path = parameters[i]["path"]
+        lists.setdefault((tuple(path[:-2]), path[-2]), set()).add(int(path[-1]))
+    for e in experiments:
+        at = _scene(e, parameters, values)
+        for (function, kind), out in lists.items():
+            taus = list(_at(at, list(function) + ["tau"]))
+            entries = list(_at(at, list(function) + [kind]))
+            keep = [j for j in range(len(taus)) if j not in out]
+            e["set"] = list(e["set"]) + [
+                scene_module.Override(list(function) + ["tau"], [float(taus[j]) for j in keep]),
+                scene_module.Override(list(function) + [kind],
+                                      [float(entries[j]) for j in keep])]
+    kept = []
+    for i, p in enumerate(parameters):
+        if i in gone:
+            continue
+        path = p["path"]
+        out = lists.get((tuple(path[:-2]), path[-2])) if p["regularized"] else None
+        if out:
+            j = int(path[-1])
+            path = path[:-1] + [str(j - sum(1 for o in out if o < j))]
+            p["path"], p["key"] = path, ".".join(path)
+        lower, upper = p["bounds"]
+        p["initial"] = float(min(max(values[i], lower), upper))
+        p["closed_form"] = False
+        kept.append(p)
+    parameters[:] = kept
+    return drops
+
+
+def _fit_round(spec: dict, comm=None) -> dict:
+    """One least-squares fit of the parameters of a checked fit description over all its
+    experiments (module description).
+
+    Parameters
+    ----------
+    spec : dict
+        What ``read_fit`` returned (a closed-form start replaces its parameters' initial).
     comm : mpi4py.MPI.Comm, optional
         The communicator of the forward runs.
 
@@ -667,7 +953,6 @@ def fit(description, comm=None) -> dict:
     """
     from scipy.optimize import least_squares
 
-    spec = description if isinstance(description, dict) else read_fit(description)
     parameters, experiments = spec["parameters"], spec["experiments"]
     settings = spec["fit"]
     runs = [0]
@@ -679,36 +964,50 @@ def fit(description, comm=None) -> dict:
     prior = _to_x(parameters, [p["prior"] for p in parameters])[regularized]
     prior_rows = np.zeros((len(regularized), len(parameters)))
     prior_rows[np.arange(len(regularized)), regularized] = math.sqrt(weight)
-    models, sensitivities, reason = _models(experiments, parameters, settings["jacobian"],
-                                            comm)
+    from mpi4py import MPI
+    comm = comm or MPI.COMM_WORLD
+    count = groups_of(settings.get("communicators", "auto"), comm.size, len(experiments))
+    groups = _Groups(comm, count, len(experiments))
+    try:
+        models, sensitivities, reason = _models(experiments, parameters,
+                                                settings["jacobian"], groups)
+    except BaseException:
+        groups.free()
+        raise
     cached = {}
 
     def evaluate(x, with_jacobian):
         values = _to_values(parameters, x)
         runs[0] += 1
-        out, rows = [], []
+        blocks, failure = {}, None
         # dtheta/dx: 1 in linear scale, theta in log scale
         scale = np.array([v if p["scale"] == "log" else 1.0 for p, v in zip(parameters, values)])
         for i, (e, model) in enumerate(zip(experiments, models)):
+            if not groups.owned[i]:
+                continue             # another group's experiment
             try:
                 if model is None:     # whole runs (a key the built problem cannot follow)
-                    out.append(e["w"] * (forward(e, parameters, values, comm) - _measured(e)))
+                    blocks[i] = (e["w"] * (forward(e, parameters, values, groups.sub)
+                                           - _measured(e)), None)
                     continue
                 tangents = _tangents(e, parameters, values) if with_jacobian else ()
                 result = model.run(_scene(e, parameters, values), tangents)
                 where = _sample_index(result["t"], e)
                 name = "force" if e["control"] == "depth" else "depth"
-                out.append(e["w"] * (result[name][where] - _measured(e)))
-                if with_jacobian:
-                    rows.append(e["w"] * result[f"d_{name}"][where] * scale)
+                blocks[i] = (e["w"] * (result[name][where] - _measured(e)),
+                             e["w"] * result[f"d_{name}"][where] * scale
+                             if with_jacobian else None)
             except Exception as err:
                 # The run's own message names the step; this names the parameters.
                 err.add_note(f"in the forward run of experiment[{i}] at " + ", ".join(
                     f"{p['key']} = {v!r}" for p, v in zip(parameters, values)))
-                raise
+                failure = (i, err)
+                break
+        blocks = groups.gather(blocks, failure)
+        out = [blocks[i][0] for i in range(len(experiments))]
         out.append(math.sqrt(weight) * (np.asarray(x)[regularized] - prior))
         if with_jacobian:
-            rows.append(prior_rows)
+            rows = [blocks[i][1] for i in range(len(experiments))] + [prior_rows]
             cached["x"], cached["J"] = np.array(x, copy=True), np.concatenate(rows)
         return np.concatenate(out)
 
@@ -732,9 +1031,10 @@ def fit(description, comm=None) -> dict:
                                x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
                                max_nfev=settings["max_evaluations"])
     finally:
-        for model in models:
-            if model is not None:
-                model.destroy()
+        _destroy(models)
+        models.clear()
+        cached.clear()
+        groups.free()
     wall = time.perf_counter() - start
     values = _to_values(parameters, result.x)
     stats = statistics(result.jac, result.fun, parameters, values)
@@ -778,10 +1078,14 @@ def fit(description, comm=None) -> dict:
         "jacobian_evaluations": int(result.njev or 0), "wall_s": wall,
         "status": int(result.status), "message": str(result.message),
         "success": bool(result.success), "warnings": stats["warnings"],
+        "communicators": {"mode": settings.get("communicators", "auto"), "groups": count,
+                          "ranks": comm.size},
         "jacobian": ({"rule": "sensitivities", "scene_step": SCENE_STEP} if sensitivities
                      else {"rule": settings["difference"], "step": settings["step"],
                            **({"why": reason} if reason else {})}),
         "curves": curves,
+        # J and r at the optimum, for the reduction's gradient J^T r (not written out)
+        "jacobian_matrix": np.asarray(result.jac), "residual": np.asarray(result.fun),
     }
 
 
@@ -792,7 +1096,8 @@ def moduli(experiment: dict, parameters: list, values) -> dict | None:
     band var phi(t) = g(t)^T C_x g(t), g = dphi(t)/dx (linear propagation).
 
     dphi/dx by central differences of the scene's conversion (no solve; phi is linear in the
-    moduli, smooth in the times): h = SCENE_STEP max(1, |x_k|).
+    moduli, smooth in the times): h = SCENE_STEP max(1, |x_k|), forward differences where
+    x_k - h is below the parameter's lower bound.
 
     Returns
     -------
@@ -814,14 +1119,18 @@ def moduli(experiment: dict, parameters: list, values) -> dict | None:
     t = np.geomspace(min(taus) / 1e2, max(taus) * 1e2, 200)
     out = {"t": t.tolist()}
     jacobians = {name: np.zeros((t.size, x.size)) for name in base}
+    lower = _to_x(parameters, [p["bounds"][0] for p in parameters])
     for k in range(x.size):
         h = SCENE_STEP * max(1.0, abs(x[k]))
         step = np.zeros(x.size)
         step[k] = h
-        plus, minus = functions(x + step), functions(x - step)
+        # one-sided at a bound (a modulus near 0 under fit.reduction): phi is linear in it
+        central = x[k] - h >= lower[k]
+        plus, minus = functions(x + step), functions(x - step) if central else base
         for name in base:
             jacobians[name][:, k] = (ve.relaxation(plus[name], t)
-                                     - ve.relaxation(minus[name], t)) / (2.0 * h)
+                                     - ve.relaxation(minus[name], t)) / ((2.0 if central
+                                                                          else 1.0) * h)
     for name, phi in base.items():
         out[name] = {"value": ve.relaxation(phi, t).tolist(),
                      "jacobian": jacobians[name].tolist()}
@@ -846,7 +1155,8 @@ def write(report: dict, out) -> None:
 
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    summary = {k: v for k, v in report.items() if k != "curves"}
+    summary = {k: v for k, v in report.items()
+               if k not in ("curves", "jacobian_matrix", "residual")}
     # Strict JSON: an undetermined standard error (inf) or correlation (nan) is null.
     (out / "fit.json").write_text(json.dumps(_finite(summary), indent=2) + "\n")
     with open(out / "curves.csv", "w", newline="") as f:

@@ -134,3 +134,51 @@ def test_force_sensitivities_under_a_held_depth():
             assert np.abs(out["d_force"][:, i] - difference).max() < 1e-6 * scale, key
     finally:
         model.destroy()
+
+
+def power_scene(folder, values):
+    """sphere_creep with the [viscoelastic] table replaced by E = 1, nu = 0.3 and a power
+    memory kernel alpha (1 + t/tau)^-beta on the deviatoric strain (its sum of exponentials)."""
+    import pathlib
+
+    import contactvisco
+    path = folder / "power_creep.toml"
+    if not path.exists():
+        text = (pathlib.Path(contactvisco.__file__).parent / "scenes" /
+                "sphere_creep.toml").read_text()
+        start = text.index("[viscoelastic]")
+        end = text.index("[[dirichlet]]")
+        text = (text[:start] + 'E = 1.0\nnu = 0.3\n\n[memory]\nkernel = "power"\n'
+                'alpha = -0.2\nbeta = 0.5\ntau = 0.5\npart = "deviatoric"\n\n' + text[end:])
+        path.write_text(text)
+    return loader.load(str(path), BASE + [f"{k}={v!r}" for k, v in values.items()])
+
+
+@pytest.mark.mpi
+def test_power_kernel_sensitivities_match_central_differences(tmp_path_factory):
+    """The power kernel's sum of exponentials with its rates kept and its coefficients
+    refitted (model.kernels.PowerTerms): the depth's derivatives in alpha, beta, tau and E
+    match central differences of forward runs to 1e-6 of their largest value, and the forward
+    model at the built parameters gives simulate()'s depth."""
+    folder = tmp_path_factory.mktemp("power")
+    theta = {"memory.alpha": -0.2, "memory.beta": 0.5, "memory.tau": 0.5, "material.E": 1.0}
+    model = ForwardModel(power_scene(folder, theta), MPI.COMM_WORLD)
+    try:
+        assert model.memory_reason is None and model.power is not None
+        tangents = [(power_scene(folder, {**theta, k: v + 1e-5 * v}),
+                     power_scene(folder, {**theta, k: v - 1e-5 * v}), 2e-5 * v)
+                    for k, v in theta.items()]
+        out = model.run(power_scene(folder, theta), tangents)
+        result = simulate(power_scene(folder, theta), progress=False)
+        reference = -np.array([s["obstacle"]["displacement"][1] for s in result.steps])
+        assert np.abs(out["depth"] - reference).max() < 1e-8 * reference.max()
+        for i, (key, v) in enumerate(theta.items()):
+            h = 1e-4 * v
+            difference = (model.run(power_scene(folder, {**theta, key: v + h}))["depth"]
+                          - model.run(power_scene(folder, {**theta, key: v - h}))["depth"]) / (
+                2 * h)
+            scale = np.abs(difference).max()
+            assert scale * abs(v) > 1e-7, key
+            assert np.abs(out["d_depth"][:, i] - difference).max() < 1e-6 * scale, key
+    finally:
+        model.destroy()

@@ -83,6 +83,53 @@ def test_bad_regularizations_name_the_key(tmp_path, parameter, key, words):
     assert key in str(caught.value) and words in str(caught.value)
 
 
+REDUCED = 'key = "viscoelastic.shear.fractions.0"\ninitial = 0.4\nbounds = [0.0, 0.9]'
+
+
+@pytest.mark.parametrize("fit, parameters, key, words", [
+    ("reduction = true\nregularization = 1.0", [REDUCED], "fit.reduction",
+     "fit.regularization = 1.0"),
+    ("reduction = true", [REDUCED, 'key = "viscoelastic.shear.tau.0"\ninitial = 1.0\n'
+                                   'bounds = [0.1, 10.0]'], "fit.reduction",
+     "parameter[1].key = 'viscoelastic.shear.tau.0' frees one"),
+    ("reduction = true", ['key = "contact.mu"\ninitial = 0.1\nbounds = [0.0, 0.9]'],
+     "fit.reduction", "no parameter is one"),
+    ("reduction = true", [REDUCED.replace("[0.0,", "[0.01,")], "parameter[0].bounds",
+     "lower bound of a Prony modulus is 0"),
+    ("reduction = true", [REDUCED.replace("[0.0,", "[0.01,") + '\nscale = "log"'],
+     "parameter[0].scale", "linear scale"),
+    ("reduction = true", [REDUCED.replace("0.4", "0.0")], "parameter[0].initial", "> 0"),
+    ("reduction = 1", [REDUCED], "fit.reduction", "true or false"),
+    ("reduction = true\nreduction_threshold = 1.0", [REDUCED], "fit.reduction_threshold",
+     "(0, 1)"),
+])
+def test_bad_reductions_name_the_key(tmp_path, fit, parameters, key, words):
+    """fit.reduction is refused with free relaxation times, with Tikhonov rows, without a
+    Prony modulus, and on a modulus that cannot reach its bound 0."""
+    text = f"[fit]\n{fit}\n" + FIT[:FIT.index("[[parameter]]")] + "".join(
+        f"[[parameter]]\n{p}\n\n" for p in parameters)
+    with pytest.raises(SceneError) as caught:
+        ident.read_fit(written(tmp_path, text))
+    assert key in str(caught.value) and words in str(caught.value)
+
+
+def test_a_reduction_fit_description_is_accepted(tmp_path):
+    text = "[fit]\nreduction = true\n" + FIT[:FIT.index("[[parameter]]")] + \
+        f"[[parameter]]\n{REDUCED}\n"
+    spec = ident.read_fit(written(tmp_path, text))
+    assert spec["fit"]["reduction"] is True and spec["fit"]["reduction_threshold"] == 1e-4
+
+
+def test_the_groups_of_ranks_per_fit_communicators(tmp_path):
+    """shared: one group; split: min(P, n); auto: split from 2 ranks and 2 experiments; any
+    other fit.communicators is refused with the allowed values."""
+    assert [ident.groups_of("shared", 4, 3), ident.groups_of("split", 4, 3),
+            ident.groups_of("split", 2, 3), ident.groups_of("auto", 2, 1),
+            ident.groups_of("auto", 1, 3), ident.groups_of("auto", 2, 2)] == [1, 3, 2, 1, 1, 2]
+    with pytest.raises(SceneError, match="fit.communicators.*auto, shared, split"):
+        ident.read_fit(written(tmp_path, "[fit]\ncommunicators = \"world\"\n" + FIT))
+
+
 def test_relaxation_needs_a_force_column(tmp_path):
     with pytest.raises(SceneError, match="experiment\\[0\\].data") as caught:
         ident.read_fit(written(tmp_path, FIT.replace("noise = 1e-5",
