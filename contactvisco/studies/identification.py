@@ -44,6 +44,7 @@ from contactvisco.errors import SceneError
 from contactvisco.scene import expressions
 from contactvisco.scene import loader as scene_module
 from contactvisco.scene import prony_file
+from contactvisco.scene import toml_text
 
 #: The keys of a fit description, by table.
 FIT_KEYS = {"jacobian": "auto", "difference": "central", "step": 1e-3, "max_evaluations": 200,
@@ -1142,7 +1143,10 @@ def write(report: dict, out) -> None:
     curves), ``curves.csv`` (experiment, t, force, measured, fitted and closed-form depth,
     the quantity fitted) and the figures drawn from these two files
     (contactvisco.post.fit_figures: ``fit.png``, ``fit_moduli.png``,
-    ``fit_correlation.png``).
+    ``fit_correlation.png``), and per experiment i the fitted scene ``fitted_<i>.toml``: the
+    experiment's scene with its ``set`` and the fitted values (the kept Prony terms only
+    under fit.reduction), as ``contactvisco run`` reads it. Its load is the scene's own, not
+    the measured history that drove the fit.
 
     Parameters
     ----------
@@ -1169,6 +1173,9 @@ def write(report: dict, out) -> None:
             for row in zip(c["t"], force, c["measured"], c["fitted"], closed):
                 writer.writerow([i, *[repr(v) if v != "" else "" for v in row],
                                  c.get("quantity", "depth")])
+    for i, entry in enumerate(report.get("fitted_scene", [])):
+        scene = scene_module.load(entry["scene"], entry["set"])
+        (out / f"fitted_{i}.toml").write_text(toml_text.scene_text(scene))
     fit_figures.draw(out)
 
 

@@ -106,3 +106,26 @@ def test_the_band_has_the_width_the_covariance_gives(fitted):
     lo, hi = report["parameters"][1]["interval"]
     se = report["parameters"][1]["standard_error"]
     assert (hi - lo) / 2 == pytest.approx(student.ppf(0.975, m - 2) * se, rel=1e-9)
+
+
+def test_the_fitted_scene_runs_as_written(fitted):
+    """fitted_0.toml, read back as a scene file, holds the estimates of fit.json to the last
+    digit, and runs: on its own grid (k = 0.25) its depths at the samples up to t = 0.5, where
+    that grid and the fit's (the sample times) coincide, and on the fit's grid at every
+    sample, are the fitted depths of curves.csv to the Newton tolerance (sphere_creep holds
+    the data's force P from t = 0)."""
+    from contactvisco.scene import loader
+    from contactvisco.solver.time_loop import simulate
+    report, (curve,) = fit_figures.read(fitted)
+    estimates = {p["key"]: p["estimate"] for p in report["parameters"]}
+    times = ", ".join(repr(t) for t in curve["t"] if t > 0)
+    grid = f'time={{grid = "times", times = [{times}]}}'
+    for sets, samples in (([], curve["t"] <= 0.5), ([grid], curve["t"] >= 0)):
+        scene = loader.load(str(fitted / "fitted_0.toml"), ["output.figures=false", *sets])
+        shear = scene["viscoelastic"]["shear"]
+        assert shear["instantaneous"] == estimates["viscoelastic.shear.instantaneous"]
+        assert shear["fractions"][0] == estimates["viscoelastic.shear.fractions.0"]
+        result = simulate(scene, comm=MPI.COMM_WORLD, progress=False)
+        depth = {round(s["t"], 9): -s["obstacle"]["displacement"][1] for s in result.steps}
+        ran = np.array([depth[round(t, 9)] for t in curve["t"][samples]])
+        assert np.max(np.abs(ran - curve["fitted"][samples])) < 1e-8 * np.max(curve["fitted"])
