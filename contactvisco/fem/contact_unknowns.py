@@ -9,6 +9,7 @@ import ufl
 from dolfinx import fem
 
 from contactvisco.fem.fields import interpolator, scalar
+from contactvisco.model import contact_law
 
 
 def has_friction(mu) -> bool:
@@ -66,6 +67,10 @@ def contact_unknowns(contact: dict, u, Q, W, context=None, updates=None):
         if has_friction(contact["mu"]):
             constants["mu"] = _friction_coefficient(contact["mu"], Q, context, updates)
         lambda_tau = fem.Function(W, name="lambda_tau")
+        if contact_law.ZERO_BALL == "guarded" and contact["friction_law"] != "coulomb":
+            # The side of a ball of radius 0 (contact_law.ZERO_BALL): 1 free, 0 stick. The
+            # condensed Newton system sets it in every solve; the others keep the stick side.
+            constants["free_ball"] = scalar(mesh, 0.0)
         if contact["slip"] == "increment":
             # Slip measured from the previous step's state: u_tau - u_tau(t_{n-1}).
             u_previous = fem.Function(u.function_space, name="u_previous")

@@ -42,7 +42,8 @@ ufl.max_value (whose UFL derivative takes the side of the second argument at a t
   with derivative 0, so that such a node carries no friction force in the Newton matrix either
   (never under Coulomb's law, whose radius depends on the multiplier). "free" takes block3d's
   first loaded step in 5 Newton iterations instead of 8 but makes Newton cycle on other
-  scenes (docs/scaling.md), so "stick" is the default.
+  scenes (docs/scaling.md), so "stick" is the default; "guarded" takes the free side and
+  falls back to the stick side where Newton stalls (ZERO_BALL).
 """
 from __future__ import annotations
 
@@ -174,20 +175,26 @@ def unilateral_reaction(lambda_nu, u_nu, g, r, ops=UFL):
 
 
 #: The side of P_B's derivative at z = 0 on a ball of radius 0 (the module description):
-#: "free" (P_B = 0 there, derivative 0) or "stick" (the identity). "stick" by default: "free"
-#: saves block3d 3 to 6 Newton iterations at its first loaded step but makes Newton cycle at
-#: t_0 of the paper scene with contact.stiffness = 1e8 (docs/scaling.md).
-ZERO_BALL_TIES = ("free", "stick")
+#: "free" (P_B = 0 there, derivative 0), "stick" (the identity) or "guarded" (free, but the
+#: solve starts again from its first iterate with the stick side when the residual finds no
+#: new minimum in newton.GUARD_WINDOW iterations or the free solve fails: the condensed Newton
+#: system switches the Constant `free_ball` of the forms; other systems keep the stick side).
+#: "stick" by default: "free" saves block3d 3 to 6 Newton iterations at its first loaded step
+#: but makes Newton cycle at t_0 of the paper scene with contact.stiffness = 1e8, where
+#: "guarded" converges in 4 more iterations than "stick" (docs/scaling.md).
+ZERO_BALL_TIES = ("free", "stick", "guarded")
 ZERO_BALL = "stick"
 
 
-def project_ball(z, radius, ops=UFL, zero_ball=None):
+def project_ball(z, radius, ops=UFL, zero_ball=None, free=None):
     """P_B(z): projection of the vector z onto the ball of centre 0 and the given radius,
 
         P_B(z) = z if |z| <= radius, radius z / |z| otherwise,
 
     and, on a ball of radius 0, the identity's side (`zero_ball` "stick", the default
-    ZERO_BALL) or P_B(z) = 0 with derivative 0 ("free")."""
+    ZERO_BALL) or P_B(z) = 0 with derivative 0 ("free"); "guarded" takes the free side where
+    the number (or Constant) `free` is >= 0.5 and the stick side otherwise (the stick side
+    without `free`). The value is the same on every side."""
     tie = ZERO_BALL if zero_ball is None else zero_ball
     norm = ops.sqrt(ops.dot(z, z))
     projected = ops.where_le(norm, radius, z,
@@ -195,9 +202,12 @@ def project_ball(z, radius, ops=UFL, zero_ball=None):
     if tie not in ZERO_BALL_TIES:
         raise ValueError(f"contact_law.ZERO_BALL must be one of {', '.join(ZERO_BALL_TIES)}, "
                          f"got {tie!r}")
-    if tie == "stick":
+    if tie == "stick" or (tie == "guarded" and free is None):
         return projected
-    return ops.where_le(radius, 0.0, ops.times(0.0, z), projected)
+    released = ops.times(0.0, z)
+    if tie == "guarded":
+        released = ops.where_ge(free, 0.5, released, projected)
+    return ops.where_le(radius, 0.0, released, projected)
 
 
 def friction_radius(mu, p, R, friction_law):
@@ -211,12 +221,12 @@ def friction_radius(mu, p, R, friction_law):
     return None if pressure is None else mu * pressure
 
 
-def friction_force(lambda_tau, slip, nu, radius, r, ops=UFL, zero_ball=None):
+def friction_force(lambda_tau, slip, nu, radius, r, ops=UFL, zero_ball=None, free=None):
     """sigma_tau = P_B(lambda_tau - r slip) with B the ball of the given radius (eq 20);
-    slip is the tangential motion the law acts on (u_tau or its increment); zero_ball as in
-    project_ball."""
+    slip is the tangential motion the law acts on (u_tau or its increment); zero_ball and
+    free as in project_ball."""
     return project_ball(tangential_part(lambda_tau, nu, ops) - r * slip, radius, ops,
-                        zero_ball)
+                        zero_ball, free)
 
 
 def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, friction_law,
@@ -253,6 +263,7 @@ def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, fri
         # a node whose R_nu is 0 in an iterate made Newton cycle on Signorini-Coulomb scenes
         # (r = 1e4, tests/integration/test_coulomb.py), so it keeps the stick side.
         sigma_tau = friction_force(lambda_tau, slip, nu, radius, constants["r"], ops,
-                                   "stick" if friction_law == "coulomb" else None)
+                                   "stick" if friction_law == "coulomb" else None,
+                                   constants.get("free_ball"))
     return {"s_nu": s_nu, "p_nu": p, "R_nu": R, "normal_force": normal_force,
             "radius": radius, "slip": slip, "sigma_tau": sigma_tau}

@@ -177,6 +177,12 @@ LINE_SEARCH_TRIALS = 12
 LINE_SEARCH_SHRINK = (0.1, 0.5)
 
 
+#: contact_law.ZERO_BALL = "guarded": the free side's solve is given up for the stick side's
+#: when the coupled residual found no new minimum in this many iterations (a single rise at
+#: a change of contact state is common and harmless: block3d's steps 3 and 4).
+GUARD_WINDOW = 3
+
+
 def _condensation(problem):
     """The condensed system of a problem: NodalCondensation, or for a contact boundary that
     meets another body of the mesh its InterfaceCondensation."""
@@ -221,6 +227,7 @@ class CondensedSNES(NewtonSolver):
         self._pending = False            # a step from _x_jacobian awaits its multiplier update
         self._residuals_since_jacobian = 0
         self._broken = None              # why the iterates left the coupled method's, if so
+        self._tripped = False            # the free side's residual rose (_guarded_solve)
         obstacle = problem.contact.obstacle
         # The iterative solver's preconditioner is built from an operator of its own, copied
         # from J_red only when linear.KeptPreconditioner says so.
@@ -308,7 +315,7 @@ class CondensedSNES(NewtonSolver):
         self._trial_norm = None
         self.step_lengths = []
         try:
-            iterations = super().solve()
+            iterations = self._guarded_solve()
             finish = getattr(self.system, "finish", None)
             if finish is not None:           # Functions that SNES's slots do not hold
                 finish()
@@ -332,6 +339,38 @@ class CondensedSNES(NewtonSolver):
 
     def _monitor(self, snes, it, norm):
         super()._monitor(snes, it, self.system.full_norm)
+        flag = self.system.problem.constants.get("free_ball")
+        if (flag is not None and float(flag.value) > 0.5 and it >= GUARD_WINDOW
+                and min(self.residuals[-GUARD_WINDOW:]) >= min(self.residuals[:-GUARD_WINDOW])):
+            self._tripped = True              # _converged stops the solve
+
+    def _guarded_solve(self) -> int:
+        """Newton; with contact_law.ZERO_BALL = "guarded" (the Constant free_ball of the
+        forms) first with the free side of a ball of radius 0, and, if the coupled residual
+        finds no new minimum in GUARD_WINDOW iterations (a cycle) or that solve fails, again
+        from the same first iterate with the stick side (the residual's value is the same on
+        either side, only the Newton matrix changes). The iterations of both attempts are
+        counted."""
+        flag = self.system.problem.constants.get("free_ball")
+        if flag is None:
+            return super().solve()
+        unknowns = self.system.problem.unknowns
+        saved = [f.x.array.copy() for f in unknowns]
+        flag.value = 1.0
+        try:
+            return super().solve()
+        except NewtonFailure:
+            spent = max(len(self.residuals) - 1, 0)
+        finally:
+            self._tripped = False
+            flag.value = 0.0                  # the stick side outside this solver's solves
+        for f, values in zip(unknowns, saved):
+            f.x.array[:] = values
+        self._pending = False
+        self._residuals_since_jacobian = 0
+        self._trial_norm = None
+        self.step_lengths = []
+        return spent + super().solve()
 
     def _shifted(self, x):
         """u = x + shift: SNES's iterate x with the obstacle's share of the bordered steps
@@ -501,6 +540,8 @@ class CondensedSNES(NewtonSolver):
     def _converged(self, snes, it, norms):
         norm = self.system.full_norm
         atol, rtol, _, max_it = snes.getTolerances()
+        if self._tripped:                     # _guarded_solve tries the stick side
+            return PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
         if it == 0:
             self._norm0 = norm
         if not np.isfinite(norm):

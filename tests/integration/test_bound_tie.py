@@ -88,11 +88,11 @@ def test_both_sides_converge_to_the_same_state(monkeypatch, name, predictor):
     assert sum(counts["compliance"]) < sum(counts["bound"]), counts
 
 
-@pytest.mark.parametrize("tie, slope", [("free", 0.0), ("stick", 1.0)])
+@pytest.mark.parametrize("tie, slope", [("free", 0.0), ("stick", 1.0), ("guarded", 1.0)])
 def test_a_ball_of_radius_zero_takes_the_side_asked_for(monkeypatch, tie, slope):
     """At z = 0 on the ball of radius 0 (a node without pressure): P_B's derivative is 0
-    ("free") or the identity ("stick", the default); its value is 0 either way, and a ball of
-    positive radius keeps the stick side at |z| = radius."""
+    ("free") or the identity ("stick", the default; "guarded" without its switch); its value
+    is 0 either way, and a ball of positive radius keeps the stick side at |z| = radius."""
     monkeypatch.setattr(law, "ZERO_BALL", tie)
     radius = lambda d: fem.Constant(d, PETSc.ScalarType(0.0))  # noqa: E731
     assert _slope(lambda s, d: law.project_ball(ufl.as_vector([s, 0.0 * s]), radius(d))[0],
@@ -125,3 +125,32 @@ def test_block3d_releases_its_unloaded_nodes_at_once(monkeypatch):
         for key in KEYS:
             scale = np.max(np.abs(a[key]))
             assert np.max(np.abs(a[key] - b[key])) <= 1e-11 * max(scale, 1.0), key
+
+
+def test_guarded_side_releases_and_falls_back(monkeypatch):
+    """contact_law.ZERO_BALL = "guarded": block3d's first loaded step takes the free side's
+    count (5 or fewer, the stick side 7 or more at h = 0.25), and the paper scene with
+    contact.stiffness = 1e8, where the free side cycles at t_0 (50 iterations), converges by
+    falling back to the stick side; the contact values are the stick side's to round-off."""
+    tight = "solver.petsc_options={snes_atol=1e-13, snes_rtol=1e-14}"
+    cases = {"block3d": ("block3d", ["geometry.parameters.h=0.25", tight]),
+             "stiff": ("paper", ["geometry.cells=[8, 8]", "time.steps=3",
+                                 "contact.stiffness=1e8"])}
+    counts, tables = {}, {}
+    for tie in ("stick", "guarded"):
+        monkeypatch.setattr(law, "ZERO_BALL", tie)
+        for label, (name, sets) in cases.items():
+            result = simulate(scene_module.load(name, ["output.probes=[]", *sets]),
+                              comm=MPI.COMM_WORLD, progress=False, keep_tables=True)
+            counts[tie, label] = [s["newton_iterations"] for s in result.steps]
+            tables[tie, label] = result.tables
+    assert counts["guarded", "block3d"][1] <= 5 < 7 <= counts["stick", "block3d"][1], counts
+    assert counts["guarded", "block3d"][2:] == counts["stick", "block3d"][2:], counts
+    # The free attempt at t_0 is given up after GUARD_WINDOW iterations without a new minimum.
+    assert counts["guarded", "stiff"][0] < 50 and \
+        counts["guarded", "stiff"][1:] == counts["stick", "stiff"][1:], counts
+    for label in cases:
+        for a, b in zip(tables["stick", label], tables["guarded", label]):
+            for key in KEYS:
+                scale = max(np.max(np.abs(a[key])), 1.0)
+                assert np.max(np.abs(a[key] - b[key])) <= 1e-9 * scale, (label, key)
