@@ -498,7 +498,7 @@ class NodalCondensation:
         F = array[self.own].copy()
         parts = eliminate(B, C, D, F, G, self.scale, self.d_scale)
         array[self.own] = parts["F_red"]
-        self.parts = dict(parts, B=B, C=C, F=F, G=G)
+        self.parts = dict(parts, B=B, C=C, D=D, F=F, G=G)
 
     def jacobian(self):
         """J_red = S J + L, in place: J is assembled, its contact rows saved, and the rows of

@@ -26,8 +26,11 @@ PCSetUp build it) or kept (that operator left as it is: PCSetUp then keeps the h
 
 The solves are the same to the Krylov tolerance; only the preconditioner differs. Measured
 on the paper scene and block3d (docs/scaling.md), the set-ups saved were paid back in Krylov
-iterations, so the rule is off by default (KEEP); so are the inexact solves of `forcing`
-(INEXACT), which added Newton iterations.
+iterations when every solve is exact, so that rule alone is off by default (KEEP); so are the
+inexact solves of `forcing` (INEXACT), which added Newton iterations. What pays is the two
+together where they fit the semi-smooth Newton method, the front rule (FrontRule, on by
+default for the iterative solver: FRONT): loose solves with a kept hierarchy while an
+iteration changes the contact state, an exact solve with a fresh one once it does not.
 """
 from __future__ import annotations
 
@@ -41,6 +44,10 @@ BUDGET = 5
 #: A kept hierarchy is built again for a Newton matrix that differs from the one of the
 #: build in more than this many rows (over all ranks).
 ROWS = 16
+
+#: An exact solve under the front rule (FrontRule) keeps the hierarchy only for a matrix
+#: within this many rows of the build's: 0, a set-up of its own matrix (docs/scaling.md).
+EXACT_ROWS = 0
 
 #: On: the rule above (an extra matrix of the system's size for the preconditioner). Off by
 #: default: on the paper scene and block3d it saved set-ups but not time (docs/scaling.md).
@@ -70,18 +77,24 @@ class KeptPreconditioner:
         self.kept = 0            # solves with a kept hierarchy, over the object's life
         self.values = None       # the CSR values of the matrix of the build
 
-    def build_next(self, ksp, A) -> bool:
+    def build_next(self, ksp, A, loose=None) -> bool:
         """Decide for the next solve of `ksp` (called once per Newton matrix, before its
         solve; the same on every rank): True if the preconditioner is built again, from the
-        new matrix."""
+        new matrix.
+
+        With `loose` given (the front rule, FrontRule), the budget is not used: a loose
+        solve keeps the hierarchy for a matrix within ROWS rows of the build's, an exact
+        one (loose False) within EXACT_ROWS rows."""
         stamp = self.stamp()
         iterations, reason = ksp.getIterationNumber(), ksp.getConvergedReason()
         if self.solves == 1:
             self.first = iterations
         elif self.solves > 1:
             self.extra += max(iterations - self.first, 0)
-        keep = (KEEP and stamp is not None and self.solves > 0 and stamp == self.built
-                and reason > 0 and self.extra <= BUDGET)
+        budget = loose is not None or self.extra <= BUDGET
+        bound = ROWS if loose in (None, True) else EXACT_ROWS
+        keep = ((KEEP or loose is not None) and stamp is not None and self.solves > 0
+                and stamp == self.built and reason > 0 and budget)
         try:
             indptr, _, values = A.getValuesCSR()
         except Exception:                      # a matrix type without CSR access
@@ -93,7 +106,7 @@ class KeptPreconditioner:
                 entries = np.flatnonzero(values != self.values)
                 rows = int(np.unique(np.searchsorted(indptr, entries, side="right")).size)
             counts = A.getComm().tompi4py().allgather(rows)
-            keep = min(counts) >= 0 and sum(counts) <= ROWS
+            keep = min(counts) >= 0 and sum(counts) <= bound
         if keep:
             self.solves += 1
             self.kept += 1
@@ -123,3 +136,84 @@ def forcing(rtol: float, norm: float, target: float) -> float:
     if not (norm > 0.0 and target > 0.0):
         return rtol
     return min(ETA_MAX, max(rtol, SAFETY * target / norm))
+
+
+#: On (the default): the front rule (FrontRule) for the iterative solver: the solves of the
+#: Newton iterations that still change the contact state are loose (LOOSE) and use a kept
+#: hierarchy; the solve of an iteration whose state equals the previous iterate's is to the
+#: solver's own tolerance, from a preconditioner of its own matrix (docs/scaling.md).
+FRONT = True
+
+#: The relative tolerance of a loose solve (docs/scaling.md: 1e-2 made Newton cycle at t_0
+#: of the paper scene at 512^2; 1e-3 and 1e-4 converged everywhere measured).
+LOOSE = 1e-3
+
+#: At most this many loose solves in one Newton solve; the later ones are exact, so a
+#: sequence of loose steps that keeps changing the state cannot cycle for ever.
+MAX_LOOSE = 12
+
+
+def contact_state(parts) -> np.ndarray:
+    """Each owned contact node's branch of the law at the iterate of the node blocks `parts`
+    (condensed.eliminate plus B, C, D): the nullity m - rank D_i (how many conditions are
+    active: at the bound, sticking), and which multiplier rows depend on u_i (C_i's non-zero
+    rows: a compliant normal row or a Coulomb slip row, against a free one) and on lambda_i
+    (D_i's non-zero rows). An (n, 1 + 2 m) array of small integers; two iterates are in the
+    same contact state where these arrays are equal."""
+    C, D = parts["C"], parts["D"]
+    return np.hstack([np.asarray(parts["nullity"])[:, None],
+                      np.any(C != 0, axis=2), np.any(D != 0, axis=2)]).astype(np.int8)
+
+
+class FrontRule:
+    """The accuracy of each Newton iteration's linear solve under the front rule.
+
+    A semi-smooth Newton iteration of the contact problem does two things: it moves the
+    active set (the nodes at the bound, sticking, free) towards the converged one, and, once
+    the active set A_k no longer changes, it solves the problem of that active set, which for
+    a linear bulk law and the piecewise-linear conditions is a linear one (Hintermueller, Ito
+    and Kunisch, SIAM J. Optim. 13, 2003, 865-888: the primal-dual active set method is the
+    semi-smooth Newton method, and it stops when A_{k+1} = A_k). Only that last kind of solve
+    has to be accurate; an iteration that only discovers the next change of the active set
+    needs the step's direction, not its last digits. So the solve at iterate k is
+
+        loose (relative tolerance LOOSE) if k = 0 or state(x_k) != state(x_{k-1}),
+        exact (the solver's own tolerance) otherwise,
+
+    and exact from the (MAX_LOOSE + 1)-th would-be loose solve of a Newton solve on,
+
+    and Newton's stopping test, on the coupled residual |F(x_k)| <= target, accepts an
+    iterate after a loose step only where its residual is below the target anyway. The
+    converged iterate follows an exact solve whenever the last iteration did not change the
+    state, so it is the one of the all-exact method to the linear tolerance's effect.
+
+    `count` is the number of nodes whose state differs from the previous iterate's, summed
+    over all ranks (so every rank takes the same decision)."""
+
+    def __init__(self):
+        self.previous = None      # state(x_{k-1}) on this rank
+        self.loose_solves = 0     # over the object's life
+        self.exact_solves = 0
+        self.in_solve = 0         # loose solves in the current Newton solve
+
+    def reset(self):
+        """A new Newton solve (a new step): its first iterate has no previous one."""
+        self.previous = None
+        self.in_solve = 0
+
+    def loose(self, state, comm) -> bool:
+        """Whether the solve at the iterate of `state` (contact_state) is loose; collective
+        over `comm` (an mpi4py communicator)."""
+        if self.previous is None or self.previous.shape != state.shape:
+            changed = -1
+        else:
+            changed = int(np.count_nonzero(np.any(state != self.previous, axis=1)))
+        counts = comm.allgather(changed)
+        self.previous = state.copy()
+        loose = (min(counts) < 0 or sum(counts) > 0) and self.in_solve < MAX_LOOSE
+        if loose:
+            self.loose_solves += 1
+            self.in_solve += 1
+        else:
+            self.exact_solves += 1
+        return loose

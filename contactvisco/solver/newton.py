@@ -231,9 +231,18 @@ class CondensedSNES(NewtonSolver):
         obstacle = problem.contact.obstacle
         # The iterative solver's preconditioner is built from an operator of its own, copied
         # from J_red only when linear.KeptPreconditioner says so.
-        if linear.KEEP and not reuse and type(self.system) is NodalCondensation and not (
-                obstacle is not None and obstacle.controlled):
+        nodal = type(self.system) is NodalCondensation and not (
+            obstacle is not None and obstacle.controlled)
+        if (linear.KEEP or linear.FRONT) and not reuse and nodal:
             self.kept = linear.KeptPreconditioner(self.system.bulk_stamp)
+        # The front rule: loose solves while the iterations change the contact state.
+        # (iterative solver only: with MUMPS an iteration on the last factors is already a
+        # back-substitution, and loose ones added Newton iterations without saving time)
+        self.front = linear.FrontRule() if linear.FRONT and nodal and not reuse else None
+        #: Per Newton iteration of the last solve (front rule): (the relative tolerance
+        #: asked, the relative residual the Krylov method reached, None without one: LU
+        #: alone; a solve stopped by the absolute tolerance counts as reaching the asked one).
+        self.linear_log: list[tuple[float, float | None]] = []
         self.operator = (self.system.J_red.duplicate(copy=True)
                          if reuse or self.kept is not None else self.system.J_red)
         self.snes.setFunction(_weak(self._residual), self.b)
@@ -251,6 +260,8 @@ class CondensedSNES(NewtonSolver):
             self.system.defer = False
         self._finish_setup()
         self._ksp_rtol = self.snes.getKSP().getTolerances()[0]
+        if self.front is not None:
+            self.snes.getKSP().setConvergenceHistory(reset=True)
         if self.force is None:           # the bordered solves need P's exact factors
             self.enable_stale()
         # The line search on the coupled residual (none with force control, whose bordered
@@ -314,6 +325,9 @@ class CondensedSNES(NewtonSolver):
         self._residuals_since_jacobian = 0
         self._trial_norm = None
         self.step_lengths = []
+        self.linear_log = []
+        if self.front is not None:
+            self.front.reset()
         try:
             iterations = self._guarded_solve()
             finish = getattr(self.system, "finish", None)
@@ -343,6 +357,15 @@ class CondensedSNES(NewtonSolver):
         if (flag is not None and float(flag.value) > 0.5 and it >= GUARD_WINDOW
                 and min(self.residuals[-GUARD_WINDOW:]) >= min(self.residuals[:-GUARD_WINDOW])):
             self._tripped = True              # _converged stops the solve
+        if it > 0 and self.front is not None:
+            history = snes.getKSP().getConvergenceHistory()
+            ksp = snes.getKSP()
+            reached = (float(history[-1] / history[0])
+                       if len(history) > 1 and history[0] > 0 else None)
+            # Reached the absolute tolerance instead (a small right-hand side): exact too.
+            if ksp.getConvergedReason() == PETSc.KSP.ConvergedReason.CONVERGED_ATOL:
+                reached = min(reached or 0.0, self._asked)
+            self.linear_log.append((self._asked, reached))
 
     def _guarded_solve(self) -> int:
         """Newton; with contact_law.ZERO_BALL = "guarded" (the Constant free_ball of the
@@ -518,8 +541,17 @@ class CondensedSNES(NewtonSolver):
 
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
+        if self.front is not None:
+            self._loose = self.front.loose(linear.contact_state(self.system.parts),
+                                           self.system.V.mesh.comm)
+            self._asked = linear.LOOSE if self._loose else (
+                STALE_RTOL if self.reuse else self._ksp_rtol)
+            # The direct solver: FGMRES on the last factors to this tolerance.
+            self.stale_rtol = linear.LOOSE if self._loose else STALE_RTOL
+            if not self.reuse:
+                snes.getKSP().setTolerances(rtol=self._asked)
         self._to_operator(self.system.J_red)
-        if linear.INEXACT and not self.reuse:            # the iterative solver
+        if linear.INEXACT and not self.reuse and self.front is None:   # iterative solver
             atol, rtol, _, _ = snes.getTolerances()
             ksp = snes.getKSP()
             target = max(atol, rtol * self._norm0)

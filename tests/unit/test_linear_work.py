@@ -162,6 +162,7 @@ def test_kept_preconditioner_and_inexact_solves_keep_the_answer(monkeypatch):
     builds fewer preconditioners and converges to the contact values of every solve to
     the full tolerance, within the Newton tolerance's effect on them."""
     sets = ["solver.linear_solver='iterative'"]
+    monkeypatch.setattr(linear, "FRONT", False)          # the two rules alone
     reference = simulate(_paper(sets), comm=MPI.COMM_WORLD, progress=False)
     monkeypatch.setattr(linear, "KEEP", True)
     monkeypatch.setattr(linear, "INEXACT", True)
@@ -170,3 +171,98 @@ def test_kept_preconditioner_and_inexact_solves_keep_the_answer(monkeypatch):
     assert setups[1] < setups[0]
     a, b = _contact_values(kept.problem), _contact_values(reference.problem)
     assert np.max(np.abs(a - b)) <= 1e-7 * np.max(np.abs(b))
+
+
+def test_front_rule_decisions():
+    """Loose at a step's first iterate and after a change of any node's state, exact after an
+    iteration that changed none; the state tells a bound from a compliant node (nullity), and
+    a free normal row from a compliant one (C's row)."""
+    n, m, d = 3, 2, 2
+    C, D = np.ones((n, m, d)), np.eye(m)[None].repeat(n, axis=0)
+    parts = {"nullity": np.zeros(n, dtype=int), "C": C, "D": D}
+    rule = linear.FrontRule()
+    comm = MPI.COMM_WORLD
+    state = linear.contact_state(parts)
+    assert rule.loose(state, comm)                   # a step's first iterate
+    assert not rule.loose(state, comm)               # unchanged: the exact solve
+    free = C.copy()
+    free[1, 0] = 0.0                                 # node 1's normal row: free
+    assert rule.loose(linear.contact_state(dict(parts, C=free)), comm)
+    bound = dict(parts, C=free, nullity=np.array([0, 0, 1]))
+    assert rule.loose(linear.contact_state(bound), comm)
+    assert not rule.loose(linear.contact_state(bound), comm)
+    rule.reset()
+    assert rule.loose(linear.contact_state(bound), comm)
+    assert (rule.loose_solves, rule.exact_solves) == (4, 2)
+
+
+def _front_run(monkeypatch, sets, front):
+    """A paper run with the front rule on or off, and each Newton solve's linear log."""
+    from contactvisco.solver import newton
+    monkeypatch.setattr(linear, "FRONT", front)
+    logs = []
+    solve = newton.CondensedSNES.solve
+
+    def logged(self):
+        iterations = solve(self)
+        logs.append(list(self.linear_log))
+        return iterations
+    monkeypatch.setattr(newton.CondensedSNES, "solve", logged)
+    result = simulate(_paper(["geometry.cells=[24, 24]", *sets]), comm=MPI.COMM_WORLD,
+                      progress=False)
+    monkeypatch.setattr(newton.CondensedSNES, "solve", solve)
+    return result, logs
+
+
+def test_front_rule_caps_the_loose_solves(monkeypatch):
+    """After MAX_LOOSE loose solves in one Newton solve every solve is exact, however the
+    state keeps changing; a new solve starts loose again."""
+    monkeypatch.setattr(linear, "MAX_LOOSE", 2)
+    rule = linear.FrontRule()
+    comm = MPI.COMM_WORLD
+    states = [np.full((2, 1), k, dtype=np.int8) for k in range(5)]   # a change every time
+    assert [rule.loose(s, comm) for s in states] == [True, True, False, False, False]
+    rule.reset()
+    assert rule.loose(states[0], comm)
+
+
+def test_front_rule_leaves_the_direct_solver_alone(monkeypatch):
+    """With MUMPS the rule is not applied (an iteration on the last factors is already a
+    back-substitution): the same Newton counts and contact values with FRONT on or off."""
+    sets = ["solver.linear_solver='direct'"]
+    off, _ = _front_run(monkeypatch, sets, False)
+    on, logs = _front_run(monkeypatch, sets, True)
+    assert not any(logs)
+    assert [s["newton_iterations"] for s in on.steps] == \
+        [s["newton_iterations"] for s in off.steps]
+    assert np.array_equal(_contact_values(on.problem), _contact_values(off.problem))
+
+
+@pytest.mark.parametrize("solver", ["iterative"])
+def test_front_rule_keeps_the_answer(monkeypatch, solver):
+    """With the front rule the iterations that change the contact state are solved loosely
+    (some are), the last solve of every step with the iterative solver reached the full
+    tolerance (or Newton's residual was below its target anyway), and the converged contact
+    values are those of the exact solves to 1e-10 (relative to each column's largest)."""
+    sets = [f"solver.linear_solver='{solver}'"]
+    exact, _ = _front_run(monkeypatch, sets, False)
+    front, logs = _front_run(monkeypatch, sets, True)
+    asked = [rtol for log in logs for rtol, _ in log]
+    assert linear.LOOSE in asked
+    ended_exact = 0
+    for step, log in zip(front.steps, logs):
+        if not log:
+            continue
+        rtol, reached = log[-1]
+        if rtol == linear.LOOSE:          # accepted after a loose step: below target anyway
+            assert step["residual_history"][-1] <= 1e-10
+            continue
+        ended_exact += 1
+        if solver == "iterative":         # the Krylov method reached the full tolerance
+            assert reached is not None and reached <= rtol
+    # With LU a loose step on factors of the same matrix is exact anyway, and Newton may
+    # stop after it; the iterative solver needs the exact solve.
+    assert ended_exact > 0 or solver == "direct"
+    a, b = _contact_values(front.problem), _contact_values(exact.problem)
+    scale = np.maximum(np.abs(b).max(axis=0), 1e-300)
+    assert np.max(np.abs(a - b) / scale) <= 1e-10

@@ -112,11 +112,14 @@ def test_a_failed_prediction_falls_back_to_the_accepted_state():
 def test_the_operator_changes_only_with_the_newton_matrix():
     """With the direct solver the Jacobian is copied into the linear solver's operator only
     when it differs from it (one ulp in one entry suffices); the iterative solver assembles
-    into its operator."""
+    into its operator, except with a kept preconditioner (the front rule, on by default),
+    which has an operator of its own."""
     scene, problem, snes = _paper_problem()
     _, _, iterative = _paper_problem(solver={"linear_solver": "iterative"})
     assert snes.reuse and not iterative.reuse
-    assert iterative.operator.handle == iterative.system.J_red.handle
+    assert (iterative.operator.handle == iterative.system.J_red.handle) == \
+        (iterative.kept is None)
+    assert iterative.kept is not None
     iterative.destroy()
     snes.enable_stale(0)          # exact reuse alone (nearby matrices: test_stale_factors.py)
     try:
