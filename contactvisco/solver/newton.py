@@ -77,9 +77,9 @@ GAMG_OPTIONS = {
 
 #: linear_solver = "auto" takes the iterative solver from this many displacement unknowns on
 #: (by dimension), with BoomerAMG; where the measurements put the switch: docs/scaling.md
-#: (in 2D 100000 since the direct solver keeps factorizations of nearby matrices: MUMPS is
-#: ahead at 33282 unknowns and even at 132098).
-AUTO_ITERATIVE = {2: 100_000, 3: 5_000}
+#: (in 2D 20000: with the front rule, linear.FrontRule, BoomerAMG is even with MUMPS and its
+#: kept factors at 18818 unknowns and ahead from 33282 on).
+AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
 
 #: The same where PETSc has no hypre (GAMG): docs/scaling.md.
 AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 22_000}
