@@ -156,13 +156,16 @@ MAX_LOOSE = 12
 def contact_state(parts) -> np.ndarray:
     """Each owned contact node's branch of the law at the iterate of the node blocks `parts`
     (condensed.eliminate plus B, C, D): the nullity m - rank D_i (how many conditions are
-    active: at the bound, sticking), and which multiplier rows depend on u_i (C_i's non-zero
-    rows: a compliant normal row or a Coulomb slip row, against a free one) and on lambda_i
-    (D_i's non-zero rows). An (n, 1 + 2 m) array of small integers; two iterates are in the
+    active: at the bound, sticking), whether the normal multiplier row depends on u_i (C_i's
+    first row: a compliant node against a free one) and which rows depend on lambda_i (D_i's
+    non-zero rows). An (n, 2 + m) array of small integers; two iterates are in the
     same contact state where these arrays are equal."""
     C, D = parts["C"], parts["D"]
+    # The normal row of C only (row 0): a free node's is 0, a compliant one's not. Stick and
+    # slip are told apart by the nullity; a tangential row of C can be exactly 0 at one
+    # iterate and not at the next within one branch, and would make every state look new.
     return np.hstack([np.asarray(parts["nullity"])[:, None],
-                      np.any(C != 0, axis=2), np.any(D != 0, axis=2)]).astype(np.int8)
+                      np.any(C[:, :1] != 0, axis=2), np.any(D != 0, axis=2)]).astype(np.int8)
 
 
 class FrontRule:

@@ -118,7 +118,7 @@ def test_the_fitted_scene_runs_as_written(fitted):
     from contactvisco.solver.time_loop import simulate
     report, (curve,) = fit_figures.read(fitted)
     estimates = {p["key"]: p["estimate"] for p in report["parameters"]}
-    times = ", ".join(repr(t) for t in curve["t"] if t > 0)
+    times = ", ".join(repr(float(t)) for t in curve["t"] if t > 0)
     grid = f'time={{grid = "times", times = [{times}]}}'
     for sets, samples in (([], curve["t"] <= 0.5), ([grid], curve["t"] >= 0)):
         scene = loader.load(str(fitted / "fitted_0.toml"), ["output.figures=false", *sets])

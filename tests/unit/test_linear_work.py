@@ -235,7 +235,9 @@ def test_front_rule_leaves_the_direct_solver_alone(monkeypatch):
     assert not any(logs)
     assert [s["newton_iterations"] for s in on.steps] == \
         [s["newton_iterations"] for s in off.steps]
-    assert np.array_equal(_contact_values(on.problem), _contact_values(off.problem))
+    a, b = _contact_values(on.problem), _contact_values(off.problem)
+    # (round-off only: two MUMPS runs of the PyPI route are not always bitwise equal)
+    assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(b))
 
 
 @pytest.mark.parametrize("solver", ["iterative"])
