@@ -114,3 +114,31 @@ def assemble_linear(a, L, bcs):
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     set_bc(b, bcs)
     return A, b
+
+
+def first_loaded_step(name, sets, comm, record):
+    """Run a built-in scene (`sets` as --set texts, no figures, no probes) and keep, for every
+    Newton iterate of every step, record(snes) (snes: the CondensedSNES at that iterate).
+
+    Returns (the run's result, the records of the first loaded step: the first step whose
+    first |F| is above 0, and that step's index)."""
+    from contactvisco import api
+    from contactvisco.solver import newton
+    steps = []
+    original = newton.CondensedSNES._monitor
+
+    def monitor(self, snes, it, norm):
+        original(self, snes, it, norm)
+        if it == 0:
+            steps.append([])
+        steps[-1].append((float(self.system.full_norm), record(self)))
+
+    newton.CondensedSNES._monitor = monitor
+    try:
+        scene = api.load_scene(name, sets=["output.figures=false", *sets])
+        scene["output"]["probes"] = []
+        result = api.solve(scene, comm=comm)
+    finally:
+        newton.CondensedSNES._monitor = original
+    loaded = next(i for i, s in enumerate(steps) if s[0][0] > 0)
+    return result, steps[loaded], loaded

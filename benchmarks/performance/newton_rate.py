@@ -27,11 +27,9 @@ import numpy as np
 from mpi4py import MPI
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))  # benchmarks/: common.py
-from common import write_results  # noqa: E402
+from common import first_loaded_step, write_results  # noqa: E402
 
-from contactvisco import api  # noqa: E402
 from contactvisco.model import contact_law as law  # noqa: E402
-from contactvisco.solver import newton  # noqa: E402
 
 
 def node_state(problem):
@@ -60,27 +58,11 @@ def node_state(problem):
 
 def run(name, sets, comm):
     """(result, the first loaded step's iterates [(|F|, u, branch codes, directions)])."""
-    steps = []
-    original = newton.CondensedSNES._monitor
-
-    def monitor(self, snes, it, norm):
-        original(self, snes, it, norm)
-        if it == 0:
-            steps.append([])
-        code, direction = node_state(self.system.problem)
-        steps[-1].append((float(self.system.full_norm), self.system.problem.u.x.array.copy(),
-                          code, direction))
-
-    newton.CondensedSNES._monitor = monitor
-    try:
-        scene = api.load_scene(name, sets=["output.figures=false", *sets])
-        scene["output"]["probes"] = []
-        result = api.solve(scene, comm=comm)
-    finally:
-        newton.CondensedSNES._monitor = original
-    loaded = next(i for i, s in enumerate(steps) if s[0][0] > 0)
-    return result, steps[loaded], loaded
-
+    def state(snes):
+        problem = snes.system.problem
+        return (problem.u.x.array.copy(), *node_state(problem))
+    result, history, loaded = first_loaded_step(name, sets, comm, state)
+    return result, [(norm, *rest) for norm, rest in history], loaded
 
 def iterates(history, comm):
     """Per iterate: |F|, |u - u*|_inf, branch changes, largest |t - t*| (all ranks)."""
