@@ -146,9 +146,12 @@ def test_guarded_side_releases_and_falls_back(monkeypatch):
             tables[tie, label] = result.tables
     assert counts["guarded", "block3d"][1] <= 5 < 7 <= counts["stick", "block3d"][1], counts
     assert counts["guarded", "block3d"][2:] == counts["stick", "block3d"][2:], counts
-    # The free attempt at t_0 is given up after GUARD_WINDOW iterations without a new minimum.
-    assert counts["guarded", "stiff"][0] < 50 and \
-        counts["guarded", "stiff"][1:] == counts["stick", "stiff"][1:], counts
+    # The free attempt at t_0 is given up after GUARD_WINDOW iterations without a new minimum;
+    # the later steps start from t_0's state to round-off, which can change a count by one
+    # (the PyPI route: 1 against 2 at t_1).
+    assert counts["guarded", "stiff"][0] < 50, counts
+    assert all(abs(g - s) <= 1 for g, s in zip(counts["guarded", "stiff"][1:],
+                                                counts["stick", "stiff"][1:])), counts
     for label in cases:
         for a, b in zip(tables["stick", label], tables["guarded", label]):
             for key in KEYS:
