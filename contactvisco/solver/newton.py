@@ -544,12 +544,9 @@ class CondensedSNES(NewtonSolver):
         if self.front is not None:
             self._loose = self.front.loose(linear.contact_state(self.system.parts),
                                            self.system.V.mesh.comm)
-            self._asked = linear.LOOSE if self._loose else (
-                STALE_RTOL if self.reuse else self._ksp_rtol)
-            # The direct solver: FGMRES on the last factors to this tolerance.
-            self.stale_rtol = linear.LOOSE if self._loose else STALE_RTOL
-            if not self.reuse:
-                snes.getKSP().setTolerances(rtol=self._asked)
+            # (the rule is the iterative solver's only: self.front is None with MUMPS)
+            self._asked = linear.LOOSE if self._loose else self._ksp_rtol
+            snes.getKSP().setTolerances(rtol=self._asked)
         self._to_operator(self.system.J_red)
         if linear.INEXACT and not self.reuse and self.front is None:   # iterative solver
             atol, rtol, _, _ = snes.getTolerances()

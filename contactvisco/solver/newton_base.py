@@ -290,7 +290,6 @@ class NewtonSolver:
         self.nearby_solves = 0           # solves with an earlier matrix's factors (a run's)
         self.kept = None                 # the iterative solver's kept preconditioner (linear)
         self._loose = None               # the front rule's choice for the next solve (linear)
-        self.stale_rtol = STALE_RTOL     # FGMRES on an earlier matrix's factors: tolerance
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -467,7 +466,7 @@ class NewtonSolver:
         taken as it is and the next Jacobian is factorized."""
         if its == 0:
             self._krylov_b = rnorm
-        if rnorm <= max(self.stale_rtol * self._krylov_b, STALE_ATOL):
+        if rnorm <= max(STALE_RTOL * self._krylov_b, STALE_ATOL):
             return PETSc.KSP.ConvergedReason.CONVERGED_RTOL
         if its >= self._krylov_limit:
             return PETSc.KSP.ConvergedReason.CONVERGED_ITS
