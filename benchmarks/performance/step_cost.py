@@ -59,7 +59,7 @@ def contact_values(problem, comm):
     return x[order], values[order]
 
 
-def one(scene_name, size, solver, steps, label, switches=()):
+def one(scene_name, size, solver, steps, label, switches=(), settings=()):
     import numpy as np
     from mpi4py import MPI
 
@@ -84,7 +84,7 @@ def one(scene_name, size, solver, steps, label, switches=()):
     newton.NewtonSolver.solve = timed_solve
     comm = MPI.COMM_WORLD
     scene = scene_module.load(scene_name, overrides(scene_name, size, steps)
-                              + [f"solver.linear_solver='{solver}'"])
+                              + [f"solver.linear_solver='{solver}'", *settings])
     scene["output"]["probes"] = []
     cpu0 = time.process_time()
     tick = time.perf_counter()
@@ -106,7 +106,7 @@ def one(scene_name, size, solver, steps, label, switches=()):
                  values=values)
     records = result.steps
     row = {"scene": scene_name, "size": size, "solver": solver, "ranks": comm.size,
-           "label": label, "unknowns_u": unknowns, "ksp_pc": result.linear_solver,
+           "label": label, "settings": list(settings), "unknowns_u": unknowns, "ksp_pc": result.linear_solver,
            "newton": [s["newton_iterations"] for s in records],
            "krylov": [s["krylov_iterations"] for s in records],
            "setups": [s["preconditioner_setups"] for s in records],
@@ -180,6 +180,8 @@ def main():
     parser.add_argument("--compare", nargs=2, metavar=("BEFORE", "AFTER"))
     parser.add_argument("--switch", nargs="*", default=[],
                         help="NAME=VALUE of contactvisco.solver.linear (KEEP=0, INEXACT=0)")
+    parser.add_argument("--set", nargs="*", default=[], dest="settings",
+                        help="scene overrides (solver.first_iterate='coarse')")
     args = parser.parse_args()
     if args.compare:
         compare(*args.compare)
@@ -187,7 +189,7 @@ def main():
     if args.one:
         scene, size, solver = args.one
         one(scene, float(size) if scene == "block3d" else int(size), solver, args.steps,
-            args.label, args.switch)
+            args.label, args.switch, args.settings)
         return
     from contactvisco.io import launcher
     env = mpi_env(oversubscribe=False)
@@ -202,7 +204,8 @@ def main():
                 continue
             command = [*launcher.mpi_launcher(), "-n", str(ranks), sys.executable, __file__,
                        "--one", scene, str(size), solver, "--steps", str(args.steps),
-                       "--label", args.label, "--switch", *args.switch]
+                       "--label", args.label, "--switch", *args.switch,
+                       "--set", *args.settings]
             print("running", scene, size, solver, ranks, flush=True)
             proc = subprocess.run(command, env=env, capture_output=True, text=True)
             lines = [line for line in proc.stdout.splitlines() if line.startswith("ROW ")]

@@ -1199,6 +1199,31 @@ def petsc_value(x) -> bool:
     return isinstance(x, (str, int, float, bool))
 
 
+#: The geometry parameters of the gmsh scripts that are mesh sizes (solver.first_iterate =
+#: "coarse" multiplies them by solver.coarse_factor).
+MESH_SIZES = ("h", "h_bottom", "h_contact", "h_far")
+
+
+def coarse_start_refused(scene) -> str | None:
+    """Why a scene's first iterates cannot come from a coarser mesh
+    (contactvisco.solver.coarse_start), or None where they can: one body on contact, under
+    prescribed loads and obstacle positions, on a mesh that can be made coarser."""
+    geo = scene["geometry"]
+    if scene["contact"] is None:
+        return "needs contact (without it every step is one linear solve)"
+    if not (geo["type"] == "box" or (geo.get("script") is not None and any(
+            name in (geo.get("parameters") or {}) for name in MESH_SIZES))):
+        return ("needs a mesh that can be made coarser: a box (cells) or a gmsh script with "
+                f"a mesh size among its parameters ({', '.join(MESH_SIZES)}); a mesh read "
+                "from a file has none")
+    obstacle = scene.get("obstacle") or {}
+    if _shape(scene) == "body" or obstacle.get("force_components"):
+        return ("is for one body under prescribed loads and obstacle positions, not a "
+                "second body (obstacle.shape = 'body') or a force-controlled obstacle "
+                "(obstacle.force_components)")
+    return None
+
+
 class Solver(Table):
     KEYS = {
         "petsc_options": Key({}, lambda x: isinstance(x, dict), "a table"),
@@ -1206,6 +1231,9 @@ class Solver(Table):
         "linear_system": choice("auto", "auto", "condensed", "coupled"),
         "linear_solver": choice("auto", "auto", "direct", "iterative"),
         "predictor": choice("extrapolate", "extrapolate", "none"),
+        "first_iterate": choice("auto", "auto", "previous", "coarse"),
+        "coarse_factor": Key(4, lambda x: integer(x) and 2 <= x <= 16,
+                             "an integer from 2 to 16"),
         "line_search": choice("auto", "auto", "nonmonotone", "none"),
     }
 
@@ -1218,6 +1246,10 @@ class Solver(Table):
             self.need(petsc_value(value), f"petsc_options.{name}",
                       f"solver.petsc_options.{name} must be a string, number or boolean, got "
                       f"{value!r}")
+        if self["first_iterate"] == "coarse":
+            reason = coarse_start_refused(scene)
+            self.need(reason is None, "first_iterate",
+                      f"solver.first_iterate = 'coarse' {reason}; use 'previous' or 'auto'")
         if self["linear_system"] == "condensed" and scene["contact"] is not None:
             self.need(scene["discretization"]["contact_quadrature"] == "nodal",
                       "linear_system",

@@ -29,7 +29,7 @@ from contactvisco.fem.problem import Problem, build
 from contactvisco.io import checkpoint, output, parallel
 from contactvisco.io.lock import FolderLock
 from contactvisco.model import time_grid
-from contactvisco.solver import diagnosis, predictor, report, step_control
+from contactvisco.solver import coarse_start, diagnosis, predictor, report, step_control
 from contactvisco.solver.field_schedule import FieldSchedule
 from contactvisco.solver import newton as solver_module
 from contactvisco.solver.newton import NewtonFailure, SlidingLimit
@@ -124,6 +124,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         run = Run(scene, out, comm, problem, snes, progress, restart, started)
         run.output_estimate = estimate
         held["writer"] = run.writer
+        held["coarse"] = getattr(run.predictor, "release", None)
         result = run.loop(keep_tables, on_step)
     except BaseException as err:
         # Destroying the SNES is collective: only when every rank failed.
@@ -136,6 +137,8 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         parallel.restore_signals(signals)
         if snes is not None:
             snes.destroy()
+            if held.get("coarse") is not None:     # collective too
+                held["coarse"]()
         if held.get("writer") is not None:
             held["writer"].close()
         if folder_lock is not None:
@@ -159,6 +162,9 @@ class Run:
         self.probes = Probes(problem.geometry.mesh, points) if points else None
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
         self.predictor = predictor.create(scene, problem.unknowns)
+        if not self.resumed:                  # a restart has no coarse history
+            self.predictor = coarse_start.create(scene, problem, comm, self.predictor,
+                                                 self.say)
         opts = scene["output"]
         self.writer = output.Writer(out, problem, comm, xdmf=opts["xdmf"],
                                     restart_count=self.resumed and self.resumed["count"],
