@@ -17,7 +17,8 @@ Newton fails from this start is solved again from the last accepted state
 (contactvisco.solver.time_loop._solve).
 
 The coarse run follows the fine one for the states the extrapolation cannot predict (the first
-two) and is then released; a cut step, a restart or a failure of the coarse run ends it early,
+two; a state the coarse run reaches without a Newton iteration keeps the fine run's last state
+too) and is then released; a cut step, a restart or a failure of the coarse run ends it early,
 and the fine run goes on as without it.
 """
 from __future__ import annotations
@@ -114,10 +115,13 @@ class CoarseStart:
         self.recorded = 0              # fine states accepted
         self.used = 0                  # first iterates given
         self.coarse_newton = 0         # Newton iterations of the coarse run
+        self.last_iterations = None    # those of its last state
 
     def apply(self, t: float) -> bool:
         """Set the fine unknowns to the first iterate at time t: the extrapolation's where it
-        has one, else the coarse solution at t (the coarse run advanced to t).
+        has one, else the coarse solution at t (the coarse run advanced to t), unless the
+        coarse run took no Newton iteration to reach t (its last state solves t already: an
+        unloaded start, a load that did not change), where the fine run's last state is kept.
 
         Returns
         -------
@@ -127,6 +131,8 @@ class CoarseStart:
         if self.then is not None and self.then.apply(t):
             return True
         if self.released or not self._advance(t):
+            return False
+        if self.last_iterations == 0:        # the coarse state did not move: nor will the fine
             return False
         self._carry()
         self.used += 1
@@ -174,7 +180,8 @@ class CoarseStart:
         # eq (19) staged for t, Newton, the state committed.
         self.problem.time.stage(t)
         try:
-            self.coarse_newton += self.snes.solve()
+            self.last_iterations = self.snes.solve()
+            self.coarse_newton += self.last_iterations
         except NewtonFailure as err:
             self.say(f"the coarse run failed at t = {t:g} ({err}); Newton starts from the "
                      "last state")
