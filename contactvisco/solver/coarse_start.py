@@ -114,8 +114,7 @@ class CoarseStart:
         self.released = False
         self.recorded = 0              # fine states accepted
         self.used = 0                  # first iterates given
-        self.coarse_newton = 0         # Newton iterations of the coarse run
-        self.last_iterations = None    # those of its last state
+        self.last_iterations = None    # Newton iterations of the coarse run's last state
 
     def apply(self, t: float) -> bool:
         """Set the fine unknowns to the first iterate at time t: the extrapolation's where it
@@ -181,7 +180,6 @@ class CoarseStart:
         self.problem.time.stage(t)
         try:
             self.last_iterations = self.snes.solve()
-            self.coarse_newton += self.last_iterations
         except NewtonFailure as err:
             self.say(f"the coarse run failed at t = {t:g} ({err}); Newton starts from the "
                      "last state")
@@ -191,41 +189,32 @@ class CoarseStart:
         return True
 
     def _carry(self):
-        """The coarse unknowns at the fine nodes (u at every dof, the multipliers at the
-        contact nodes)."""
-        coarse, fine, comm = self.problem, self.fine, self.comm
+        """The coarse unknowns at the fine nodes: u at every dof from the d + 1 nearest coarse
+        dofs, the multipliers at the contact nodes from the d nearest coarse contact nodes."""
+        coarse, fine = self.problem, self.fine
         d = fine.V.mesh.geometry.dim
         for fc, ff in zip(coarse.unknowns, fine.unknowns):
-            bs_c = fc.function_space.dofmap.index_map_bs
-            bs_f = ff.function_space.dofmap.index_map_bs
-            if bs_c != bs_f:
-                continue
             if ff is fine.u:
-                xc, vc = _owned_dofs(fc, d)
-                x_all, v_all = _gathered(comm, xc, vc)
-                xf = ff.function_space.tabulate_dof_coordinates()[:, :d]
-                ff.x.array[:] = carry(x_all, v_all, xf, d + 1).ravel()
+                owned = fc.function_space.dofmap.index_map.size_local
+                source, target, k = np.arange(owned), slice(None), d + 1
             else:
-                nodes_c, nodes_f = coarse.contact.nodes, fine.contact.nodes
-                own = nodes_c.nodes[nodes_c.owned]
-                xc = fc.function_space.tabulate_dof_coordinates()[own, :d]
-                vc = fc.x.array.reshape(-1, bs_c)[own]
-                x_all, v_all = _gathered(comm, xc, vc)
-                if len(x_all) == 0:
-                    continue
-                xf = ff.function_space.tabulate_dof_coordinates()[nodes_f.nodes, :d]
-                values = ff.x.array.reshape(-1, bs_f)
-                values[nodes_f.nodes] = carry(x_all, v_all, xf, d)
+                nodes = coarse.contact.nodes
+                source, target, k = nodes.nodes[nodes.owned], fine.contact.nodes.nodes, d
+            self._carry_rows(fc, ff, source, target, k)
             ff.x.scatter_forward()
 
-
-def _owned_dofs(f, d: int):
-    """(coordinates, values) of a Function's owned dofs, values as (n, bs)."""
-    space = f.function_space
-    owned = space.dofmap.index_map.size_local
-    bs = space.dofmap.index_map_bs
-    return (space.tabulate_dof_coordinates()[:owned, :d],
-            f.x.array.reshape(-1, bs)[:owned])
+    def _carry_rows(self, fc, ff, source, target, k: int):
+        """ff's rows `target` (nodes, each of block size b) from fc's owned rows `source`,
+        gathered from every rank."""
+        d = self.fine.V.mesh.geometry.dim
+        b = fc.function_space.dofmap.index_map_bs
+        xs = fc.function_space.tabulate_dof_coordinates()[source, :d]
+        x_all, v_all = _gathered(self.comm, xs, fc.x.array.reshape(-1, b)[source])
+        if len(x_all) == 0:
+            return
+        values = ff.x.array.reshape(-1, b)
+        xf = ff.function_space.tabulate_dof_coordinates()[target, :d]
+        values[target] = carry(x_all, v_all, xf, k)
 
 
 #: solver.first_iterate = "auto" starts from the coarse run from this many displacement

@@ -190,8 +190,8 @@ class FrontRule:
     converged iterate follows an exact solve whenever the last iteration did not change the
     state, so it is the one of the all-exact method to the linear tolerance's effect.
 
-    `count` is the number of nodes whose state differs from the previous iterate's, summed
-    over all ranks (so every rank takes the same decision)."""
+    The state is compared node by node on each rank and the counts of changed nodes summed
+    over all ranks, so every rank takes the same decision."""
 
     def __init__(self):
         self.previous = None      # state(x_{k-1}) on this rank

@@ -358,8 +358,8 @@ class CondensedSNES(NewtonSolver):
                 and min(self.residuals[-GUARD_WINDOW:]) >= min(self.residuals[:-GUARD_WINDOW])):
             self._tripped = True              # _converged stops the solve
         if it > 0 and self.front is not None:
-            history = snes.getKSP().getConvergenceHistory()
             ksp = snes.getKSP()
+            history = ksp.getConvergenceHistory()
             reached = (float(history[-1] / history[0])
                        if len(history) > 1 and history[0] > 0 else None)
             # Reached the absolute tolerance instead (a small right-hand side): exact too.
