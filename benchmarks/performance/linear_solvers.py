@@ -56,7 +56,17 @@ DIRECT = {
 _AMG = "pc_hypre_boomeramg_"
 #: BoomerAMG variants (over the defaults of contactvisco.solver.newton.ITERATIVE_OPTIONS).
 ITERATIVE = {
-    "BoomerAMG (default: HMIS, ext+i, theta 0.7)": {},
+    "BoomerAMG (default: HMIS, ext+i, theta 0.7, Chebyshev)": {},
+    "hybrid symmetric Gauss-Seidel (PETSc's default smoother)": {
+        _AMG + "relax_type_down": "symmetric-SOR/Jacobi",
+        _AMG + "relax_type_up": "symmetric-SOR/Jacobi"},
+    "hybrid Gauss-Seidel, forward down, backward up": {
+        _AMG + "relax_type_down": "SOR/Jacobi", _AMG + "relax_type_up": "backward-SOR/Jacobi"},
+    "l1 Gauss-Seidel, forward down, backward up": {
+        _AMG + "relax_type_down": "l1-Gauss-Seidel",
+        _AMG + "relax_type_up": "backward-l1-Gauss-Seidel"},
+    "l1-scaled Jacobi": {_AMG + "relax_type_down": "l1scaled-Jacobi",
+                         _AMG + "relax_type_up": "l1scaled-Jacobi"},
     "theta 0.5": {_AMG + "strong_threshold": 0.5},
     "theta 0.6": {_AMG + "strong_threshold": 0.6},
     "nodal coarsening 6": {_AMG + "nodal_coarsen": 6},
