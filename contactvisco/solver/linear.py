@@ -30,7 +30,9 @@ iterations when every solve is exact, so that rule alone is off by default (KEEP
 inexact solves of `forcing` (INEXACT), which added Newton iterations. What pays is the two
 together where they fit the semi-smooth Newton method, the front rule (FrontRule, on by
 default for the iterative solver: FRONT): loose solves with a kept hierarchy while an
-iteration changes the contact state, an exact solve with a fresh one once it does not.
+iteration changes the contact state, an exact solve with a fresh one once it does not, and
+the same hierarchy for the exact solves that follow at that state (SAME_STATE), where only
+the values of the rows of a law that is not piecewise linear change (3D slip directions).
 """
 from __future__ import annotations
 
@@ -46,8 +48,16 @@ BUDGET = 5
 ROWS = 16
 
 #: An exact solve under the front rule (FrontRule) keeps the hierarchy only for a matrix
-#: within this many rows of the build's: 0, a set-up of its own matrix (docs/scaling.md).
+#: within this many rows of the build's: 0, a set-up of its own matrix (docs/scaling.md),
+#: unless the contact state is the one of the build (SAME_STATE).
 EXACT_ROWS = 0
+
+#: On: an exact solve keeps the hierarchy however many rows changed if every contact node is
+#: in the branch of the law it was in at the build. At a fixed state only the values of
+#: rows whose law is not piecewise linear change (the slip directions of 3D friction, a
+#: nonlinear compliance): the Newton iterations that converge them then share one set-up
+#: (docs/scaling.md). In 2D with the paper's laws a fixed state is a fixed matrix, kept anyway.
+SAME_STATE = True
 
 #: On: the rule above (an extra matrix of the system's size for the preconditioner). Off by
 #: default: on the paper scene and block3d it saved set-ups but not time (docs/scaling.md).
@@ -76,15 +86,18 @@ class KeptPreconditioner:
         self.extra = 0           # iterations beyond the first solve's, since the build
         self.kept = 0            # solves with a kept hierarchy, over the object's life
         self.values = None       # the CSR values of the matrix of the build
+        self.state = None        # the contact state (contact_state) of the build's iterate
 
-    def build_next(self, ksp, A, loose=None) -> bool:
+    def build_next(self, ksp, A, loose=None, state=None) -> bool:
         """Decide for the next solve of `ksp` (called once per Newton matrix, before its
         solve; the same on every rank): True if the preconditioner is built again, from the
         new matrix.
 
         With `loose` given (the front rule, FrontRule), the budget is not used: a loose
         solve keeps the hierarchy for a matrix within ROWS rows of the build's, an exact
-        one (loose False) within EXACT_ROWS rows."""
+        one (loose False) within EXACT_ROWS rows, or with any rows changed if `state` (this
+        rank's contact_state of the iterate) equals the state of the build on every rank
+        (SAME_STATE)."""
         stamp = self.stamp()
         iterations, reason = ksp.getIterationNumber(), ksp.getConvergedReason()
         if self.solves == 1:
@@ -105,14 +118,18 @@ class KeptPreconditioner:
                     len(values) == len(self.values):
                 entries = np.flatnonzero(values != self.values)
                 rows = int(np.unique(np.searchsorted(indptr, entries, side="right")).size)
-            counts = A.getComm().tompi4py().allgather(rows)
-            keep = min(counts) >= 0 and sum(counts) <= bound
+            same = (SAME_STATE and loose is False and state is not None
+                    and self.state is not None and np.array_equal(state, self.state))
+            counts = A.getComm().tompi4py().allgather((rows, same))
+            keep = (min(c for c, _ in counts) >= 0 and sum(c for c, _ in counts) <= bound) \
+                or all(s for _, s in counts)
         if keep:
             self.solves += 1
             self.kept += 1
             return False
         self.built, self.solves, self.first, self.extra = stamp, 1, None, 0
         self.values = None if values is None else values.copy()
+        self.state = None if state is None else state.copy()
         return True
 
 

@@ -546,8 +546,8 @@ class CondensedSNES(NewtonSolver):
     def _jacobian(self, snes, x, A, P):
         self.system.jacobian()
         if self.front is not None:
-            self._loose = self.front.loose(linear.contact_state(self.system.parts),
-                                           self.system.V.mesh.comm)
+            self._state = linear.contact_state(self.system.parts)
+            self._loose = self.front.loose(self._state, self.system.V.mesh.comm)
             # (the rule is the iterative solver's only: self.front is None with MUMPS)
             self._asked = linear.LOOSE if self._loose else self._ksp_rtol
             snes.getKSP().setTolerances(rtol=self._asked)

@@ -290,6 +290,7 @@ class NewtonSolver:
         self.nearby_solves = 0           # solves with an earlier matrix's factors (a run's)
         self.kept = None                 # the iterative solver's kept preconditioner (linear)
         self._loose = None               # the front rule's choice for the next solve (linear)
+        self._state = None               # and the contact state it was taken at
 
     def _finish_setup(self):
         """Give the SNES (and through it the KSP, PC, line search and the factorization or
@@ -353,7 +354,7 @@ class NewtonSolver:
         if not self.reuse:
             if self.kept is None:
                 self.setups += 1
-            elif self.kept.build_next(self.snes.getKSP(), A, self._loose):
+            elif self.kept.build_next(self.snes.getKSP(), A, self._loose, self._state):
                 A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
                 self.setups += 1
             return

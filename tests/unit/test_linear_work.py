@@ -157,6 +157,31 @@ def test_kept_preconditioner_rule(monkeypatch):
     assert rule.kept == 2
 
 
+def test_kept_preconditioner_at_a_fixed_contact_state(monkeypatch):
+    """Under the front rule an exact solve keeps the hierarchy for a matrix whose rows all
+    changed if the contact state is the build's (the slip directions turning at a fixed
+    state), and builds it again for another state, with SAME_STATE off, or for a loose
+    solve beyond ROWS."""
+    monkeypatch.setattr(linear, "EXACT_ROWS", 0)
+    monkeypatch.setattr(linear, "ROWS", 2)
+    rule = linear.KeptPreconditioner(lambda: 0)
+    ksp = _KSP()
+    state = np.array([[0, 1, 1], [1, 1, 0]], dtype=np.int8)
+    other = state.copy()
+    other[1, 0] = 0
+    values = np.ones(10)
+    assert rule.build_next(ksp, _matrix(values), True, state)          # the first matrix
+    for k in range(2, 5):                       # every row changed, the same state: kept
+        ksp.iterations = 10
+        assert not rule.build_next(ksp, _matrix(k * values), False, state)
+    assert rule.build_next(ksp, _matrix(5 * values), True, state)      # loose: rows > ROWS
+    assert rule.build_next(ksp, _matrix(6 * values), False, other)     # another state
+    assert not rule.build_next(ksp, _matrix(7 * values), False, other)
+    monkeypatch.setattr(linear, "SAME_STATE", False)
+    assert rule.build_next(ksp, _matrix(8 * values), False, other)
+    assert rule.kept == 4
+
+
 def test_kept_preconditioner_and_inexact_solves_keep_the_answer(monkeypatch):
     """The iterative solver with the kept preconditioner and the inexact solves switched on
     builds fewer preconditioners and converges to the contact values of every solve to
