@@ -16,6 +16,7 @@ from contactvisco.errors import SceneError
 from contactvisco.fem import compat
 from contactvisco.fem import obstacle as obstacle_module
 from contactvisco.fem import prescribed
+from contactvisco.fem.bound_zone import BoundZone
 from contactvisco.fem.contact_unknowns import contact_unknowns
 from contactvisco.fem.fields import assembled_values, interpolator, length_scale, nodal_rule
 from contactvisco.model import contact_law as law
@@ -48,6 +49,7 @@ class ContactPart:
     constants: dict                            # r, g, stiffness, mu (those the law needs)
     corner_forms: dict | None = None           # corner_forms() (None without corners)
     obstacle: object | None = None             # fem.obstacle.ObstaclePart (None: none)
+    bound_zone: object | None = None           # fem.bound_zone.BoundZone (lambda_nu only)
 
 
 def _contact_measure(scene, geometry, ds):
@@ -134,7 +136,8 @@ def build_contact(scene, geometry, u, v, ds, context, updates, kin):
                        u_p1=fem.Function(W) if degree > 1 else None, constants=constants,
                        corner_forms=_corner_forms(terms, u, normal, Q, W, dsc,
                                                   with_radius="p_tau" in laws)
-                       if corners or laws else None, obstacle=obstacle)
+                       if corners or laws else None, obstacle=obstacle,
+                       bound_zone=BoundZone(Q, dsc) if lambda_nu is not None else None)
     return part, F_u, pairs
 
 

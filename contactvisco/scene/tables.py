@@ -1230,7 +1230,7 @@ class Solver(Table):
         "max_cuts": Key(4, lambda x: integer(x) and 0 <= x <= 20, "an integer from 0 to 20"),
         "linear_system": choice("auto", "auto", "condensed", "coupled"),
         "linear_solver": choice("auto", "auto", "direct", "iterative"),
-        "predictor": choice("extrapolate", "extrapolate", "none"),
+        "predictor": choice("extrapolate", "extrapolate", "linear", "none"),
         "first_iterate": choice("auto", "auto", "previous", "coarse"),
         "coarse_factor": Key(4, lambda x: integer(x) and 2 <= x <= 16,
                              "an integer from 2 to 16"),

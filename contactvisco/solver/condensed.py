@@ -276,6 +276,16 @@ class BulkPart:
         self.values = None               # the Constants' values of the kept matrix
         self.assemblies = 0              # of the kept matrix: a new bulk operator each
         self.matrix = A.duplicate()
+        # The owned rows the facet integrals reach (global indices): the only rows of J_uu
+        # that differ between two iterates while the kept matrix stays. (An assembly puts
+        # its entries, zeros too, in the pattern; create_matrix alone leaves it empty.)
+        pattern = create_matrix(self.facet)
+        compat.assemble_matrix(pattern, self.facet, [], diagonal=0.0)
+        pattern.assemble()
+        indptr = pattern.getValuesCSR()[0]
+        pattern.destroy()
+        first = A.getOwnershipRange()[0]
+        self.rows = (first + np.flatnonzero(np.diff(indptr) > 0)).astype(PETSc.IntType)
 
     def assemble_into(self, A, bcs):
         """A = J_uu: the kept cell part (assembled again if a Constant changed) plus the
@@ -311,6 +321,16 @@ def coupling_blocks(J):
     return blocks
 
 
+def forms_by_domain(F):
+    """The form F as compiled forms whose sum is F: its cell integrals in one, its other
+    integrals (Gamma_C) in another. An assembly packs every coefficient of its form for every
+    cell or facet it visits; apart, the cells carry only the bulk's coefficients (u, the
+    memory), not the contact fields (the multipliers, the normal)."""
+    cells = [i for i in F.integrals() if i.integral_type() == "cell"]
+    others = [i for i in F.integrals() if i.integral_type() != "cell"]
+    return [fem.form(ufl.Form(part)) for part in (cells, others) if part]
+
+
 def diagonal_scale(A, nodes, d):
     """s_i: the mean |diagonal| of A on the d rows of each local node in `nodes`; where it
     is zero, the mean over all nodes of all ranks (or 1). Collective."""
@@ -338,7 +358,7 @@ class NodalCondensation:
                 self.fields[0].function_space.dofmap.index_map.size_local:
             raise RuntimeError("displacement and multiplier node ownership differ")
         self.bcs = problem.bcs_u
-        self.F_u = fem.form(problem.F[0])
+        self.F_u = forms_by_domain(problem.F[0])
         self.J_uu = fem.form(problem.J[0][0])
         self.G = [fem.form(problem.F[1 + a]) for a in range(len(self.fields))]
         self.G_vecs = [compat.form_vector(f) for f in self.G]
@@ -397,6 +417,15 @@ class NodalCondensation:
         BulkPart) and every Jacobian assembles it anew."""
         return self._bulk.assemblies if self._bulk is not None and self._bulk.split else None
 
+    def varying_rows(self):
+        """The owned rows (global indices, sorted) in which two Newton matrices J_red of the
+        same bulk operator (equal bulk_stamp) can differ: the contact nodes' rows, which the
+        condensation replaces, and the rows the facet integrals of J_uu reach; None where
+        the bulk operator is assembled with every Jacobian (no stamp)."""
+        if self._bulk is None or not self._bulk.split:
+            return None
+        return np.union1d(self.rows.ravel(), self._bulk.rows).astype(PETSc.IntType)
+
     def _node_values(self, vec, bs):
         vec.ghostUpdate(addv=_ADD, mode=_REVERSE)
         return vec.array.reshape(-1, bs)[self.own]
@@ -445,7 +474,8 @@ class NodalCondensation:
         applied only where x differs from g on a prescribed component (lifting_needed)."""
         with b.localForm() as local:
             local.set(0.0)
-        assemble_vector(b, self.F_u)
+        for form in self.F_u:
+            assemble_vector(b, form)
         if self.lifting_needed(x):
             compat.apply_lifting(b, [self.J_uu], bcs=[self.bcs], x0=[x], scale=-1.0)
         b.ghostUpdate(addv=_ADD, mode=_REVERSE)

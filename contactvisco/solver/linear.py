@@ -37,6 +37,7 @@ the values of the rows of a law that is not piecewise linear change (3D slip dir
 from __future__ import annotations
 
 import numpy as np
+from petsc4py import PETSc
 
 #: The iterations beyond n_0 that the solves with a kept hierarchy may add up to: a
 #: BoomerAMG set-up costs about 4.5 to 5 GMRES iterations (V-cycles) in 2D and 3D
@@ -76,10 +77,16 @@ class KeptPreconditioner:
         () -> a value that changes whenever the bulk operator changes (compared with ==),
         or None when it depends on the iterate (the hierarchy is then built for every
         Newton matrix).
+    rows : numpy.ndarray, optional
+        The owned rows (global indices) in which two Newton matrices of one stamp can differ
+        (NodalCondensation.varying_rows): only these are read and compared, instead of the
+        whole matrix. None: every row.
     """
 
-    def __init__(self, stamp):
+    def __init__(self, stamp, rows=None):
         self.stamp = stamp
+        self.rows = rows
+        self._selection = None   # the index sets of `rows` and all columns, made at first use
         self.built = None        # the stamp of the build
         self.first = None        # Krylov iterations of the first solve after the build
         self.solves = 0          # solves since the build
@@ -108,10 +115,7 @@ class KeptPreconditioner:
         bound = ROWS if loose in (None, True) else EXACT_ROWS
         keep = ((KEEP or loose is not None) and stamp is not None and self.solves > 0
                 and stamp == self.built and reason > 0 and budget)
-        try:
-            indptr, _, values = A.getValuesCSR()
-        except Exception:                      # a matrix type without CSR access
-            indptr = values = None
+        indptr, values = self._values(A)
         if keep:
             rows = -1
             if values is not None and self.values is not None and \
@@ -131,6 +135,32 @@ class KeptPreconditioner:
         self.values = None if values is None else values.copy()
         self.state = None if state is None else state.copy()
         return True
+
+    def _values(self, A):
+        """The CSR row pointer and values of the rows of A that are compared (all, or
+        `rows`); (None, None) for a matrix type without CSR access."""
+        try:
+            if self.rows is None:
+                indptr, _, values = A.getValuesCSR()
+                return indptr, values
+            if self._selection is None:
+                first, last = A.getOwnershipRangeColumn()
+                comm = A.getComm()
+                self._selection = (
+                    PETSc.IS().createGeneral(self.rows, comm=comm),
+                    PETSc.IS().createStride(last - first, first=first, step=1, comm=comm))
+            part = A.createSubMatrix(*self._selection)
+            indptr, _, values = part.getValuesCSR()
+            part.destroy()
+            return indptr, values
+        except PETSc.Error:                    # a matrix type without CSR access
+            return None, None
+
+    def destroy(self):
+        """Free the index sets (idempotent)."""
+        for obj in self._selection or ():
+            obj.destroy()
+        self._selection = None
 
 
 #: The inexact solves: the linear residual is asked for SAFETY times the residual at which

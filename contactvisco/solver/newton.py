@@ -238,7 +238,8 @@ class CondensedSNES(NewtonSolver):
         nodal = type(self.system) is NodalCondensation and not (
             obstacle is not None and obstacle.controlled)
         if (linear.KEEP or linear.FRONT) and not reuse and nodal:
-            self.kept = linear.KeptPreconditioner(self.system.bulk_stamp)
+            self.kept = linear.KeptPreconditioner(self.system.bulk_stamp,
+                                                  self.system.varying_rows())
         # The front rule: loose solves while the iterations change the contact state.
         # (iterative solver only: with MUMPS an iteration on the last factors is already a
         # back-substitution, and loose ones added Newton iterations without saving time)

@@ -334,7 +334,8 @@ class NewtonSolver:
         if self.__dict__.get("floating") is not None:
             self.floating.destroy()
             self.floating = None
-        owned = ("snes", "b", "x", "A", "_x_jacobian", "_du", "_trial", "_trial_b") + (
+        owned = ("snes", "b", "x", "A", "_x_jacobian", "_du", "_trial", "_trial_b",
+                 "kept") + (
             ("operator",) if self.reuse or self.__dict__.get("kept") is not None
             else ())                                # else the operator is A or J_red
         for name in owned:

@@ -723,7 +723,7 @@ class ForwardModel:
         self._reset()
         self.runs += 1
         grid = time_grid.times(self.scene["time"])
-        predict = predictor.create(self.scene, problem.unknowns)
+        predict = predictor.create(self.scene, problem)
         obstacle = problem.contact and problem.contact.obstacle
         component = (obstacle.controlled[0] if obstacle is not None and obstacle.controlled
                      else None)

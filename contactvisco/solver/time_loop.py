@@ -161,7 +161,7 @@ class Run:
         points = scene["output"]["probes"]
         self.probes = Probes(problem.geometry.mesh, points) if points else None
         self.resumed = checkpoint.load(out, problem, comm) if restart else None
-        self.predictor = predictor.create(scene, problem.unknowns)
+        self.predictor = predictor.create(scene, problem)
         if not self.resumed:                  # a restart has no coarse history
             self.predictor = coarse_start.create(scene, problem, comm, self.predictor,
                                                  self.say)

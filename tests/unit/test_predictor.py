@@ -2,6 +2,10 @@
 
 - the extrapolation of the last two accepted states is exact for unknowns linear in time,
   with unequal step sizes (a cut step's halves);
+- the bound's reaction, extrapolated in its square inside the zone at the bound, follows an
+  edge moving at a steady speed exactly, releasing the nodes it passes; which nodes lie
+  inside that zone is found on 1 and 2 ranks; at 128^2 cells it saves Newton iterations
+  and changes no converged state;
 - a prediction changes how many iterations a step takes, not the state it converges to;
 - a step whose Newton fails from the prediction is solved from the last accepted state,
   without a cut;
@@ -9,6 +13,8 @@
   assembled Newton matrix differs from it, bit for bit.
 """
 from types import SimpleNamespace
+
+import pytest
 
 import numpy as np
 from mpi4py import MPI
@@ -43,6 +49,70 @@ def test_extrapolation_is_exact_for_unknowns_linear_in_time():
     predict.record(0.15)                             # states at 0.1 and 0.15: step 0.05
     assert predict.apply(0.35)
     assert np.allclose(unknowns[0].x.array, a + 0.35 * b, rtol=0, atol=1e-14)
+
+
+def test_the_reaction_square_follows_a_steadily_moving_edge():
+    """R(x, t) = c sqrt(x - a(t)) for x > a(t), the edge a moving at a steady speed: the
+    extrapolation of R^2 gives R(t_2) wherever the edge has not reached the node, and a
+    positive lambda (a node off the bound) wherever it has; the linear extrapolation of R
+    keeps some of those nodes at the bound."""
+    x = np.linspace(0.0, 1.0, 41)
+    edge = {0.0: 0.1, 0.1: 0.2, 0.25: 0.35}          # a(t) = 0.1 + t, steps 0.1 and 0.15
+
+    def lam(t):
+        return -2.0 * np.sqrt(np.maximum(x - edge[t], 0.0))
+    older, newer, truth = lam(0.0), lam(0.1), lam(0.25)
+    inside = (older < 0) & (newer < 0)
+    predicted = predictor_module.extrapolate_reaction(older, newer, 1.5, inside)
+    stays, leaves = inside & (truth < 0), inside & (truth == 0)
+    assert stays.sum() > 10 and leaves.sum() >= 5
+    assert np.allclose(predicted[stays], truth[stays], rtol=1e-12, atol=1e-14)
+    assert np.all(predicted[leaves] > 0)
+    linear = newer + 1.5 * (newer - older)
+    assert np.count_nonzero(linear[leaves] < 0) >= 3  # the linear rule misses these
+    outside = ~inside                                 # elsewhere: the linear rule
+    assert np.array_equal(predicted[outside], linear[outside])
+
+
+@pytest.mark.mpi
+def test_the_zone_at_the_bound_has_its_edge_nodes_outside():
+    """On the bottom of the paper square (16 x 2 cells, so that 2 ranks share Gamma_C; node
+    k at x = k / 16), the nodes k = 5..12 at the bound and node 2 alone: inside the zone
+    are nodes 6 to 11, on every rank that holds them (ghosts included), each owned once."""
+    comm = MPI.COMM_WORLD
+    scene = load_scene("paper", geometry={"cells": [16, 2]}, output={"probes": []})
+    problem = build(scene, geometry_module.build(scene, comm))
+    xy = problem.contact.Q_coordinates
+    on_bottom = np.zeros(len(xy), dtype=bool)
+    on_bottom[problem.contact.nodes.nodes] = True
+    k = np.round(xy[:, 0] * 16)
+    bound = on_bottom & (((k >= 5) & (k <= 12)) | (k == 2))
+    inside = problem.contact.bound_zone.interior(bound)
+    owned = problem.contact.lambda_nu.function_space.dofmap.index_map.size_local
+    held = comm.allreduce(int(np.count_nonzero(inside[:owned])))
+    right = comm.allreduce(bool(np.array_equal(inside, on_bottom & (k >= 6) & (k <= 11))),
+                           op=MPI.LAND)
+    assert comm.allreduce(bool(np.allclose(xy[on_bottom, 1], 0.0)), op=MPI.LAND)
+    assert right and held == 6
+
+
+def test_the_reaction_square_saves_iterations_not_the_answer():
+    """The paper scene at 128^2 cells (iterative solver), 6 steps after t_0: with the
+    reaction extrapolated in its square the steps after the second take fewer Newton
+    iterations in all (the edge of the zone at the bound crosses about 2 nodes a step), and
+    every contact value is the linear rule's to the Newton tolerance."""
+    runs = {}
+    for choice in ("linear", "extrapolate"):
+        runs[choice] = solve(load_scene("paper", geometry={"cells": [128, 128]},
+                                        time={"T": 0.6, "steps": 6},
+                                        solver={"linear_solver": "iterative",
+                                                "predictor": choice},
+                                        output={"probes": []}))
+    later = {key: sum(s["newton_iterations"] for s in run.steps[3:])
+             for key, run in runs.items()}
+    assert later["extrapolate"] < later["linear"]
+    squared, plain = _contact_values(runs["extrapolate"]), _contact_values(runs["linear"])
+    assert np.max(np.abs(squared - plain)) <= 1e-10 * np.max(np.abs(plain))
 
 
 def _contact_values(result):
