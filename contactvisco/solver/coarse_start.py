@@ -220,7 +220,7 @@ class CoarseStart:
 #: solver.first_iterate = "auto" starts from the coarse run from this many displacement
 #: unknowns on (2D, 3D): where the first loaded step was measured cheaper with it than
 #: without, the coarse run's set-up included (docs/scaling.md).
-AUTO_UNKNOWNS = {2: 200_000, 3: 20_000}
+AUTO_UNKNOWNS = {2: 100_000, 3: 20_000}
 
 
 def wanted(scene: dict, problem) -> bool:
