@@ -182,6 +182,36 @@ def test_kept_preconditioner_at_a_fixed_contact_state(monkeypatch):
     assert rule.kept == 4
 
 
+@pytest.mark.mpi
+@pytest.mark.parametrize("make_scene", [_paper, _block3d], ids=["paper", "block3d"])
+def test_newton_matrices_differ_only_in_the_varying_rows(monkeypatch, make_scene):
+    """The kept preconditioner reads only NodalCondensation.varying_rows (the contact rows
+    and those the facet integrals reach). Compared whole, consecutive Newton matrices at one
+    bulk operator differ in some rows, all of them among those."""
+    seen = {"changed": 0, "outside": 0}
+    previous = {}
+    build_next = linear.KeptPreconditioner.build_next
+
+    def checked(self, ksp, A, *args):
+        indptr, _, values = A.getValuesCSR()
+        stamp = self.stamp()
+        if previous.get("stamp") == stamp and len(previous["values"]) == len(values):
+            entries = np.flatnonzero(values != previous["values"])
+            rows = A.getOwnershipRange()[0] - 1 + np.unique(
+                np.searchsorted(indptr, entries, side="right"))
+            seen["changed"] += rows.size
+            seen["outside"] += np.setdiff1d(rows, self.rows).size
+        previous.update(stamp=stamp, values=values.copy())
+        return build_next(self, ksp, A, *args)
+    monkeypatch.setattr(linear.KeptPreconditioner, "build_next", checked)
+    scene = make_scene()
+    scene["solver"]["linear_solver"] = "iterative"
+    simulate(scene, comm=MPI.COMM_WORLD, progress=False)
+    comm = MPI.COMM_WORLD
+    assert comm.allreduce(seen["changed"]) > 0
+    assert comm.allreduce(seen["outside"]) == 0
+
+
 def test_kept_preconditioner_and_inexact_solves_keep_the_answer(monkeypatch):
     """The iterative solver with the kept preconditioner and the inexact solves switched on
     builds fewer preconditioners and converges to the contact values of every solve to
