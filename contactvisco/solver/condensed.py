@@ -265,8 +265,7 @@ class BulkPart:
     """
 
     def __init__(self, J_uu, A):
-        cells = [i for i in J_uu.integrals() if i.integral_type() == "cell"]
-        facets = [i for i in J_uu.integrals() if i.integral_type() != "cell"]
+        cells, facets = integrals_by_domain(J_uu)
         cell_form = ufl.Form(cells)
         self.split = bool(cells and facets) and not cell_form.coefficients()
         if not self.split:
@@ -321,14 +320,18 @@ def coupling_blocks(J):
     return blocks
 
 
+def integrals_by_domain(F):
+    """The integrals of the UFL form F: (those over cells, the others: Gamma_C)."""
+    cells = [i for i in F.integrals() if i.integral_type() == "cell"]
+    return cells, [i for i in F.integrals() if i.integral_type() != "cell"]
+
+
 def forms_by_domain(F):
     """The form F as compiled forms whose sum is F: its cell integrals in one, its other
     integrals (Gamma_C) in another. An assembly packs every coefficient of its form for every
     cell or facet it visits; apart, the cells carry only the bulk's coefficients (u, the
     memory), not the contact fields (the multipliers, the normal)."""
-    cells = [i for i in F.integrals() if i.integral_type() == "cell"]
-    others = [i for i in F.integrals() if i.integral_type() != "cell"]
-    return [fem.form(ufl.Form(part)) for part in (cells, others) if part]
+    return [fem.form(ufl.Form(part)) for part in integrals_by_domain(F) if part]
 
 
 def diagonal_scale(A, nodes, d):
@@ -419,12 +422,14 @@ class NodalCondensation:
 
     def varying_rows(self):
         """The owned rows (global indices, sorted) in which two Newton matrices J_red of the
-        same bulk operator (equal bulk_stamp) can differ: the contact nodes' rows, which the
-        condensation replaces, and the rows the facet integrals of J_uu reach; None where
-        the bulk operator is assembled with every Jacobian (no stamp)."""
+        same bulk operator (equal bulk_stamp) can differ, the contact nodes' rows, which the
+        condensation replaces, and the rows the facet integrals of J_uu reach, as the index
+        sets that take them out of J_red with all columns (row_selection; the caller
+        destroys them); None where the bulk operator is assembled with every Jacobian (no
+        stamp)."""
         if self._bulk is None or not self._bulk.split:
             return None
-        return np.union1d(self.rows.ravel(), self._bulk.rows).astype(PETSc.IntType)
+        return row_selection(self.A, np.union1d(self.rows.ravel(), self._bulk.rows))
 
     def _node_values(self, vec, bs):
         vec.ghostUpdate(addv=_ADD, mode=_REVERSE)

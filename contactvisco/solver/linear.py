@@ -77,16 +77,16 @@ class KeptPreconditioner:
         () -> a value that changes whenever the bulk operator changes (compared with ==),
         or None when it depends on the iterate (the hierarchy is then built for every
         Newton matrix).
-    rows : numpy.ndarray, optional
-        The owned rows (global indices) in which two Newton matrices of one stamp can differ
-        (NodalCondensation.varying_rows): only these are read and compared, instead of the
-        whole matrix. None: every row.
+    selection : tuple of petsc4py.PETSc.IS, optional
+        The index sets (rows, all columns) of the owned rows in which two Newton matrices of
+        one stamp can differ (NodalCondensation.varying_rows): only these rows are read and
+        compared, instead of the whole matrix; the object owns and destroys them. None:
+        every row.
     """
 
-    def __init__(self, stamp, rows=None):
+    def __init__(self, stamp, selection=None):
         self.stamp = stamp
-        self.rows = rows
-        self._selection = None   # the index sets of `rows` and all columns, made at first use
+        self.selection = selection
         self.built = None        # the stamp of the build
         self.first = None        # Krylov iterations of the first solve after the build
         self.solves = 0          # solves since the build
@@ -137,19 +137,13 @@ class KeptPreconditioner:
         return True
 
     def _values(self, A):
-        """The CSR row pointer and values of the rows of A that are compared (all, or
-        `rows`); (None, None) for a matrix type without CSR access."""
+        """The CSR row pointer and values of the rows of A that are compared (all, or those
+        of `selection`); (None, None) for a matrix type without CSR access."""
         try:
-            if self.rows is None:
+            if self.selection is None:
                 indptr, _, values = A.getValuesCSR()
                 return indptr, values
-            if self._selection is None:
-                first, last = A.getOwnershipRangeColumn()
-                comm = A.getComm()
-                self._selection = (
-                    PETSc.IS().createGeneral(self.rows, comm=comm),
-                    PETSc.IS().createStride(last - first, first=first, step=1, comm=comm))
-            part = A.createSubMatrix(*self._selection)
+            part = A.createSubMatrix(*self.selection)
             indptr, _, values = part.getValuesCSR()
             part.destroy()
             return indptr, values
@@ -158,9 +152,9 @@ class KeptPreconditioner:
 
     def destroy(self):
         """Free the index sets (idempotent)."""
-        for obj in self._selection or ():
+        for obj in self.selection or ():
             obj.destroy()
-        self._selection = None
+        self.selection = None
 
 
 #: The inexact solves: the linear residual is asked for SAFETY times the residual at which

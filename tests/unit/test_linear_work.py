@@ -200,7 +200,7 @@ def test_newton_matrices_differ_only_in_the_varying_rows(monkeypatch, make_scene
             rows = A.getOwnershipRange()[0] - 1 + np.unique(
                 np.searchsorted(indptr, entries, side="right"))
             seen["changed"] += rows.size
-            seen["outside"] += np.setdiff1d(rows, self.rows).size
+            seen["outside"] += np.setdiff1d(rows, self.selection[0].getIndices()).size
         previous.update(stamp=stamp, values=values.copy())
         return build_next(self, ksp, A, *args)
     monkeypatch.setattr(linear.KeptPreconditioner, "build_next", checked)
