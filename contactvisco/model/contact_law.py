@@ -28,7 +28,12 @@ ufl.max_value (whose UFL derivative takes the side of the second argument at a t
 
 - the bound, min(s, g) at s = g (saturate): the compliance side, slope 1 (BOUND_TIE). The
   augmented-Lagrangian step of a node on the bound puts it at s = g up to round-off, so the
-  tie is met at every iterate after such a step. With the bound side (slope 0) a node that
+  tie is met at every iterate after such a step, and so is a node the predictor releases
+  from the bound (contactvisco.solver.predictor). The side is therefore taken for s within
+  TIE_SLACK of the displacement's size of g, not at s = g exactly: otherwise the last bit of
+  s decides it, and two Newton solvers that agree to round-off (the coupled and the condensed
+  system, 1 and 2 ranks, MUMPS with 1 or 2 threads) take different steps from such a node.
+  The value there is s instead of g, an error of at most that round-off. With the bound side (slope 0) a node that
   leaves the bound for the compliance zone has no normal stiffness from p_nu in the next
   Newton matrix, and the step takes one more iteration: in most steps of the paper scene
   (docs/scaling.md; an independent semismooth Newton solver in GetFEM, whose min takes the
@@ -86,8 +91,13 @@ class NUMPY:
 BOUND_TIE = "compliance"
 BOUND_TIES = ("compliance", "bound")
 
+#: A penetration s within this fraction of |u| + |h| + |g| (the displacement, the initial gap
+#: and the bound: the size of s's round-off) of the bound g is at the bound's tie (module
+#: description).
+TIE_SLACK = 1e-12
 
-def saturate(s, g, ops=UFL, tie=None):
+
+def saturate(s, g, ops=UFL, tie=None, slack=0.0):
     """The penetration saturated at the bound, min(s, g), with the side of its derivative at
     s = g chosen.
 
@@ -102,17 +112,20 @@ def saturate(s, g, ops=UFL, tie=None):
     tie : str, optional
         The side taken at s = g: "compliance", d/ds min(s, g) = 1 for s <= g (and 0 for
         s > g), or "bound", d/ds = 0 for s >= g (and 1 for s < g). None: BOUND_TIE.
+    slack : float or UFL expression or numpy.ndarray, optional
+        The tie is |s - g| <= slack: the compliance side takes s <= g + slack, the bound side
+        s >= g - slack (law_terms passes TIE_SLACK times the size of s's round-off).
 
     Returns
     -------
     UFL expression or numpy.ndarray
-        min(s, g), the same value for either side.
+        min(s, g), the same value for either side, up to `slack`.
     """
     tie = BOUND_TIE if tie is None else tie
     if tie == "compliance":
-        return ops.where_le(s, g, s, g)
+        return ops.where_le(s, g + slack, s, g)
     if tie == "bound":
-        return ops.where_ge(s, g, g, s)
+        return ops.where_ge(s, g - slack, g, s)
     raise ValueError(f"tie = {tie!r}: allowed are {', '.join(BOUND_TIES)}")
 
 
@@ -132,14 +145,14 @@ def tangential_part(u, nu, ops=UFL):
     return u - ops.times(ops.dot(u, nu), nu)
 
 
-def law_argument(u_nu, g=None, ops=UFL):
+def law_argument(u_nu, g=None, ops=UFL, slack=0.0):
     """The argument of the prescribed functions: max(0, min(s, g)) (max(0, s) when g is
-    None: no bound), min by saturate."""
-    s = u_nu if g is None else saturate(u_nu, g, ops)
+    None: no bound), min by saturate with its tie `slack`."""
+    s = u_nu if g is None else saturate(u_nu, g, ops, slack=slack)
     return positive_part(s, ops)
 
 
-def p_nu(u_nu, stiffness, g=None, ops=UFL, law=None):
+def p_nu(u_nu, stiffness, g=None, ops=UFL, law=None, slack=0.0):
     """Normal compliance p_nu(s) = c_nu s_+, saturated at the bound: p_nu(min(s, g)).
 
     The paper's [s]_g (zero above g) would switch the force off at nodes that round-off puts
@@ -157,6 +170,8 @@ def p_nu(u_nu, stiffness, g=None, ops=UFL, law=None):
         The array namespace, UFL or NUMPY.
     law : callable, optional
         A prescribed p_nu(sigma) of sigma = max(0, min(s, g)) (eq 3), in place of c_nu sigma.
+    slack : float or UFL expression or numpy.ndarray, optional
+        The width of the bound's tie (saturate).
 
     Returns
     -------
@@ -164,8 +179,8 @@ def p_nu(u_nu, stiffness, g=None, ops=UFL, law=None):
         p_nu(max(0, min(s, g))).
     """
     if law is not None:
-        return law(law_argument(u_nu, g, ops))
-    s = u_nu if g is None else saturate(u_nu, g, ops)
+        return law(law_argument(u_nu, g, ops, slack))
+    s = u_nu if g is None else saturate(u_nu, g, ops, slack=slack)
     return stiffness * positive_part(s, ops)
 
 
@@ -243,11 +258,12 @@ def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, fri
     laws = laws or {}
     s_nu = normal_part(u, nu, ops) - gap
     g = constants.get("g")
+    slack = 0.0 if g is None else TIE_SLACK * (ops.sqrt(ops.dot(u, u)) + abs(gap) + abs(g))
     if "p_nu" in laws:
-        p = p_nu(s_nu, None, g, ops, law=laws["p_nu"])
+        p = p_nu(s_nu, None, g, ops, law=laws["p_nu"], slack=slack)
     else:
-        p = (p_nu(s_nu, constants["stiffness"], g, ops) if "stiffness" in constants
-             else None)
+        p = (p_nu(s_nu, constants["stiffness"], g, ops, slack=slack)
+             if "stiffness" in constants else None)
     R = (unilateral_reaction(lambda_nu, s_nu, g, constants["r"], ops)
          if lambda_nu is not None else None)
     normal_force = p if R is None else (R if p is None else p + R)
@@ -255,7 +271,7 @@ def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, fri
     slip = tangential_part(moved, nu, ops)
     radius = sigma_tau = None
     if "p_tau" in laws and p is not None:
-        radius = laws["p_tau"](law_argument(s_nu, g, ops), p)
+        radius = laws["p_tau"](law_argument(s_nu, g, ops, slack), p)
     elif "mu" in constants:
         radius = friction_radius(constants["mu"], p, R, friction_law)
     if lambda_tau is not None and radius is not None:

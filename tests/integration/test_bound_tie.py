@@ -65,6 +65,30 @@ def test_the_default_tie_and_the_other_kinks():
         law.saturate(np.zeros(2), 0.05, law.NUMPY, "middle")
 
 
+@pytest.mark.parametrize("tie, slope", [("compliance", 100.0), ("bound", 0.0)])
+def test_the_tie_is_as_wide_as_round_off(tie, slope, monkeypatch):
+    """law_terms's p_nu = c min(s, g) at s a few ulps above and below g (where the
+    augmented-Lagrangian step leaves a node on the bound, and where the predictor releases
+    it) takes the slope of the side asked for on both sides of g, and the slope of s's own
+    side from TIE_SLACK times the size of s on."""
+    monkeypatch.setattr(law, "BOUND_TIE", tie)
+    g = 0.05
+
+    def p_nu_at(s, domain):
+        normal = ufl.as_vector([0.0, 1.0])
+        terms = law.law_terms(law.UFL, ufl.as_vector([0.0 * s, s]), normal, 0.0, None, None,
+                              None, {"g": _bound(domain), "stiffness": 100.0, "r": 1.0},
+                              "compliance")
+        return terms["p_nu"]
+
+    for ulps in (-4, -1, 1, 4):
+        s = g + ulps * np.spacing(g)
+        assert _slope(p_nu_at, s) == pytest.approx(slope, abs=1e-12), ulps
+    far = 10 * law.TIE_SLACK * 2 * g
+    assert _slope(p_nu_at, g - far) == pytest.approx(100.0)
+    assert _slope(p_nu_at, g + far) == pytest.approx(0.0, abs=1e-12)
+
+
 def _run(monkeypatch, tie, name, overrides):
     monkeypatch.setattr(law, "BOUND_TIE", tie)
     result = simulate(scene_module.load(name, overrides), comm=MPI.COMM_WORLD,
