@@ -29,11 +29,16 @@ ufl.max_value (whose UFL derivative takes the side of the second argument at a t
 - the bound, min(s, g) at s = g (saturate): the compliance side, slope 1 (BOUND_TIE). The
   augmented-Lagrangian step of a node on the bound puts it at s = g up to round-off, so the
   tie is met at every iterate after such a step, and so is a node the predictor releases
-  from the bound (contactvisco.solver.predictor). The side is therefore taken for s within
-  TIE_SLACK of the displacement's size of g, not at s = g exactly: otherwise the last bit of
-  s decides it, and two Newton solvers that agree to round-off (the coupled and the condensed
-  system, 1 and 2 ranks, MUMPS with 1 or 2 threads) take different steps from such a node.
-  The value there is s instead of g, an error of at most that round-off. With the bound side (slope 0) a node that
+  from the bound (contactvisco.solver.predictor). At a free node (r (s - g) < lambda_nu:
+  released) the side is therefore taken for s within TIE_SLACK of the displacement's size
+  of g, not at s = g exactly: otherwise the last bit of s decides it, and two Newton solvers
+  that agree to round-off (the coupled and the condensed system, 1 and 2 ranks, MUMPS with
+  1 or 2 threads) take different steps from such a node. The value there is s instead of g,
+  an error of at most that round-off. A node held at the bound keeps the exact tie: its
+  u_nu is constrained, so the side changes entries of the Newton matrix but not the step
+  (the direct solver's counts are the same either way), while widening it there too changed
+  the loose solves' paths of the iterative solver and cost the paper scene 4 (256^2) and 7
+  (512^2) more Newton iterations in 6 steps (docs/scaling.md). With the bound side (slope 0) a node that
   leaves the bound for the compliance zone has no normal stiffness from p_nu in the next
   Newton matrix, and the step takes one more iteration: in most steps of the paper scene
   (docs/scaling.md; an independent semismooth Newton solver in GetFEM, whose min takes the
@@ -91,9 +96,9 @@ class NUMPY:
 BOUND_TIE = "compliance"
 BOUND_TIES = ("compliance", "bound")
 
-#: A penetration s within this fraction of |u| + |h| + |g| (the displacement, the initial gap
-#: and the bound: the size of s's round-off) of the bound g is at the bound's tie (module
-#: description).
+#: At a node free of the bound, a penetration s within this fraction of |u| + |h| + |g| (the
+#: displacement, the initial gap and the bound: the size of s's round-off) of the bound g is
+#: at the bound's tie (module description).
 TIE_SLACK = 1e-12
 
 
@@ -259,6 +264,10 @@ def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, fri
     s_nu = normal_part(u, nu, ops) - gap
     g = constants.get("g")
     slack = 0.0 if g is None else TIE_SLACK * (ops.sqrt(ops.dot(u, u)) + abs(gap) + abs(g))
+    if g is not None and lambda_nu is not None:
+        # A node held at the bound keeps the exact tie (module description).
+        held = constants["r"] * (s_nu - g) - lambda_nu
+        slack = ops.where_ge(held, 0.0, 0.0 * slack, slack)
     if "p_nu" in laws:
         p = p_nu(s_nu, None, g, ops, law=laws["p_nu"], slack=slack)
     else:

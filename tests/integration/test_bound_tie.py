@@ -89,6 +89,24 @@ def test_the_tie_is_as_wide_as_round_off(tie, slope, monkeypatch):
     assert _slope(p_nu_at, g + far) == pytest.approx(0.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("lambda_nu, slope", [(1.0, 100.0), (-1.0, 0.0)])
+def test_a_node_held_at_the_bound_keeps_the_exact_tie(lambda_nu, slope):
+    """With the multiplier: one ulp above g, a free node (r (s - g) < lambda_nu) takes the
+    compliance side (slope c), a node held at the bound (r (s - g) >= lambda_nu) the side of
+    s > g itself (slope 0): the slack widens the tie of free nodes only."""
+    g = 0.05
+
+    def p_nu_at(s, domain):
+        terms = law.law_terms(law.UFL, ufl.as_vector([0.0 * s, s]), ufl.as_vector([0.0, 1.0]),
+                              0.0, fem.Constant(domain, PETSc.ScalarType(lambda_nu)), None,
+                              None, {"g": _bound(domain), "stiffness": 100.0, "r": 10.0},
+                              "compliance")
+        return terms["p_nu"]
+
+    assert _slope(p_nu_at, g + np.spacing(g)) == pytest.approx(slope, abs=1e-12)
+    assert _slope(p_nu_at, g - np.spacing(g)) == pytest.approx(100.0)
+
+
 def _run(monkeypatch, tie, name, overrides):
     monkeypatch.setattr(law, "BOUND_TIE", tie)
     result = simulate(scene_module.load(name, overrides), comm=MPI.COMM_WORLD,
