@@ -37,12 +37,12 @@ ufl.max_value (whose UFL derivative takes the side of the second argument at a t
   an error of at most that round-off. A node held at the bound keeps the exact tie: its
   u_nu is constrained, so the side changes entries of the Newton matrix but not the step
   (the direct solver's counts are the same either way), while widening it there too changed
-  the loose solves' paths of the iterative solver and cost the paper scene 4 (256^2) and 7
-  (512^2) more Newton iterations in 6 steps (docs/scaling.md). With the bound side (slope 0) a node that
-  leaves the bound for the compliance zone has no normal stiffness from p_nu in the next
-  Newton matrix, and the step takes one more iteration: in most steps of the paper scene
-  (docs/scaling.md; an independent semismooth Newton solver in GetFEM, whose min takes the
-  slope 1 at a tie, has the compliance side's counts);
+  the loose solves' paths of the iterative solver and cost the paper scene Newton
+  iterations (docs/scaling.md). With the bound side (slope 0) a node that leaves the bound
+  for the compliance zone has no normal stiffness from p_nu in the next Newton matrix, and
+  the step takes one more iteration: in most steps of the paper scene (docs/scaling.md; an
+  independent semismooth Newton solver in GetFEM, whose min takes the slope 1 at a tie, has
+  the compliance side's counts);
 - the positive part, s_+ at s = 0 (p_nu at u_nu = 0, R_nu where r (u_nu - g) = lambda_nu):
   the active side, slope 1, so a body resting at u_nu = 0 still has a non-singular Newton
   matrix (slope 0 costs an iteration at t_0 of the paper scene);
