@@ -189,9 +189,15 @@ def p_nu(u_nu, stiffness, g=None, ops=UFL, law=None, slack=0.0):
     return stiffness * positive_part(s, ops)
 
 
+def reaction_argument(lambda_nu, u_nu, g, r):
+    """r (u_nu - g) - lambda_nu: >= 0 where the node is held at the bound (R_nu > 0 or its
+    tie), < 0 where it is free of it."""
+    return r * (u_nu - g) - lambda_nu
+
+
 def unilateral_reaction(lambda_nu, u_nu, g, r, ops=UFL):
     """R_nu = (lambda_nu - r (u_nu - g))_-, the augmented-Lagrangian reaction of eq (20)."""
-    return positive_part(r * (u_nu - g) - lambda_nu, ops)
+    return positive_part(reaction_argument(lambda_nu, u_nu, g, r), ops)
 
 
 #: The side of P_B's derivative at z = 0 on a ball of radius 0 (the module description):
@@ -266,7 +272,7 @@ def law_terms(ops, u, nu, gap, lambda_nu, lambda_tau, u_previous, constants, fri
     slack = 0.0 if g is None else TIE_SLACK * (ops.sqrt(ops.dot(u, u)) + abs(gap) + abs(g))
     if g is not None and lambda_nu is not None:
         # A node held at the bound keeps the exact tie (module description).
-        held = constants["r"] * (s_nu - g) - lambda_nu
+        held = reaction_argument(lambda_nu, s_nu, g, constants["r"])
         slack = ops.where_ge(held, 0.0, 0.0 * slack, slack)
     if "p_nu" in laws:
         p = p_nu(s_nu, None, g, ops, law=laws["p_nu"], slack=slack)
