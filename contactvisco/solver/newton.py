@@ -246,8 +246,9 @@ class CondensedSNES(NewtonSolver):
         self.front = linear.FrontRule() if linear.FRONT and nodal and not reuse else None
         #: Per Newton iteration of the last solve (front rule): (the relative tolerance
         #: asked, the relative residual the Krylov method reached, None without one: LU
-        #: alone; a solve stopped by the absolute tolerance counts as reaching the asked one).
-        self.linear_log: list[tuple[float, float | None]] = []
+        #: alone; a solve stopped by the absolute tolerance counts as reaching the asked one;
+        #: whether the solve was a loose one).
+        self.linear_log: list[tuple[float, float | None, bool]] = []
         self.operator = (self.system.J_red.duplicate(copy=True)
                          if reuse or self.kept is not None else self.system.J_red)
         self.snes.setFunction(_weak(self._residual), self.b)
@@ -370,7 +371,7 @@ class CondensedSNES(NewtonSolver):
             # Reached the absolute tolerance instead (a small right-hand side): exact too.
             if ksp.getConvergedReason() == PETSc.KSP.ConvergedReason.CONVERGED_ATOL:
                 reached = min(reached or 0.0, self._asked)
-            self.linear_log.append((self._asked, reached))
+            self.linear_log.append((self._asked, reached, self._loose))
 
     def _guarded_solve(self) -> int:
         """Newton; with contact_law.ZERO_BALL = "guarded" (the Constant free_ball of the
@@ -550,15 +551,20 @@ class CondensedSNES(NewtonSolver):
             self._state = linear.contact_state(self.system.parts)
             self._loose = self.front.loose(self._state, self.system.V.mesh.comm)
             # (the rule is the iterative solver's only: self.front is None with MUMPS)
-            self._asked = linear.LOOSE if self._loose else self._ksp_rtol
+            if self._loose:
+                self._asked = linear.LOOSE
+            elif linear.EXACT_FORCING:
+                self._asked = linear.forcing(
+                    self._ksp_rtol, self.system.full_norm, self._target(snes),
+                    ceiling=linear.LOOSE,
+                    safety=linear.EXACT_SAFETY)
+            else:
+                self._asked = self._ksp_rtol
             snes.getKSP().setTolerances(rtol=self._asked)
         self._to_operator(self.system.J_red)
         if linear.INEXACT and not self.reuse and self.front is None:   # iterative solver
-            atol, rtol, _, _ = snes.getTolerances()
-            ksp = snes.getKSP()
-            target = max(atol, rtol * self._norm0)
-            ksp.setTolerances(rtol=linear.forcing(self._ksp_rtol, self.system.full_norm,
-                                                  target))
+            snes.getKSP().setTolerances(rtol=linear.forcing(
+                self._ksp_rtol, self.system.full_norm, self._target(snes)))
         if (self.floating is not None
                 and self.floating.unbalanced >= floating.UNBALANCED_JACOBIANS):
             self._error = SceneError(floating.UNBALANCED, key="solver.linear_solver")
@@ -570,6 +576,11 @@ class CondensedSNES(NewtonSolver):
                 self.force.linearize(snes.getKSP())
             except SceneError as err:        # raised by solve() after SNES stops
                 self._error = err
+
+    def _target(self, snes) -> float:
+        """The coupled residual at which _converged stops: max(atol, rtol |F_0|)."""
+        atol, rtol, _, _ = snes.getTolerances()
+        return max(atol, rtol * self._norm0)
 
     def _converged(self, snes, it, norms):
         norm = self.system.full_norm
