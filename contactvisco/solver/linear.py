@@ -204,6 +204,18 @@ EXACT_FORCING = True
 #: contact values 1.3e-10 from the independent solver's at 256^2 (docs/scaling.md).
 EXACT_SAFETY = 0.01
 
+def front_tolerance(loose: bool, rtol: float, norm: float, target: float) -> float:
+    """The relative tolerance of a solve under the front rule (FrontRule): LOOSE for a loose
+    one; for an exact one at residual `norm`, with Newton stopping at `target`, `forcing`
+    with the ceiling LOOSE and the safety EXACT_SAFETY (EXACT_FORCING), else `rtol`, the
+    solver's own tolerance."""
+    if loose:
+        return LOOSE
+    if EXACT_FORCING:
+        return forcing(rtol, norm, target, ceiling=LOOSE, safety=EXACT_SAFETY)
+    return rtol
+
+
 #: At most this many loose solves in one Newton solve; the later ones are exact, so a
 #: sequence of loose steps that keeps changing the state cannot cycle for ever.
 MAX_LOOSE = 12
@@ -240,10 +252,10 @@ class FrontRule:
         exact otherwise,
 
     and exact from the (MAX_LOOSE + 1)-th would-be loose solve of a Newton solve on. An
-    exact solve asks for eta = min(LOOSE, max(rtol, EXACT_SAFETY target / |F(x_k)|)) (`forcing`;
-    rtol, the solver's own tolerance, with EXACT_FORCING off): at a fixed state of a
-    piecewise-linear law the next residual is the linear one, and only the reduction down
-    to the target is needed.
+    exact solve asks for eta = min(LOOSE, max(rtol, EXACT_SAFETY target / |F(x_k)|))
+    (`front_tolerance`; rtol, the solver's own tolerance, with EXACT_FORCING off): at a
+    fixed state of a piecewise-linear law the next residual is the linear one, and only the
+    reduction down to the target is needed.
 
     Newton's stopping test, on the coupled residual |F(x_k)| <= target, accepts an
     iterate after any step only where its residual is below the target. The converged

@@ -551,15 +551,8 @@ class CondensedSNES(NewtonSolver):
             self._state = linear.contact_state(self.system.parts)
             self._loose = self.front.loose(self._state, self.system.V.mesh.comm)
             # (the rule is the iterative solver's only: self.front is None with MUMPS)
-            if self._loose:
-                self._asked = linear.LOOSE
-            elif linear.EXACT_FORCING:
-                self._asked = linear.forcing(
-                    self._ksp_rtol, self.system.full_norm, self._target(snes),
-                    ceiling=linear.LOOSE,
-                    safety=linear.EXACT_SAFETY)
-            else:
-                self._asked = self._ksp_rtol
+            self._asked = linear.front_tolerance(self._loose, self._ksp_rtol,
+                                                 self.system.full_norm, self._target(snes))
             snes.getKSP().setTolerances(rtol=self._asked)
         self._to_operator(self.system.J_red)
         if linear.INEXACT and not self.reuse and self.front is None:   # iterative solver

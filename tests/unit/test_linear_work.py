@@ -339,8 +339,7 @@ def test_exact_solves_ask_for_what_newton_needs(monkeypatch):
     full, full_logs = _front_run(monkeypatch, sets, True)
     monkeypatch.setattr(linear, "EXACT_FORCING", True)
     tied, logs = _front_run(monkeypatch, sets, True)
-    rtol = newton.ITERATIVE_OPTIONS["ksp_rtol"] if compat.has_hypre() else \
-        newton.GAMG_OPTIONS["ksp_rtol"]
+    rtol = newton.iterative_options()["ksp_rtol"]
     exact = [(asked, reached) for log in logs for asked, reached, loose in log if not loose]
     assert exact and all(asked >= rtol for asked, _ in exact)
     assert any(asked > 2 * rtol for asked, _ in exact)
