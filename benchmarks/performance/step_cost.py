@@ -67,10 +67,12 @@ def one(scene_name, size, solver, steps, label, switches=(), settings=()):
     from contactvisco.solver.time_loop import simulate
     from scaling import elastic_floor, overrides
 
-    from contactvisco.solver import linear
+    import importlib
     for switch in switches:                    # e.g. KEEP=0: the reference without the rule
-        name, value = switch.split("=")
-        setattr(linear, name, type(getattr(linear, name))(float(value)))
+        name, value = switch.split("=")        # (a bare name is one of solver.linear's)
+        module, _, name = name.rpartition(".")
+        module = importlib.import_module(f"contactvisco.solver.{module or 'linear'}")
+        setattr(module, name, type(getattr(module, name))(float(value)))
     from contactvisco.solver import newton
     newton_cpu = []                            # CPU seconds of every Newton solve
     solve = newton.NewtonSolver.solve

@@ -25,13 +25,18 @@ Factorizations of nearby matrices (the condensed system with the direct solver):
 matrix J that differs from the factorized operator P in only a few rows (a few contact nodes
 changed branch) is J = P + E Delta with E the identity's columns of those rows, so P^-1 J is
 the identity plus a matrix of rank at most their number s, and a Krylov method preconditioned
-by P's factors solves J x = b in at most s + 1 iterations (in exact arithmetic). Such a step
-is solved by FGMRES (right-preconditioned: its residual is J's own) to STALE_RTOL with P's
-factors, and P is refactorized only when J differs from it in more than STALE_ROWS rows, or
-when the last solve with P took more than STALE_KRYLOV iterations or did not converge. A
-factorization costs 9 to 15 triangular solves at 64^2 to 128^2 cells (docs/scaling.md), so
-each kept factorization saves most of a Newton iteration's time. Matrices equal to P are solved
-by P's factors alone (KSP preonly), bit for bit as before.
+by P's factors solves J x = b in at most s + 1 iterations (in exact arithmetic). By default
+such a step is solved directly, by P's factors and the Woodbury identity for the s changed
+rows (low_rank.LowRankSolve, a python KSP: one triangular solve per solve and one per changed
+row and factorization), refined to STALE_RTOL on J's own residual, and P is refactorized when
+J differs from it in more than LOW_RANK_ROWS rows, when the rows met since the factorization
+exceed STALE_MAX_IT, or when a solve did not converge. With LOW_RANK off it is solved by
+FGMRES (right-preconditioned: its residual is J's own) to STALE_RTOL with P's factors, and P
+is refactorized when J differs from it in more than STALE_ROWS rows, or when the last solve
+with P took more than STALE_KRYLOV iterations or did not converge. A factorization costs 9
+to 15 triangular solves at 64^2 to 128^2 cells (docs/scaling.md), so each kept factorization
+saves most of a Newton iteration's time. Matrices equal to P are solved by P's factors alone
+(KSP preonly), bit for bit as before.
 """
 from __future__ import annotations
 
@@ -45,7 +50,7 @@ from petsc4py import PETSc
 
 from contactvisco.errors import SceneError
 from contactvisco.fem import compat, parts
-from contactvisco.solver import floating
+from contactvisco.solver import floating, low_rank
 
 
 #: SNES defaults: full Newton steps (the basic line search) and no divergence tolerance (its
@@ -78,6 +83,16 @@ STALE_MAX_IT = 2 * STALE_ROWS + 8
 #: The next Newton matrix is factorized when the last solve with an earlier matrix's factors
 #: took more FGMRES iterations than this (each costs a triangular solve and a product).
 STALE_KRYLOV = 4
+
+#: On (the default): a Newton matrix within LOW_RANK_ROWS rows of the factorized one is
+#: solved with P's factors and a low-rank correction of those rows (low_rank.LowRankSolve:
+#: one triangular solve per solve, and one per changed row and factorization), instead of
+#: FGMRES within STALE_ROWS rows (about one triangular solve per changed row and solve); P is
+#: factorized again when the rows met since its factorization exceed STALE_MAX_IT or a solve
+#: fails to converge. The row bound is the one measured best on the paper scene at 64^2 and
+#: 128^2 cells (docs/scaling.md).
+LOW_RANK = True
+LOW_RANK_ROWS = 24
 
 
 #: The displacement system with the direct solver keeps its factorization for a Newton matrix
@@ -283,6 +298,7 @@ class NewtonSolver:
         self.stale_rows = 0              # keep P's factors for J differing in <= these rows
         self._factorized = None          # the CSR values of the factorized operator P
         self._stale = False              # the current step is solved with an earlier P
+        self.low_rank = None             # the solves with P's factors and J's changed rows
         self._krylov_limit = 0           # the most FGMRES iterations the row count allows
         self.floating = None             # floating motions (solver.floating)
         self.nearby = False              # keep P's factors for any nearby J (enable_nearby)
@@ -334,6 +350,8 @@ class NewtonSolver:
         if self.__dict__.get("floating") is not None:
             self.floating.destroy()
             self.floating = None
+        if self.__dict__.get("low_rank") is not None:
+            self.low_rank.forget()
         owned = ("snes", "b", "x", "A", "_x_jacobian", "_du", "_trial", "_trial_b",
                  "kept") + (
             ("operator",) if self.reuse or self.__dict__.get("kept") is not None
@@ -418,7 +436,10 @@ class NewtonSolver:
         """
         ksp = self.snes.getKSP()
         if self.reuse and ksp.getType() == "preonly" and ksp.getPC().getType() == "lu":
-            self.stale_rows = STALE_ROWS if rows is None else rows
+            self.stale_rows = ((LOW_RANK_ROWS if LOW_RANK else STALE_ROWS) if rows is None
+                               else rows)
+            if LOW_RANK and self.stale_rows > 0:
+                self.low_rank = low_rank.LowRankSolve(STALE_RTOL, STALE_ATOL, STALE_MAX_IT)
 
     def _to_operator_or_stale(self, A):
         """_to_operator with stale factorizations: the rows of A that differ from P, counted
@@ -431,29 +452,48 @@ class NewtonSolver:
             indptr, _, values = A.getValuesCSR()
         except PETSc.Error:
             indptr = values = None
+        changed = np.zeros(0, dtype=np.int64)  # the owned rows of A other than P's (local)
         if values is None or self._factorized is None or len(values) != len(self._factorized):
             differ = -1
         else:
             entries = np.flatnonzero(values != self._factorized)
-            differ = int(np.unique(np.searchsorted(indptr, entries, side="right")).size)
+            changed = np.unique(np.searchsorted(indptr, entries, side="right")) - 1
+            differ = int(changed.size)
+        # (the low-rank solve is exact: only a failed one exhausts P's factors)
         exhausted = self._stale and (
             ksp.getConvergedReason() != PETSc.KSP.ConvergedReason.CONVERGED_RTOL
-            or ksp.getIterationNumber() > STALE_KRYLOV)
+            or (self.low_rank is None and ksp.getIterationNumber() > STALE_KRYLOV))
         counts = comm.allgather((differ, exhausted))
         rows = -1 if any(c < 0 for c, _ in counts) else sum(c for c, _ in counts)
         if rows == 0:
             self._use_factors(ksp, stale=False)
-        elif 0 < rows <= self.stale_rows and not any(e for _, e in counts):
-            self._krylov_limit = min(rows + 2, STALE_MAX_IT)
-            self._use_factors(ksp, stale=True)
-        else:
-            A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-            self._factorized = None if values is None else values.copy()
-            self.setups += 1
-            self._use_factors(ksp, stale=False)
+            return
+        if 0 < rows <= self.stale_rows and not any(e for _, e in counts):
+            if self.low_rank is None:
+                self._krylov_limit = min(rows + 2, STALE_MAX_IT)
+                self._use_factors(ksp, stale=True)
+                return
+            start = A.getOwnershipRange()[0]
+            if self.low_rank.use(np.concatenate(comm.allgather(changed + start))):
+                self._use_factors(ksp, stale=True)
+                return
+        A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self._factorized = None if values is None else values.copy()
+        self.setups += 1
+        if self.low_rank is not None:
+            self.low_rank.forget()
+        self._use_factors(ksp, stale=False)
 
     def _use_factors(self, ksp, stale):
-        """P's factors alone (preonly: A equals P) or inside FGMRES (A differs from P)."""
+        """P's factors alone (preonly: A equals P), or, where A differs from P, with the
+        low-rank correction of its changed rows (a python KSP, low_rank.LowRankSolve) or
+        inside FGMRES (the nearby mode, or LOW_RANK off)."""
+        if stale and self.low_rank is not None and not self.nearby:
+            if ksp.getType() != "python":
+                ksp.setType("python")
+                ksp.setPythonContext(self.low_rank)
+            self._stale = True
+            return
         if stale != self._stale or ksp.getType() != ("fgmres" if stale else "preonly"):
             ksp.setType("fgmres" if stale else "preonly")
             if stale:
@@ -486,19 +526,22 @@ class NewtonSolver:
 
     def describe_linear_solver(self) -> str:
         """linear_solver() as a run's header says it: with stale factorizations on (the
-        direct solver's default), also that a Jacobian close to the factorized one is solved
-        by FGMRES on the earlier factors, which is when the steps print Krylov iterations.
+        direct solver's default), also how a Jacobian close to the factorized one is solved:
+        by the earlier factors with the low-rank update of its changed rows (LOW_RANK), or by
+        FGMRES on them, which is when the steps print Krylov iterations.
 
         Returns
         -------
         str
-            E.g. 'preonly/lu, fgmres/lu on the last factors for <= 16 changed rows'.
+            E.g. 'preonly/lu, lu on the last factors with a low-rank update for <= 24
+            changed rows'.
         """
         name = self.linear_solver()
         if self.stale_rows > 0:
             pc = self.snes.getKSP().getPC().getType()
-            name = (f"preonly/{pc}, fgmres/{pc} on the last factors for <= {self.stale_rows} "
-                    "changed rows")
+            kept = (f"{pc} on the last factors with a low-rank update"
+                    if self.low_rank is not None else f"fgmres/{pc} on the last factors")
+            name = f"preonly/{pc}, {kept} for <= {self.stale_rows} changed rows"
         return name
 
     def solve(self) -> int:
