@@ -3,6 +3,7 @@ measured per step (contact.slip = "increment"): closed forms (sliding block, Cat
 stop when the tangential load exceeds the friction limit, the condensed system against the
 coupled one, 1 and 2 ranks, the checkpoint, and the scene checks."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -438,17 +439,32 @@ LARGE_AUGMENTATION = ["geometry.cells=[3, 4]", "material.nu=0.0", "memory.alpha=
                       "time.steps=2", "time.rule='trapezoid'", "output.probes=[]"]
 
 
+def _check_friction_bound(final):
+    """Finite reactions, the bound's radius mu R_nu and the tangential reaction within it."""
+    assert np.all(np.isfinite(final["reaction_nu"])) and final["reaction_nu"].max() > 0
+    assert np.allclose(final["radius"], 0.2 * final["reaction_nu"], atol=1e-12)
+    tangential = np.abs(np.asarray(final["reaction_tau"])).reshape(len(final["radius"]), -1)
+    assert np.all(np.linalg.norm(tangential, axis=1)
+                  <= final["radius"] + 1e-9 * max(final["radius"].max(), 1.0))
+
+
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="one rank: the scene is a few cells")
 def test_large_augmentation_with_increment_slip_is_a_named_failure():
     """A known limit (docs/scenes.md, contact.augmentation): Coulomb friction with the
-    increment slip and r = 100 E (1e4) cycles on this coarse paper scene even after 4 step
-    cuts, and the run stops with a NewtonFailure that names the step, never a NaN; with
-    r = E (100) the same scene converges and keeps the friction bound at every node."""
+    increment slip and r = 100 E (1e4) makes Newton cycle on this coarse paper scene. Whether
+    the cycle breaks after a cut depends on round-off (on the Debian route it does not after 4
+    cuts; on the PyPI route one cut step converged in 52 iterations): the run either stops
+    with a NewtonFailure that names the step, or converges with the friction bound kept at
+    every node, never a NaN. With r = E (100) the same scene converges without a cut and
+    keeps the bound."""
     scene = scene_module.load("paper", LARGE_AUGMENTATION + ["contact.augmentation=1e4"])
-    with pytest.raises(NewtonFailure, match=r"step to t = .*Newton did not converge"):
-        simulate(scene, comm=MPI.COMM_SELF, progress=False)
+    try:
+        result = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
+    except NewtonFailure as failure:
+        assert re.search(r"step to t = .*Newton did not converge", str(failure)), failure
+    else:
+        _check_friction_bound(result.tables[-1])
     scene = scene_module.load("paper", LARGE_AUGMENTATION + ["contact.augmentation=100.0"])
     result = simulate(scene, comm=MPI.COMM_SELF, progress=False, keep_tables=True)
-    final = result.tables[-1]
-    assert np.all(np.isfinite(final["reaction_nu"])) and final["reaction_nu"].max() > 0
-    assert np.allclose(final["radius"], 0.2 * final["reaction_nu"], atol=1e-12)
+    assert all(step["cuts"] == 0 for step in result.steps)
+    _check_friction_bound(result.tables[-1])
