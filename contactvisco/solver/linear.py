@@ -38,6 +38,7 @@ the values of the rows of a law that is not piecewise linear change (3D slip dir
 from __future__ import annotations
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 #: The iterations beyond n_0 that the solves with a kept hierarchy may add up to: a
@@ -95,6 +96,7 @@ class KeptPreconditioner:
         self.kept = 0            # solves with a kept hierarchy, over the object's life
         self.values = None       # the CSR values of the matrix of the build
         self.state = None        # the contact state (contact_state) of the build's iterate
+        self.last = None         # the compared values of the matrix of the last `moved` call
 
     def build_next(self, ksp, A, loose=None, state=None) -> bool:
         """Decide for the next solve of `ksp` (called once per Newton matrix, before its
@@ -136,6 +138,17 @@ class KeptPreconditioner:
         self.values = None if values is None else values.copy()
         self.state = None if state is None else state.copy()
         return True
+
+    def moved(self, A) -> bool:
+        """Whether the compared rows of A differ from those of the matrix of the last call
+        (True at the first call, or where the values cannot be read), on any rank:
+        collective. At a fixed contact state they differ only where the law is not linear
+        within the state (the slip directions of 3D friction)."""
+        _, values = self._values(A)
+        last, self.last = self.last, None if values is None else values.copy()
+        moved = (values is None or last is None or len(values) != len(last)
+                 or bool(np.any(values != last)))
+        return bool(A.getComm().tompi4py().allreduce(moved, op=MPI.LOR))
 
     def _values(self, A):
         """The CSR row pointer and values of the rows of A that are compared (all, or those
@@ -204,16 +217,48 @@ EXACT_FORCING = True
 #: contact values 1.3e-10 from the independent solver's at 256^2 (docs/scaling.md).
 EXACT_SAFETY = 0.01
 
-def front_tolerance(loose: bool, rtol: float, norm: float, target: float) -> float:
+#: On (the default): an exact solve after a step that kept the contact state but changed
+#: the Newton matrix (the law is not linear within the state: the slip directions of 3D
+#: friction) and left a residual more than MISMATCH times what its linear solve asked for
+#: asks only for REMAINDER_SAFETY of the remainder Newton's quadratic rate predicts for the
+#: next iterate, where that remainder is above Newton's target (`front_tolerance`;
+#: docs/scaling.md).
+NONLINEAR_FORCING = True
+MISMATCH = 100.0
+REMAINDER_SAFETY = 0.1
+
+
+def front_tolerance(loose: bool, rtol: float, norm: float, target: float,
+                    previous: tuple[float, float] | None = None) -> float:
     """The relative tolerance of a solve under the front rule (FrontRule): LOOSE for a loose
     one; for an exact one at residual `norm`, with Newton stopping at `target`, `forcing`
     with the ceiling LOOSE and the safety EXACT_SAFETY (EXACT_FORCING), else `rtol`, the
-    solver's own tolerance."""
+    solver's own tolerance.
+
+    With `previous` = (|F_{k-1}|, eta_{k-1}), the residual and the asked tolerance of the
+    iteration before, given where the Newton matrix changed at the fixed state (the caller
+    passes None otherwise), and NONLINEAR_FORCING: where |F_k| > MISMATCH eta_{k-1} |F_{k-1}|,
+    the step from x_{k-1} was limited by the law's nonlinearity, not by its linear solve,
+    and the next residual will be at least about the quadratic remainder
+    N = |F_k|^3 / |F_{k-1}|^2 (|F_{k+1}| ~ C |F_k|^2 with C = |F_k| / |F_{k-1}|^2); a
+    linear residual far below N buys nothing, so for N > target
+
+        eta = min(LOOSE, max(eta_forcing, REMAINDER_SAFETY N / |F_k|)).
+
+    At a fixed state of a piecewise-linear law (2D, the paper's laws) the step's residual
+    is its linear one and the rule does not apply."""
     if loose:
         return LOOSE
-    if EXACT_FORCING:
-        return forcing(rtol, norm, target, ceiling=LOOSE, safety=EXACT_SAFETY)
-    return rtol
+    if not EXACT_FORCING:
+        return rtol
+    eta = forcing(rtol, norm, target, ceiling=LOOSE, safety=EXACT_SAFETY)
+    if NONLINEAR_FORCING and previous is not None:
+        norm_before, asked_before = previous
+        if norm_before > 0.0 and norm > MISMATCH * asked_before * norm_before:
+            remainder = norm ** 3 / norm_before ** 2
+            if remainder > target:
+                eta = min(LOOSE, max(eta, REMAINDER_SAFETY * remainder / norm))
+    return eta
 
 
 #: At most this many loose solves in one Newton solve; the later ones are exact, so a

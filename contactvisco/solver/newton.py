@@ -249,6 +249,7 @@ class CondensedSNES(NewtonSolver):
         #: alone; a solve stopped by the absolute tolerance counts as reaching the asked one;
         #: whether the solve was a loose one).
         self.linear_log: list[tuple[float, float | None, bool]] = []
+        self._before = None              # (|F|, asked tolerance) of the last iteration
         self.operator = (self.system.J_red.duplicate(copy=True)
                          if reuse or self.kept is not None else self.system.J_red)
         self.snes.setFunction(_weak(self._residual), self.b)
@@ -332,6 +333,7 @@ class CondensedSNES(NewtonSolver):
         self._trial_norm = None
         self.step_lengths = []
         self.linear_log = []
+        self._before = None              # (|F|, asked tolerance) of the last iteration
         if self.front is not None:
             self.front.reset()
         try:
@@ -399,6 +401,7 @@ class CondensedSNES(NewtonSolver):
         self._residuals_since_jacobian = 0
         self._trial_norm = None
         self.step_lengths = []
+        self._before = None
         return spent + super().solve()
 
     def _shifted(self, x):
@@ -551,8 +554,13 @@ class CondensedSNES(NewtonSolver):
             self._state = linear.contact_state(self.system.parts)
             self._loose = self.front.loose(self._state, self.system.V.mesh.comm)
             # (the rule is the iterative solver's only: self.front is None with MUMPS)
+            # (a matrix unchanged at a fixed state: the law is linear there, and the
+            # step's residual was its linear one)
+            moved = self.kept.moved(self.system.J_red)
             self._asked = linear.front_tolerance(self._loose, self._ksp_rtol,
-                                                 self.system.full_norm, self._target(snes))
+                                                 self.system.full_norm, self._target(snes),
+                                                 self._before if moved else None)
+            self._before = (self.system.full_norm, self._asked)
             snes.getKSP().setTolerances(rtol=self._asked)
         self._to_operator(self.system.J_red)
         if linear.INEXACT and not self.reuse and self.front is None:   # iterative solver
