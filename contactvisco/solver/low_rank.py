@@ -18,7 +18,9 @@ method with P's factors needs about s + 1 triangular solves for the same answer.
 
 LowRankSolve is the `solve` of a PETSc KSP of type "python" whose PC holds P's factors: it
 applies the identity and refines the answer on J's own residual until
-|b - J x| <= rtol |b| (one sweep in exact arithmetic; round-off may ask for a second).
+|b - J x| <= rtol |b| (one sweep in exact arithmetic; round-off may ask for a second). A
+singular capacitance matrix (J singular) or a non-finite residual ends the solve with a
+diverged reason, which SNES reports as a failed linear solve.
 """
 from __future__ import annotations
 
@@ -114,12 +116,17 @@ class LowRankSolve:
         x.set(0.0)
         target = max(self.rtol * b.norm(), self.atol)
         norm, sweeps = residual.norm(), 0
+        reason = None
         while norm > target and sweeps < SWEEPS:
             pc.apply(residual, y)
             J.mult(y, product)
             t = comm.allreduce(self._entries(product, start, end)
                                - self._entries(residual, start, end))
-            c = np.linalg.solve(self.capacitance, t) if len(t) else t
+            try:
+                c = np.linalg.solve(self.capacitance, t) if len(t) else t
+            except np.linalg.LinAlgError:   # (the same on every rank: C and t are)
+                reason = PETSc.KSP.ConvergedReason.DIVERGED_BREAKDOWN   # J is singular
+                break
             if len(c):
                 y.maxpy(-c, [self.columns[r] for r in self.rows.tolist()])
             x.axpy(1.0, y)
@@ -129,7 +136,11 @@ class LowRankSolve:
             norm, sweeps = residual.norm(), sweeps + 1
         for vector in (residual, y, product):
             vector.destroy()
+        if reason is None and not np.isfinite(norm):
+            reason = PETSc.KSP.ConvergedReason.DIVERGED_NANORINF
+        if reason is None:
+            reason = (PETSc.KSP.ConvergedReason.CONVERGED_RTOL if norm <= target
+                      else PETSc.KSP.ConvergedReason.CONVERGED_ITS)
         ksp.setIterationNumber(sweeps)
         ksp.setResidualNorm(norm)
-        ksp.setConvergedReason(PETSc.KSP.ConvergedReason.CONVERGED_RTOL if norm <= target
-                               else PETSc.KSP.ConvergedReason.CONVERGED_ITS)
+        ksp.setConvergedReason(reason)

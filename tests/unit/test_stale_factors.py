@@ -120,3 +120,47 @@ def test_a_few_changed_rows_keep_the_factors_more_do_not(monkeypatch, low_rank):
     finally:
         reference.destroy()
         snes.destroy()
+
+
+def _diagonal(values):
+    A = PETSc.Mat().createAIJ((len(values), len(values)), nnz=1, comm=MPI.COMM_SELF)
+    for i, v in enumerate(values):
+        A.setValue(i, i, v)
+    A.assemble()
+    return A
+
+
+@pytest.mark.parametrize("changed, solvable", [([2.0, 4.0, 3.0], True),
+                                              ([2.0, 0.0, 3.0], False)],
+                         ids=["regular", "singular"])
+def test_low_rank_solve_against_the_changed_matrix(changed, solvable):
+    """low_rank.LowRankSolve by itself: P = diag(2, 5, 3) factorized, J = P with its row 1
+    changed. A regular J: x = J^-1 b exactly in one sweep. A singular J (its capacitance
+    matrix is 0): a diverged reason for SNES to see, no exception and no NaN returned as an
+    answer."""
+    from contactvisco.solver import low_rank
+    P, J = _diagonal([2.0, 5.0, 3.0]), _diagonal(changed)
+    ksp = PETSc.KSP().create(MPI.COMM_SELF)
+    solver = low_rank.LowRankSolve(1e-12, 1e-300, 8)
+    try:
+        ksp.setOperators(J, P)
+        ksp.getPC().setType("lu")
+        ksp.setType("python")
+        ksp.setPythonContext(solver)
+        assert solver.use([1])
+        b, x = J.createVecs()
+        b.setArray([1.0, 2.0, 3.0])
+        ksp.solve(b, x)
+        if solvable:
+            assert ksp.getConvergedReason() == PETSc.KSP.ConvergedReason.CONVERGED_RTOL
+            assert ksp.getIterationNumber() == 1
+            assert np.allclose(x.getArray(), [0.5, 0.5, 1.0], rtol=1e-14, atol=0)
+        else:
+            assert ksp.getConvergedReason() < 0
+        assert solver.computed == 1 and list(solver.columns) == [1]
+        assert not solver.use(range(9))           # more columns than the limit: refused
+        assert list(solver.rows) == [1]
+    finally:
+        solver.forget()
+        for obj in (ksp, P, J):
+            obj.destroy()
