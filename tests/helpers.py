@@ -422,3 +422,15 @@ def run_stopped_after_checkpoint(monkeypatch, count, run):
             run()
     finally:
         monkeypatch.setattr(checkpoint, "save", save)
+
+
+def diagonal_matrix(values):
+    """A sequential PETSc AIJ matrix with `values` on its diagonal (for tests of the
+    linear-solver pieces by themselves)."""
+    from mpi4py import MPI
+    from petsc4py import PETSc
+    A = PETSc.Mat().createAIJ((len(values), len(values)), nnz=1, comm=MPI.COMM_SELF)
+    for i, v in enumerate(values):
+        A.setValue(i, i, v)
+    A.assemble()
+    return A

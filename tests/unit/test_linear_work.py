@@ -11,6 +11,7 @@ from contactvisco.scene import loader as scene_module
 from contactvisco.solver import condensed, linear, newton
 from contactvisco.solver.condensed import replace_rows
 from contactvisco.solver.time_loop import simulate
+from helpers import diagonal_matrix
 
 
 def test_batched_rows_equal_the_node_formula():
@@ -121,14 +122,6 @@ class _KSP:
         return self.reason
 
 
-def _matrix(values):
-    A = PETSc.Mat().createAIJ((len(values), len(values)), nnz=1, comm=MPI.COMM_SELF)
-    for i, v in enumerate(values):
-        A.setValue(i, i, v)
-    A.assemble()
-    return A
-
-
 def test_kept_preconditioner_rule(monkeypatch):
     """Built at the first matrix; kept while the bulk stamp, the Krylov budget and the
     changed-row count allow; built again when any of them does not."""
@@ -138,25 +131,25 @@ def test_kept_preconditioner_rule(monkeypatch):
     rule = linear.KeptPreconditioner(lambda: stamp["value"])
     ksp = _KSP()
     base = np.ones(10)
-    assert rule.build_next(ksp, _matrix(base))            # the first matrix
+    assert rule.build_next(ksp, diagonal_matrix(base))            # the first matrix
     ksp.iterations = 10
     changed = base.copy()
     changed[:2] = 3.0
-    assert not rule.build_next(ksp, _matrix(changed))     # 2 rows changed
+    assert not rule.build_next(ksp, diagonal_matrix(changed))     # 2 rows changed
     ksp.iterations = 10 + linear.BUDGET + 1               # a kept solve over the budget
-    assert rule.build_next(ksp, _matrix(changed))
+    assert rule.build_next(ksp, diagonal_matrix(changed))
     ksp.iterations = 10
-    assert not rule.build_next(ksp, _matrix(changed))
+    assert not rule.build_next(ksp, diagonal_matrix(changed))
     changed[:3] = 4.0                                     # 3 rows changed
-    assert rule.build_next(ksp, _matrix(changed))
+    assert rule.build_next(ksp, diagonal_matrix(changed))
     ksp.iterations = 10
     stamp["value"] = 1                                    # another step size
-    assert rule.build_next(ksp, _matrix(changed))
+    assert rule.build_next(ksp, diagonal_matrix(changed))
     ksp.iterations, ksp.reason = 10, -3                   # a solve that did not converge
-    assert rule.build_next(ksp, _matrix(changed))
+    assert rule.build_next(ksp, diagonal_matrix(changed))
     stamp["value"] = None                                 # a nonlinear bulk law
     ksp.reason = 2
-    assert rule.build_next(ksp, _matrix(changed))
+    assert rule.build_next(ksp, diagonal_matrix(changed))
     assert rule.kept == 2
 
 
@@ -173,15 +166,15 @@ def test_kept_preconditioner_at_a_fixed_contact_state(monkeypatch):
     other = state.copy()
     other[1, 0] = 0
     values = np.ones(10)
-    assert rule.build_next(ksp, _matrix(values), True, state)          # the first matrix
+    assert rule.build_next(ksp, diagonal_matrix(values), True, state)          # the first matrix
     for k in range(2, 5):                       # every row changed, the same state: kept
         ksp.iterations = 10
-        assert not rule.build_next(ksp, _matrix(k * values), False, state)
-    assert rule.build_next(ksp, _matrix(5 * values), True, state)      # loose: rows > ROWS
-    assert rule.build_next(ksp, _matrix(6 * values), False, other)     # another state
-    assert not rule.build_next(ksp, _matrix(7 * values), False, other)
+        assert not rule.build_next(ksp, diagonal_matrix(k * values), False, state)
+    assert rule.build_next(ksp, diagonal_matrix(5 * values), True, state)      # loose: rows > ROWS
+    assert rule.build_next(ksp, diagonal_matrix(6 * values), False, other)     # another state
+    assert not rule.build_next(ksp, diagonal_matrix(7 * values), False, other)
     monkeypatch.setattr(linear, "SAME_STATE", False)
-    assert rule.build_next(ksp, _matrix(8 * values), False, other)
+    assert rule.build_next(ksp, diagonal_matrix(8 * values), False, other)
     assert rule.kept == 4
 
 
@@ -383,8 +376,9 @@ def test_nonlinear_forcing_saves_krylov_iterations_in_3d_slip(monkeypatch):
     """block3d (3D friction: the slip directions make the law nonlinear within a contact
     state) with the iterative solver, NONLINEAR_FORCING on against off: the Newton
     iterations per step within one of each other (the same on 1 rank; on 2 ranks one fewer
-    at the first loaded step), at most one more in all, fewer Krylov iterations by 5 %, the contact values to 1e-8 of each
-    column's largest (both stop within Newton's tolerance)."""
+    at the first loaded step), at most one more in all, fewer Krylov iterations by 5 %, the
+    contact values to 1e-8 of each column's largest (both stop within Newton's
+    tolerance)."""
     runs = {}
     for on in (False, True):
         monkeypatch.setattr(linear, "NONLINEAR_FORCING", on)

@@ -14,6 +14,7 @@ from contactvisco.fem import geometry as geometry_module
 from contactvisco.fem.problem import build
 from contactvisco.solver import newton_base as solver_module
 from contactvisco.solver import newton
+from helpers import diagonal_matrix
 
 
 def _contact_values(result):
@@ -122,14 +123,6 @@ def test_a_few_changed_rows_keep_the_factors_more_do_not(monkeypatch, low_rank):
         snes.destroy()
 
 
-def _diagonal(values):
-    A = PETSc.Mat().createAIJ((len(values), len(values)), nnz=1, comm=MPI.COMM_SELF)
-    for i, v in enumerate(values):
-        A.setValue(i, i, v)
-    A.assemble()
-    return A
-
-
 @pytest.mark.parametrize("changed, solvable", [([2.0, 4.0, 3.0], True),
                                               ([2.0, 0.0, 3.0], False)],
                          ids=["regular", "singular"])
@@ -139,7 +132,7 @@ def test_low_rank_solve_against_the_changed_matrix(changed, solvable):
     matrix is 0): a diverged reason for SNES to see, no exception and no NaN returned as an
     answer."""
     from contactvisco.solver import low_rank
-    P, J = _diagonal([2.0, 5.0, 3.0]), _diagonal(changed)
+    P, J = diagonal_matrix([2.0, 5.0, 3.0]), diagonal_matrix(changed)
     ksp = PETSc.KSP().create(MPI.COMM_SELF)
     solver = low_rank.LowRankSolve(1e-12, 1e-300, 8)
     try:
