@@ -555,7 +555,7 @@ class CondensedSNES(NewtonSolver):
             self._loose = self.front.loose(self._state, self.system.V.mesh.comm)
             # (the rule is the iterative solver's only: self.front is None with MUMPS)
             # (a matrix unchanged at a fixed state: the law is linear there, and the
-            # step's residual was its linear one)
+            # step's residual was its linear one; the read serves build_next too)
             moved = self.kept.moved(self.system.J_red)
             self._asked = linear.front_tolerance(self._loose, self._ksp_rtol,
                                                  self.system.full_norm, self._target(snes),

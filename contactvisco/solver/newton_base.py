@@ -488,7 +488,7 @@ class NewtonSolver:
         """P's factors alone (preonly: A equals P), or, where A differs from P, with the
         low-rank correction of its changed rows (a python KSP, low_rank.LowRankSolve) or
         inside FGMRES (the nearby mode, or LOW_RANK off)."""
-        if stale and self.low_rank is not None and not self.nearby:
+        if stale and self.low_rank is not None:
             if ksp.getType() != "python":
                 ksp.setType("python")
                 ksp.setPythonContext(self.low_rank)
