@@ -108,7 +108,8 @@ def one(scene_name, size, solver, steps, label, switches=(), settings=()):
                  values=values)
     records = result.steps
     row = {"scene": scene_name, "size": size, "solver": solver, "ranks": comm.size,
-           "label": label, "settings": list(settings), "unknowns_u": unknowns, "ksp_pc": result.linear_solver,
+           "label": label, "settings": list(settings), "switches": list(switches),
+           "unknowns_u": unknowns, "ksp_pc": result.linear_solver,
            "newton": [s["newton_iterations"] for s in records],
            "krylov": [s["krylov_iterations"] for s in records],
            "setups": [s["preconditioner_setups"] for s in records],
@@ -181,7 +182,9 @@ def main():
                         help="scene:size:solver (paper: cells per side; block3d: h)")
     parser.add_argument("--compare", nargs=2, metavar=("BEFORE", "AFTER"))
     parser.add_argument("--switch", nargs="*", default=[],
-                        help="NAME=VALUE of contactvisco.solver.linear (KEEP=0, INEXACT=0)")
+                        help="NAME=VALUE of contactvisco.solver.linear (KEEP=0, INEXACT=0), "
+                        "or MODULE.NAME=VALUE of another contactvisco.solver module; "
+                        "recorded with each row")
     parser.add_argument("--set", nargs="*", default=[], dest="settings",
                         help="scene overrides (solver.first_iterate='coarse')")
     args = parser.parse_args()
