@@ -234,6 +234,14 @@ NONLINEAR_FORCING = True
 MISMATCH = 100.0
 REMAINDER_SAFETY = 0.1
 
+#: The preconditioners (PETSc PC types) after whose loose solves NONLINEAR_FORCING applies;
+#: after a loose solve with another, it applies from the next exact solve on. With BoomerAMG
+#: the step after a loose one left the law's remainder (block3d 22k: 9.04e-6 against 9.02e-6
+#: from an exact solve); with GAMG (the PyPI route) the residual rose after such a step
+#: (block3d 52k: 1.06e-4 to 3.04e-4), and the step took 13 Newton iterations instead of 10
+#: (docs/scaling.md).
+AFTER_LOOSE_PCS = ("hypre",)
+
 
 def front_tolerance(loose: bool, rtol: float, norm: float, target: float,
                     previous: tuple[float, float] | None = None) -> float:

@@ -250,6 +250,7 @@ class CondensedSNES(NewtonSolver):
         #: whether the solve was a loose one).
         self.linear_log: list[tuple[float, float | None, bool]] = []
         self._before = None              # (|F|, asked tolerance) of the last iteration
+                                         # (None after a loose one: linear.AFTER_LOOSE_PCS)
         self.operator = (self.system.J_red.duplicate(copy=True)
                          if reuse or self.kept is not None else self.system.J_red)
         self.snes.setFunction(_weak(self._residual), self.b)
@@ -560,7 +561,9 @@ class CondensedSNES(NewtonSolver):
             self._asked = linear.front_tolerance(self._loose, self._ksp_rtol,
                                                  self.system.full_norm, self._target(snes),
                                                  self._before if moved else None)
-            self._before = (self.system.full_norm, self._asked)
+            after_loose = snes.getKSP().getPC().getType() in linear.AFTER_LOOSE_PCS
+            self._before = (None if self._loose and not after_loose
+                            else (self.system.full_norm, self._asked))
             snes.getKSP().setTolerances(rtol=self._asked)
         self._to_operator(self.system.J_red)
         if linear.INEXACT and not self.reuse and self.front is None:   # iterative solver

@@ -347,6 +347,36 @@ def test_exact_solves_ask_for_what_newton_needs(monkeypatch):
     assert np.max(np.abs(a - b) / scale) <= 1e-9
 
 
+@pytest.mark.parametrize("after_loose", [(), ("hypre", "gamg")])
+def test_nonlinear_forcing_after_a_loose_solve_follows_the_preconditioner(monkeypatch,
+                                                                          after_loose):
+    """The iteration after a loose solve hands the nonlinear-remainder rule its predecessor
+    only where the preconditioner is one of linear.AFTER_LOOSE_PCS; an exact solve always
+    does (where the Newton matrix moved). block3d with the iterative solver, each route's
+    own preconditioner."""
+    monkeypatch.setattr(linear, "AFTER_LOOSE_PCS", after_loose)
+    calls = []
+    tolerance, solve_once = linear.front_tolerance, newton.CondensedSNES._solve_once
+
+    def recorded(loose, rtol, norm, target, previous=None):
+        calls.append((loose, previous is not None))
+        return tolerance(loose, rtol, norm, target, previous)
+
+    def marked(self):
+        calls.append(None)                         # a new Newton solve
+        return solve_once(self)
+    monkeypatch.setattr(linear, "front_tolerance", recorded)
+    monkeypatch.setattr(newton.CondensedSNES, "_solve_once", marked)
+    scene = _block3d()
+    scene["solver"]["linear_solver"] = "iterative"
+    simulate(scene, comm=MPI.COMM_WORLD, progress=False)
+    pairs = [(a, b) for a, b in zip(calls, calls[1:]) if a is not None and b is not None]
+    after = [b[1] for a, b in pairs if a[0]]
+    assert after, "no iteration followed a loose solve"
+    assert any(b[1] for a, b in pairs if not a[0])     # after exact solves: handed on
+    assert any(after) if after_loose else not any(after)
+
+
 def test_exact_tolerance_stops_at_the_nonlinear_remainder(monkeypatch):
     """front_tolerance with the iteration before: where that step's residual is far above
     what its solve asked (MISMATCH), the exact solve asks for REMAINDER_SAFETY of the
