@@ -268,6 +268,9 @@ class CondensedSNES(NewtonSolver):
             self.system.defer = False
         self._finish_setup()
         self._ksp_rtol = self.snes.getKSP().getTolerances()[0]
+        # Whether the nonlinear-remainder rule may follow a loose solve (its preconditioner)
+        self._remainder_after_loose = (self.snes.getKSP().getPC().getType()
+                                       in linear.AFTER_LOOSE_PCS)
         if self.front is not None:
             self.snes.getKSP().setConvergenceHistory(reset=True)
         if self.force is None:           # the bordered solves need P's exact factors
@@ -561,8 +564,7 @@ class CondensedSNES(NewtonSolver):
             self._asked = linear.front_tolerance(self._loose, self._ksp_rtol,
                                                  self.system.full_norm, self._target(snes),
                                                  self._before if moved else None)
-            after_loose = snes.getKSP().getPC().getType() in linear.AFTER_LOOSE_PCS
-            self._before = (None if self._loose and not after_loose
+            self._before = (None if self._loose and not self._remainder_after_loose
                             else (self.system.full_norm, self._asked))
             snes.getKSP().setTolerances(rtol=self._asked)
         self._to_operator(self.system.J_red)
