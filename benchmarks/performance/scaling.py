@@ -26,7 +26,9 @@ from helpers import mpi_env  # noqa: E402
 
 PYTHON = sys.executable
 
-#: (scene, size) -> --set overrides. paper: cells per side; block3d: mesh size h (box3d).
+#: (scene, size) -> --set overrides. paper: cells per side; another scene (block3d, ironing,
+#: creep): its mesh size geometry.parameters.h. time.T = 0.1 steps (a later override of
+#: time.T keeps another scene's own step size).
 def overrides(scene, size, steps):
     if scene == "paper":
         return [f"geometry.cells=[{size}, {size}]", f"time.T={0.1 * steps}",

@@ -18,6 +18,7 @@ Writes benchmarks/results/step_cost_<label>.{json,md}; contact values to
 benchmarks/results/step_cost_values/<label>_<scene>_<size>_<solver>_np<R>.npz (not committed).
 """
 import argparse
+import ast
 import json
 import os
 import pathlib
@@ -72,7 +73,9 @@ def one(scene_name, size, solver, steps, label, switches=(), settings=()):
         name, value = switch.split("=")        # (a bare name is one of solver.linear's)
         module, _, name = name.rpartition(".")
         module = importlib.import_module(f"contactvisco.solver.{module or 'linear'}")
-        setattr(module, name, type(getattr(module, name))(float(value)))
+        current = getattr(module, name)        # a dict by literal: AUTO_DIRECT_LATER={2:0}
+        setattr(module, name, {**current, **ast.literal_eval(value)}
+                if isinstance(current, dict) else type(current)(float(value)))
     from contactvisco.solver import newton
     newton_cpu = []                            # CPU seconds of every Newton solve
     solve = newton.NewtonSolver.solve
@@ -179,11 +182,13 @@ def main():
     parser.add_argument("--steps", type=int, default=4)
     parser.add_argument("--ranks", type=int, nargs="+", default=[1])
     parser.add_argument("--configs", nargs="+", default=DEFAULT_CONFIGS,
-                        help="scene:size:solver (paper: cells per side; block3d: h)")
+                        help="scene:size:solver (paper: cells per side; another scene: "
+                        "geometry.parameters.h)")
     parser.add_argument("--compare", nargs=2, metavar=("BEFORE", "AFTER"))
     parser.add_argument("--switch", nargs="*", default=[],
                         help="NAME=VALUE of contactvisco.solver.linear (KEEP=0, INEXACT=0), "
-                        "or MODULE.NAME=VALUE of another contactvisco.solver module; "
+                        "or MODULE.NAME=VALUE of another contactvisco.solver module "
+                        "(a dict's entries as a literal: newton.AUTO_DIRECT_LATER={2:0}); "
                         "recorded with each row")
     parser.add_argument("--set", nargs="*", default=[], dest="settings",
                         help="scene overrides (solver.first_iterate='coarse')")
@@ -193,7 +198,7 @@ def main():
         return
     if args.one:
         scene, size, solver = args.one
-        one(scene, float(size) if scene == "block3d" else int(size), solver, args.steps,
+        one(scene, int(size) if scene == "paper" else float(size), solver, args.steps,
             args.label, args.switch, args.settings)
         return
     from contactvisco.io import launcher
@@ -202,7 +207,7 @@ def main():
     rows = json.loads(path.read_text()) if path.exists() else []
     for config in args.configs:
         scene, size, solver = config.split(":")
-        size = float(size) if scene == "block3d" else int(size)
+        size = int(size) if scene == "paper" else float(size)
         for ranks in args.ranks:
             if any((r["scene"], r["size"], r["solver"], r["ranks"]) == (scene, size, solver,
                                                                          ranks) for r in rows):

@@ -334,6 +334,9 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     snes = newton.create(problem, comm)
     try:
         system, solver = snes.system_kind, snes.linear_solver()
+        if newton.solver_kinds(problem, system) == ("iterative", "direct"):
+            solver += (f"; after the first state preonly/lu ({solver} again where it "
+                       "factorizes more than once per step)")
     finally:
         snes.destroy()
     tdim = mesh.topology.dim

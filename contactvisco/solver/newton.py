@@ -88,6 +88,20 @@ AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
 #: The same where PETSc has no hypre (GAMG): docs/scaling.md.
 AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 22_000}
 
+#: linear_solver = "auto" where it chose the iterative solver: the states after the first take
+#: the direct solver below this many displacement unknowns (by dimension; 0: never), where the
+#: Newton matrix changes only in the contact rows from one step to the next (for_later_states).
+#: The first state, from u = 0, changes the state of most contact nodes and pays a
+#: factorization per Newton iteration; a later step keeps the factors of a factorized matrix
+#: for nearby ones (newton_base, low_rank). Measured in docs/scaling.md.
+AUTO_DIRECT_LATER = {2: 60_000, 3: 0}
+
+#: The direct solver of AUTO_DIRECT_LATER gives way to the iterative one for the rest of the
+#: run once its factorizations exceed LATER_FACTORIZATIONS per solve (a step) beyond the
+#: first two: where the contact zone moves, each step changes more rows than the kept
+#: factors serve (a factorization in nearly every Newton iteration; docs/scaling.md).
+LATER_FACTORIZATIONS = 1.0
+
 
 #: Off: every new matrix is factorized (the measurement's reference).
 NEARBY = True
@@ -611,8 +625,27 @@ def iterative_options() -> dict:
     return ITERATIVE_OPTIONS if compat.has_hypre() else GAMG_OPTIONS
 
 
-def create(problem, comm, scene_options=None) -> NewtonSolver:
-    """The Newton solver a Problem's scene asks for (solver.linear_system, .linear_solver)."""
+def create(problem, comm, scene_options=None, later=False) -> NewtonSolver:
+    """The Newton solver a Problem's scene asks for (solver.linear_system, .linear_solver).
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The discrete problem and its scene.
+    comm : mpi4py.MPI.Comm
+        The mesh's communicator.
+    scene_options : dict, optional
+        PETSc options instead of the scene's solver.petsc_options.
+    later : bool, optional
+        For the states after the first (a restart's included): linear_solver = "auto" may
+        then take the direct solver where it takes the iterative one for the first state
+        (AUTO_DIRECT_LATER, for_later_states).
+
+    Returns
+    -------
+    NewtonSolver
+        Its `later` attribute is the argument.
+    """
     solver = problem.scene["solver"]
     options = solver["petsc_options"] if scene_options is None else scene_options
     multipliers = len(problem.unknowns) > 1
@@ -625,16 +658,47 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
     if system == "condensed" and not nodal:
         raise SceneError("solver.linear_system = 'condensed' needs nodal contact quadrature",
                          key="solver.linear_system")
-    d = problem.V.mesh.geometry.dim
-    size = problem.count_unknowns()["u"]
-    kind = solver["linear_solver"]
-    if kind == "auto":
-        kind = ("iterative" if system != "coupled" and size >= auto_iterative_size(d)
-                and not _held_by_contact(problem) else "direct")
+    first_kind, later_kind = solver_kinds(problem, system)
+    kind = later_kind if later else first_kind
     if kind == "iterative" and system == "coupled":
         raise SceneError("solver.linear_solver = 'iterative' needs the displacement-only "
                          "system: solver.linear_system = 'condensed' (nodal contact "
                          "quadrature)", key="solver.linear_solver")
+    newton = _create(problem, comm, options, system, kind)
+    newton.later = later
+    newton.auto_direct = kind != first_kind     # AUTO_DIRECT_LATER's direct solver
+    return newton
+
+
+def solver_kinds(problem, system) -> tuple[str, str]:
+    """The linear solvers of the first state and of the states after it (AUTO_DIRECT_LATER):
+    the scene's solver.linear_solver, or auto's choice.
+
+    Parameters
+    ----------
+    problem : contactvisco.fem.problem.Problem
+        The discrete problem and its scene.
+    system : str
+        The linear system: "condensed", "coupled" or "displacement".
+
+    Returns
+    -------
+    tuple of str
+        ("direct" or "iterative") for the first state and for the later ones.
+    """
+    kind = problem.scene["solver"]["linear_solver"]
+    if kind != "auto":
+        return kind, kind
+    d = problem.V.mesh.geometry.dim
+    size = problem.count_unknowns()["u"]
+    if system == "coupled" or size < auto_iterative_size(d) or _held_by_contact(problem):
+        return "direct", "direct"
+    return "iterative", "direct" if _direct_later(problem, system, d, size) else "iterative"
+
+
+def _create(problem, comm, options, system, kind) -> NewtonSolver:
+    """The solver of `system` ("condensed", "coupled" or "displacement") with the linear
+    solver `kind` ("direct" or "iterative")."""
     defaults = iterative_options() if kind == "iterative" else {}
     obstacle = problem.contact and problem.contact.obstacle
     if obstacle is not None and obstacle.controlled and system != "condensed":
@@ -643,7 +707,7 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
                          "contact multipliers: a finite contact.g or friction)",
                          key="obstacle.force_components")
     if hasattr(obstacle, "pairing"):           # another body of the mesh (fem.body_contact)
-        if not multipliers:
+        if len(problem.unknowns) == 1:          # u alone: no contact multipliers
             return _with_floating(InterfaceSNES(problem, comm, options, defaults,
                                                 reuse=kind == "direct"), problem, kind)
         if system != "condensed":
@@ -662,6 +726,43 @@ def create(problem, comm, scene_options=None) -> NewtonSolver:
         newton.operator.setNearNullSpace(near_nullspace(problem))
         newton.keep_nearby_factors()
     return _with_floating(newton, problem, kind)
+
+
+def for_later_states(problem, comm, newton: NewtonSolver) -> NewtonSolver:
+    """The solver of the states after the first, called after every state: `newton` itself,
+    or in its place (destroyed) the one create(later=True) gives when that differs
+    (AUTO_DIRECT_LATER), or once that one has factorized too often (LATER_FACTORIZATIONS),
+    the iterative solver for the rest of the run. The same on every rank (the set-up counts
+    are global). Collective when it replaces `newton`."""
+    if newton.later:
+        if not (newton.auto_direct
+                and newton.all_setups > 2 + LATER_FACTORIZATIONS * newton.solves):
+            return newton
+        newton.destroy()
+        newton = create(problem, comm)          # the first state's choice, iterative
+        newton.later = True
+        return newton
+    newton.later = True
+    first_kind, later_kind = solver_kinds(problem, newton.system_kind)
+    if later_kind == first_kind:
+        return newton
+    newton.destroy()
+    return create(problem, comm, later=True)
+
+
+def _direct_later(problem, system, d, size) -> bool:
+    """Whether the direct solver's kept factors serve the states after the first better than
+    the iterative solver (AUTO_DIRECT_LATER): the condensed system of one body against an
+    obstacle under displacement control, below the size bound, with a Newton matrix that
+    stays the same from step to step where the contact state does (a linear bulk law, the
+    same step size throughout: a uniform time grid)."""
+    scene = problem.scene
+    obstacle = problem.contact and problem.contact.obstacle
+    return (system == "condensed" and size < AUTO_DIRECT_LATER[d]
+            and not hasattr(obstacle, "pairing")
+            and not (obstacle is not None and obstacle.controlled)
+            and scene["material"]["law"] == "linear"
+            and scene["time"]["grid"] == "uniform")
 
 
 def _held_by_contact(problem) -> bool:

@@ -294,6 +294,8 @@ class NewtonSolver:
         self.options = SolverOptions(scene_options, defaults)
         self.snes = PETSc.SNES().create(comm)
         self.setups = 0                  # preconditioner set-ups (factorizations) of a solve
+        self.solves = 0                  # solves so far (steps and cut steps, failed ones too)
+        self.all_setups = 0              # and their set-ups
         self._fingerprint = None         # of the matrix the preconditioner was built from
         self.stale_rows = 0              # keep P's factors for J differing in <= these rows
         self._factorized = None          # the CSR values of the factorized operator P
@@ -305,6 +307,8 @@ class NewtonSolver:
         self._nearby_extra = 0           # FGMRES iterations beyond the first since P's factors
         self.nearby_solves = 0           # solves with an earlier matrix's factors (a run's)
         self.kept = None                 # the iterative solver's kept preconditioner (linear)
+        self.later = False               # for the states after the first (newton.create)
+        self.auto_direct = False         # the direct solver auto takes for them (the same)
         self._loose = None               # the front rule's choice for the next solve (linear)
         self._state = None               # and the contact state it was taken at
 
@@ -566,6 +570,8 @@ class NewtonSolver:
                              f"{', '.join(given)}") from None
         finally:                       # MUMPS reads its options in the first solve
             self.options.note_reads()
+            self.solves += 1
+            self.all_setups += self.setups
         self._to_functions(self.x)
         reason = self.snes.getConvergedReason()
         if (reason <= 0 and self.floating is not None

@@ -50,7 +50,10 @@ class Result:
     linear_system : str, optional
         ``"condensed"``, ``"coupled"`` or ``"displacement"``.
     linear_solver : str, optional
-        The Krylov method and preconditioner, e.g. ``"preonly/lu"``.
+        The Krylov method and preconditioner, e.g. ``"preonly/lu"``; where
+        ``linear_solver = "auto"`` takes another one for the states after the first
+        (``newton.AUTO_DIRECT_LATER``), both: ``"gmres/hypre; after the first state
+        preonly/lu"``.
     final : dict, optional
         The summary's final record: ``t``, ``status_counts``, timings.
     """
@@ -110,7 +113,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     parallel.prepare(comm)          # collective: while every rank is still in step
     parallel.same_scene(comm, scene)
     folder_lock = FolderLock(out, comm, restart, overwrite) if out else None
-    snes, problem, held = None, None, {}   # held: what must be closed however the run ends
+    snes, problem, run, held = None, None, None, {}  # held: closed however the run ends
     signals = parallel.catch_signals()
     try:
         geometry = geometry or geometry_module.build(scene, comm)
@@ -120,7 +123,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
         estimate = None
         if out:                           # before a step, and before the solver's set-up
             estimate = output_limit(scene, problem, out)
-        snes = solver_module.create(problem, comm)
+        snes = solver_module.create(problem, comm, later=restart)
         run = Run(scene, out, comm, problem, snes, progress, restart, started)
         run.output_estimate = estimate
         held["writer"] = run.writer
@@ -136,6 +139,7 @@ def simulate(scene: dict, out=None, comm=MPI.COMM_WORLD, progress=True,
     finally:
         parallel.restore_signals(signals)
         if snes is not None:
+            snes = run.snes if run is not None else snes   # the later states' solver
             snes.destroy()
             if held.get("coarse") is not None:     # collective too
                 held["coarse"]()
@@ -219,8 +223,25 @@ class Run:
                 raise diagnosis.step_failure(problem, comm, failed.t_from, failed.t_to,
                                              failed.cuts, failed.failure, table,
                                              count) from None
+            snes = self._later_solver(snes, result)
         result.final = self._finish(table, t_end)
         return result
+
+    def _later_solver(self, snes, result):
+        """The solver of the states after the first (newton.for_later_states), announced and
+        added to the result's linear_solver where it is another one."""
+        later = solver_module.for_later_states(self.problem, self.comm, snes)
+        if later is snes:
+            return snes
+        self.snes = later
+        if later.auto_direct:
+            result.linear_solver += f"; after the first state {later.linear_solver()}"
+            self.say(f"  the states after the first: {later.describe_linear_solver()}")
+        else:
+            result.linear_solver += f"; after {snes.solves} solves {later.linear_solver()}"
+            self.say(f"  back to {later.describe_linear_solver()}: the direct solver "
+                     f"factorized {snes.all_setups} times in {snes.solves} solves")
+        return later
 
     def _record(self, n, state: Accepted, table) -> dict:
         """The step record of steps.jsonl."""
