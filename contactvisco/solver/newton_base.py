@@ -308,7 +308,7 @@ class NewtonSolver:
         self.nearby_solves = 0           # solves with an earlier matrix's factors (a run's)
         self.kept = None                 # the iterative solver's kept preconditioner (linear)
         self.later = False               # for the states after the first (newton.create)
-        self.auto_direct = False         # the direct solver auto takes for them (the same)
+        self.auto_direct = False         # auto's direct solver for them (AUTO_DIRECT_LATER)
         self._loose = None               # the front rule's choice for the next solve (linear)
         self._state = None               # and the contact state it was taken at
 
