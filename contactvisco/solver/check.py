@@ -335,8 +335,8 @@ def check(scene: dict, geometry=None, comm=MPI.COMM_WORLD) -> dict:
     try:
         system, solver = snes.system_kind, snes.linear_solver()
         if newton.solver_kinds(problem, system) == ("iterative", "direct"):
-            solver += (f"; after the first state preonly/lu ({solver} again where it "
-                       "factorizes more than once per step)")
+            solver += (f"; after the first state preonly/lu ({solver} again past "
+                       f"{newton.LATER_FACTORIZATIONS:g} factorization(s) per step)")
     finally:
         snes.destroy()
     tdim = mesh.topology.dim
