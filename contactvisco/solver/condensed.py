@@ -132,63 +132,105 @@ def replace_rows(A, rows, P, L):
     The new rows keep A's column pattern, so L_i needs the node's own columns rows[i] in the
     pattern of each of its rows (the diagonal block of an assembled stiffness matrix has
     them). Raises ValueError naming the row if one is missing, rather than writing L_i into
-    other columns.
-
-    Batched over nodes: the changed rows are read from A as one submatrix (its CSR arrays at
-    once), each node's d rows are laid out on the union of their column patterns, P_i is
-    applied to all nodes in one product and the new rows are written back in one call
-    (MatSetValues over CSR arrays with the rows' global indices). Collective."""
-    n, d = rows.shape
-    changed = np.flatnonzero(np.any(np.abs(P - np.eye(d)) > 0, axis=(1, 2))
-                             | np.any(L != 0, axis=(1, 2)))
-    wanted, every = row_selection(A, rows[changed])
-    part = A.createSubMatrix(wanted, every)
-    indptr, indices, values = part.getValuesCSR()     # row k: rows[changed].ravel()[k]
-    for obj in (part, wanted, every):
-        obj.destroy()
-    if changed.size:
-        node, columns, table = _node_tables(indptr, indices, values, d)
-        own = rows[changed][node]                     # (u, d): the node's own columns
-        new = np.einsum("ukj,uj->uk", P[changed][node], table)
-        where, which = np.nonzero(own == columns[:, None])   # entry `where` = own column
-        present = np.zeros((changed.size, d), dtype=bool)
-        present[node[where], which] = True
-        if not np.all(present):
-            i, c = np.argwhere(~present)[0]
-            raise ValueError(
-                f"rows {rows[changed[i]].tolist()} of the condensed matrix lack the node's own "
-                f"columns {[int(rows[changed[i], c])]} in their sparsity pattern; the "
-                "condensed rows need the d x d diagonal block of each contact node")
-        new[where] += L[changed][node[where], :, which]
-        # CSR of the new rows: node i's d rows, each on the node's union of columns.
-        width = np.bincount(node, minlength=changed.size)
-        first = np.concatenate([[0], np.cumsum(width)])
-        row_width = np.repeat(width, d)
-        row_ptr = np.concatenate([[0], np.cumsum(row_width)]).astype(PETSc.IntType)
-        entry_node = np.repeat(np.arange(changed.size), d * width)
-        entry_row = np.repeat(np.tile(np.arange(d), changed.size), row_width)
-        offset = np.arange(entry_node.size) - row_ptr[:-1][np.repeat(
-            np.arange(changed.size * d), row_width)]
-        entry = first[entry_node] + offset
-        A.setValuesIJV(row_ptr, columns[entry].astype(PETSc.IntType),
-                       new[entry, entry_row],
-                       rowmap=rows[changed].ravel().astype(PETSc.IntType))
-    A.assemble()
+    other columns. Collective. The node rows are read once here (NodeRows); a caller that
+    replaces the rows of one pattern again and again keeps a NodeRows instead."""
+    node_rows = NodeRows(rows)
+    try:
+        node_rows.replace(A, P, L)
+    finally:
+        node_rows.destroy()
 
 
-def _node_tables(indptr, indices, values, d):
-    """The CSR arrays of d consecutive rows per node laid out on each node's union of
-    columns: (node (u,), columns (u,), table (u, d)) with one entry u per (node, column) of
-    the union, sorted by node and column, and table[u, j] the value of the node's row j
-    there (0 outside its pattern)."""
-    row = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
-    node_of = row // d
-    key = node_of.astype(np.int64) * (int(indices.max(initial=0)) + 1) + indices
-    union, position = np.unique(key, return_inverse=True)
-    table = np.zeros((union.size, d))
-    table[position, row % d] = values
-    width = int(indices.max(initial=0)) + 1
-    return union // width, union % width, table
+class NodeRows:
+    """The rows of the contact nodes of matrices with one sparsity pattern (rows (n, d): each
+    node's d global row indices, owned): read as one submatrix with all columns (its CSR
+    arrays at once), and each node's d rows laid out on the union of their column patterns.
+    The index sets, the submatrix and the layout are made at the first read and reused while
+    the pattern stays (a matrix assembled again into its own pattern keeps it)."""
+
+    def __init__(self, rows):
+        self.rows = np.asarray(rows)
+        self.selection = None      # (rows, all columns) index sets of row_selection
+        self.part = None           # the submatrix of the rows, reused
+        self.layout = None         # (indptr, indices) of part and the union layout of them
+
+    def read(self, A):
+        """The submatrix of A's node rows (row k: rows.ravel()[k], A's global columns), its
+        values taken from A now; the object owns it. Collective."""
+        if self.part is None:
+            self.selection = row_selection(A, self.rows)
+            self.part = A.createSubMatrix(*self.selection)
+        else:
+            A.createSubMatrix(*self.selection, submat=self.part)
+        return self.part
+
+    def _tables(self, indptr, indices):
+        """The union layout of the node rows' CSR pattern (found once per pattern):
+        node (u,) and column (u,) of each union entry, sorted by node and column, and for
+        each CSR entry its union entry and the node row it belongs to (0..d-1)."""
+        if self.layout is not None and np.array_equal(self.layout[0], indptr) and \
+                np.array_equal(self.layout[1], indices):
+            return self.layout[2]
+        d = self.rows.shape[1]
+        row = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))
+        width = int(indices.max(initial=0)) + 1
+        union, position = np.unique(row // d * np.int64(width) + indices, return_inverse=True)
+        tables = (union // width, union % width, position, row % d)
+        self.layout = (indptr.copy(), indices.copy(), tables)
+        return tables
+
+    def replace(self, A, P, L, current=None):
+        """Rows of node i of A become P_i (its rows) + L_i on the node's own d x d block, for
+        every node where P_i != I or L_i != 0; A is assembled afterwards (replace_rows).
+        `current`: the submatrix of A's node rows as `read` gives it, if the caller has just
+        read it (its values must be A's); read here otherwise. Collective."""
+        n, d = self.rows.shape
+        changed = np.flatnonzero(np.any(np.abs(P - np.eye(d)) > 0, axis=(1, 2))
+                                 | np.any(L != 0, axis=(1, 2)))
+        part = current if current is not None else self.read(A)
+        indptr, indices, values = part.getValuesCSR()
+        if changed.size:
+            node, columns, position, component = self._tables(indptr, indices)
+            table = np.zeros((node.size, d))
+            table[position, component] = values
+            index = np.full(n, -1)
+            index[changed] = np.arange(changed.size)
+            keep = index[node] >= 0
+            node, columns, table = index[node[keep]], columns[keep], table[keep]
+            rows = self.rows[changed]
+            own = rows[node]                                  # (u, d): the node's own columns
+            new = np.einsum("ukj,uj->uk", P[changed][node], table)
+            where, which = np.nonzero(own == columns[:, None])   # entry `where` = own column
+            present = np.zeros((changed.size, d), dtype=bool)
+            present[node[where], which] = True
+            if not np.all(present):
+                i, c = np.argwhere(~present)[0]
+                raise ValueError(
+                    f"rows {rows[i].tolist()} of the condensed matrix lack the node's own "
+                    f"columns {[int(rows[i, c])]} in their sparsity pattern; the condensed "
+                    "rows need the d x d diagonal block of each contact node")
+            new[where] += L[changed][node[where], :, which]
+            # CSR of the new rows: node i's d rows, each on the node's union of columns.
+            width = np.bincount(node, minlength=changed.size)
+            first = np.concatenate([[0], np.cumsum(width)])
+            row_width = np.repeat(width, d)
+            row_ptr = np.concatenate([[0], np.cumsum(row_width)]).astype(PETSc.IntType)
+            entry_node = np.repeat(np.arange(changed.size), d * width)
+            entry_row = np.repeat(np.tile(np.arange(d), changed.size), row_width)
+            offset = np.arange(entry_node.size) - row_ptr[:-1][np.repeat(
+                np.arange(changed.size * d), row_width)]
+            entry = first[entry_node] + offset
+            A.setValuesIJV(row_ptr, columns[entry].astype(PETSc.IntType),
+                           new[entry, entry_row],
+                           rowmap=rows.ravel().astype(PETSc.IntType))
+        A.assemble()
+
+    def destroy(self):
+        """Free the submatrix and the index sets (idempotent)."""
+        for obj in (self.part, *(self.selection or ())):
+            if obj is not None:
+                obj.destroy()
+        self.part, self.selection = None, None
 
 
 def node_blocks(block, rows, columns, name="a contact block"):
@@ -200,35 +242,65 @@ def node_blocks(block, rows, columns, name="a contact block"):
     rows[i] in a column outside columns[i] raises ValueError on every rank, naming the block
     (`name`), the row and the column, rather than being dropped. Entries stored in the pattern
     with the value zero (a facet integral's pattern holds the whole cell) are allowed.
-    Collective: the rows are taken out of `block` as one small matrix (all columns), whose
-    local CSR arrays are read at once."""
-    n, r = rows.shape
-    width = columns.shape[1]
-    wanted, every = row_selection(block, rows)
-    part = block.createSubMatrix(wanted, every)
-    indptr, indices, values = part.getValuesCSR()     # row k of part: rows.ravel()[k]
-    for obj in (part, wanted, every):
-        obj.destroy()
-    row = np.repeat(np.arange(n * r), np.diff(indptr))  # flat (node, row of the node)
-    match = indices[:, None] == columns[row // r]
-    found = match.any(axis=1)
-    stray = np.flatnonzero(~found & (values != 0))
-    message = None
-    if stray.size:
-        k = stray[0]
-        message = (
-            f"{name}: row {int(rows.ravel()[row[k]])} of a contact node holds {values[k]:.3g} "
-            f"in column {int(indices[k])}, outside the node's own columns "
-            f"{columns[row[k] // r].tolist()}; the node-wise elimination needs contact rows "
-            "that couple each node's own unknowns only (the vertex rule: "
-            "discretization.contact_quadrature = 'nodal', degree 1)")
-    # Every rank raises, so that no rank waits in the next collective call.
-    messages = [m for m in block.getComm().tompi4py().allgather(message) if m]
-    if messages:
-        raise ValueError(messages[0])
-    out = np.zeros((n * r, width))
-    out[row[found], match[found].argmax(axis=1)] = values[found]
-    return out.reshape(n, r, width)
+    Collective. The rows are read once here (NodeBlocks); a caller that reads the blocks of
+    one pattern again and again keeps a NodeBlocks instead."""
+    reader = NodeBlocks(rows, columns, name)
+    try:
+        return reader.read(block)
+    finally:
+        reader.destroy()
+
+
+class NodeBlocks:
+    """node_blocks for the matrices of one sparsity pattern: the node rows are taken out as
+    one submatrix with all columns (NodeRows), whose local CSR arrays are read at once, and
+    which entry of them is which node's (row, column), or outside the node's columns, is
+    found at the first read and reused while the pattern stays."""
+
+    def __init__(self, rows, columns, name="a contact block"):
+        self.rows, self.columns, self.name = np.asarray(rows), np.asarray(columns), name
+        self.node_rows = NodeRows(rows)
+        self.layout = None   # (indptr, indices, row of each entry, found, its column, stray)
+
+    def _layout(self, indptr, indices):
+        if self.layout is not None and np.array_equal(self.layout[0], indptr) and \
+                np.array_equal(self.layout[1], indices):
+            return self.layout[2:]
+        r = self.rows.shape[1]
+        row = np.repeat(np.arange(len(indptr) - 1), np.diff(indptr))  # flat (node, its row)
+        match = indices[:, None] == self.columns[row // r]
+        found = match.any(axis=1)
+        self.layout = (indptr.copy(), indices.copy(), row, found, match[found].argmax(axis=1),
+                       np.flatnonzero(~found))
+        return self.layout[2:]
+
+    def read(self, block):
+        """out[i] = block[rows[i], columns[i]] (n, r, c); ValueError on every rank for a
+        non-zero entry of a node row outside its node's columns. Collective."""
+        n, r = self.rows.shape
+        indptr, indices, values = self.node_rows.read(block).getValuesCSR()
+        row, found, column, outside = self._layout(indptr, indices)
+        stray = outside[values[outside] != 0]
+        message = None
+        if stray.size:
+            k = stray[0]
+            message = (
+                f"{self.name}: row {int(self.rows.ravel()[row[k]])} of a contact node holds "
+                f"{values[k]:.3g} in column {int(indices[k])}, outside the node's own "
+                f"columns {self.columns[row[k] // r].tolist()}; the node-wise elimination "
+                "needs contact rows that couple each node's own unknowns only (the vertex "
+                "rule: discretization.contact_quadrature = 'nodal', degree 1)")
+        # Every rank raises, so that no rank waits in the next collective call.
+        messages = [m for m in block.getComm().tompi4py().allgather(message) if m]
+        if messages:
+            raise ValueError(messages[0])
+        out = np.zeros((n * r, self.columns.shape[1]))
+        out[row[found], column] = values[found]
+        return out.reshape(n, r, self.columns.shape[1])
+
+    def destroy(self):
+        """Free the submatrix and the index sets (idempotent)."""
+        self.node_rows.destroy()
 
 
 def row_selection(A, rows):
@@ -375,12 +447,17 @@ class NodalCondensation:
         self.J_uu = fem.form(problem.J[0][0])
         self.G = [fem.form(problem.F[1 + a]) for a in range(len(self.fields))]
         self.G_vecs = [compat.form_vector(f) for f in self.G]
-        # The blocks coupling u_i and lambda_i, read node by node (node_blocks); per unknown
+        # The blocks coupling u_i and lambda_i, read node by node (NodeBlocks); per unknown
         # (u, then each multiplier) the global indices of the owned contact nodes' components.
         self.couplings = coupling_blocks(problem.J)
         self.indices = [node_indices(space, self.own)
                         for space in [V] + [f.function_space for f in self.fields]]
         self.rows = self.indices[0]
+        names = [problem.u.name] + [f.name for f in self.fields]
+        self.readers = {(i, j): NodeBlocks(
+            self.indices[i], self.indices[j],
+            f"the Jacobian block (rows of {names[i]}, columns of {names[j]})")
+            for i, j in self.couplings}
 
         self.free = np.concatenate([mask[self.own] for mask in problem.multiplier_free], axis=1)
         self.fixed_u = problem.u_fixed[self.own] > 0
@@ -394,8 +471,8 @@ class NodalCondensation:
         self._assemble_J()
         self._bulk = BulkPart(problem.J[0][0], self.A)
         self.scale = diagonal_scale(self.A, self.own, d)
-        self._contact_rows, self._columns = row_selection(self.A, self.rows)
-        self.J_contact = self.A.createSubMatrix(self._contact_rows, self._columns)
+        self.contact_rows = NodeRows(self.rows)
+        self.J_contact = self.contact_rows.read(self.A)
         self._Jdu = self.J_contact.createVecLeft()
         self.J_red = self.A
         self.parts = None
@@ -414,6 +491,8 @@ class NodalCondensation:
         """Free the PETSc objects of the system (collective; idempotent)."""
         if self._bulk is not None:
             self._bulk.destroy()
+        for reader in [*self.readers.values(), self.contact_rows]:
+            reader.destroy()
         compat.destroy_petsc_objects(self, self.BORROWED)
 
     def _assemble_J(self):
@@ -460,14 +539,11 @@ class NodalCondensation:
         n, d = len(self.own), self.d
         start = np.concatenate([[0], d + self.offsets]).astype(int)    # of u, lambda_a
         K = np.zeros((n, d + self.m, d + self.m))      # [[., B], [C, D]] of each node
-        names = [self.problem.u.name] + [f.name for f in self.fields]
         for (i, j), (form, matrix) in self.couplings.items():
             matrix.zeroEntries()
             compat.assemble_matrix(matrix, form, [], diagonal=1.0)
             matrix.assemble()
-            K[:, start[i]:start[i + 1], start[j]:start[j + 1]] = node_blocks(
-                matrix, self.indices[i], self.indices[j],
-                f"the Jacobian block (rows of {names[i]}, columns of {names[j]})")
+            K[:, start[i]:start[i + 1], start[j]:start[j + 1]] = self.readers[i, j].read(matrix)
         B, C, D = K[:, :d, d:].copy(), K[:, d:, :d].copy(), K[:, d:, d:].copy()
         # Dirichlet rows of u carry no multiplier; fixed multipliers are decoupled (dl = 0).
         B[self.fixed_u] = 0.0
@@ -551,8 +627,9 @@ class NodalCondensation:
         condensation of the last residual is done first (its vector then holds F_red)."""
         self.finish_condensation()
         self._assemble_J()
-        self.A.createSubMatrix(self._contact_rows, self._columns, submat=self.J_contact)
-        replace_rows(self.A, self.rows, self.parts["P"], self.parts["L"])
+        self.contact_rows.read(self.A)                   # into J_contact
+        self.contact_rows.replace(self.A, self.parts["P"], self.parts["L"],
+                                  current=self.J_contact)
 
     def update_multipliers(self, du):
         """Add the node-wise dl for the displacement step du (a PETSc vector); returns dl

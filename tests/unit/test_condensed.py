@@ -17,7 +17,8 @@ from contactvisco.errors import SceneError
 from contactvisco.fem import compat, contact_state, geometry, problem as problem_module
 from contactvisco.scene import loader as scene_module
 from contactvisco.solver import newton as solver_module
-from contactvisco.solver.condensed import NodalCondensation, eliminate, node_blocks, recover
+from contactvisco.solver.condensed import (NodalCondensation, NodeBlocks, eliminate, node_blocks,
+                                           recover)
 from contactvisco.solver.time_loop import simulate
 from helpers import condensed_at
 
@@ -193,6 +194,32 @@ def test_node_blocks_refuse_a_row_outside_the_vertex_rule():
     with pytest.raises(ValueError, match=rf"^B block: row {row} of a contact node holds 3.5 "
                                          rf"in column {column}, outside"):
         node_blocks(A, rows, columns, "B block")
+    A.destroy()
+
+
+@pytest.mark.mpi
+def test_kept_node_blocks_follow_new_values_and_refuse_a_stray_one():
+    """NodeBlocks keeps its index sets, submatrix and entry layout across reads of one
+    pattern: a second read gives the new values, and a stored zero outside a node's columns
+    that has become non-zero (node 0's rows in node 1's columns, on the last rank) raises
+    on every rank, as a fresh node_blocks does."""
+    comm = MPI.COMM_WORLD
+    A, rows, columns, expected = _synthetic(comm, stray=False)
+    reader = NodeBlocks(rows, columns, "B block")
+    assert np.array_equal(reader.read(A), expected)
+    for i in range(2):
+        A.setValues(rows[i], columns[i], -2.0 * expected[i])
+    A.assemble()
+    assert np.array_equal(reader.read(A), -2.0 * expected)
+    if comm.rank == comm.size - 1:
+        A.setValues([rows[0, 1]], [columns[1, 0]], [7.25])
+    A.assemble()
+    row, column = comm.bcast((int(rows[0, 1]), int(columns[1, 0])), root=comm.size - 1)
+    for read in (reader.read, lambda M: node_blocks(M, rows, columns, "B block")):
+        with pytest.raises(ValueError, match=rf"^B block: row {row} of a contact node holds "
+                                             rf"7.25 in column {column}, outside"):
+            read(A)
+    reader.destroy()
     A.destroy()
 
 

@@ -14,22 +14,36 @@ from contactvisco.solver.time_loop import simulate
 from helpers import diagonal_matrix
 
 
-def test_batched_rows_equal_the_node_formula():
-    """Rows of node i become P_i (rows) + L_i on the node's own columns, for nodes whose d
-    rows have different column patterns; the other nodes' rows (P = I, L = 0) are kept."""
-    rng = np.random.default_rng(3)
-    d, nodes = 3, 7
+def _node_pattern(rng, d, nodes, density):
+    """A random sparsity pattern of d rows per node that holds each node's own d x d block."""
     size = d * nodes
-    pattern = rng.random((size, size)) < 0.3
-    for i in range(nodes):                       # each node's own d x d block is present
+    pattern = rng.random((size, size)) < density
+    for i in range(nodes):
         pattern[i * d:(i + 1) * d, i * d:(i + 1) * d] = True
-    dense = np.where(pattern, rng.normal(size=(size, size)), 0.0)
+    return pattern
+
+
+def _aij(dense, pattern):
+    """A serial AIJ matrix with the entries of `dense` on `pattern` (stored zeros included)."""
+    size = len(dense)
     A = PETSc.Mat().createAIJ((size, size), nnz=size, comm=MPI.COMM_SELF)
     A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
     for row in range(size):
         cols = np.flatnonzero(pattern[row]).astype(PETSc.IntType)
         A.setValues([row], cols, dense[row, cols])
     A.assemble()
+    return A
+
+
+def test_batched_rows_equal_the_node_formula():
+    """Rows of node i become P_i (rows) + L_i on the node's own columns, for nodes whose d
+    rows have different column patterns; the other nodes' rows (P = I, L = 0) are kept."""
+    rng = np.random.default_rng(3)
+    d, nodes = 3, 7
+    size = d * nodes
+    pattern = _node_pattern(rng, d, nodes, 0.3)
+    dense = np.where(pattern, rng.normal(size=(size, size)), 0.0)
+    A = _aij(dense, pattern)
     rows = np.arange(size, dtype=PETSc.IntType).reshape(nodes, d)
     P = np.broadcast_to(np.eye(d), (nodes, d, d)).copy()
     L = np.zeros((nodes, d, d))
@@ -46,6 +60,42 @@ def test_batched_rows_equal_the_node_formula():
     got = A.getValues(range(size), range(size))
     assert np.max(np.abs(got - expected)) < 1e-13 * np.max(np.abs(expected))
     A.destroy()
+
+
+def test_kept_node_rows_equal_a_fresh_replacement():
+    """NodeRows keeps the layout of the node rows across replacements in matrices of one
+    pattern: replacing with one object in two matrices, with different nodes changed (one
+    node with P = I and L = 0 the second time), gives what replace_rows gives each time."""
+    rng = np.random.default_rng(5)
+    d, nodes = 3, 6
+    size = d * nodes
+    pattern = _node_pattern(rng, d, nodes, 0.35)
+    rows = np.arange(size, dtype=PETSc.IntType).reshape(nodes, d)
+
+    def matrix(seed):
+        values = np.random.default_rng(seed).normal(size=(size, size))
+        return _aij(np.where(pattern, values, 0.0), pattern)
+
+    kept = condensed.NodeRows(rows)
+    for seed, unchanged in ((1, ()), (2, (0, 4))):
+        P = np.broadcast_to(np.eye(d), (nodes, d, d)).copy()
+        L = np.zeros((nodes, d, d))
+        for i in set(range(nodes)) - set(unchanged):
+            q = np.linalg.qr(rng.normal(size=(d, 1)))[0]
+            P[i] -= q @ q.T
+            L[i] = rng.normal(size=(d, d))
+        A, B = matrix(seed), matrix(seed)
+        kept.replace(A, P, L)
+        replace_rows(B, rows, P, L)
+        got, expected = (M.getValues(range(size), range(size)) for M in (A, B))
+        assert np.array_equal(got, expected)
+        original = matrix(seed)
+        kept_rows = rows[list(unchanged)].ravel()
+        assert np.array_equal(got[kept_rows], original.getValues(kept_rows, range(size)))
+        original.destroy()
+        for M in (A, B):
+            M.destroy()
+    kept.destroy()
 
 
 def _paper(sets=()):
