@@ -61,10 +61,9 @@ ITERATIVE_OPTIONS = {
 }
 
 #: Where PETSc has no hypre: GMRES preconditioned by PETSc's smoothed-aggregation AMG (GAMG),
-#: with the rigid motions as near-nullspace. Each Jacobian has other constraint rows (other
-#: active contact nodes) than the first, so the prolongation is rebuilt for every Jacobian
-#: instead of being reused; the aggregation threshold is the one chosen in docs/scaling.md
-#: (benchmarks/performance/gamg.py).
+#: with the rigid motions as near-nullspace; the aggregation threshold is the one chosen in
+#: docs/scaling.md (benchmarks/performance/gamg.py). Whether a set-up builds a new
+#: prolongation or keeps the first one: GAMG_REUSE_INTERPOLATION.
 GAMG_OPTIONS = {
     "ksp_type": "gmres",
     "ksp_gmres_restart": 100,
@@ -78,6 +77,16 @@ GAMG_OPTIONS = {
     "mg_levels_ksp_type": "chebyshev",
     "mg_levels_pc_type": "jacobi",
 }
+
+#: GAMG's pc_gamg_reuse_interpolation by dimension: True keeps the prolongation of the first
+#: set-up for the run, and a later set-up (a new Newton matrix) recomputes only the Galerkin
+#: coarse operators. In 2D the Jacobians' other constraint rows made the Krylov counts grow
+#: with a kept prolongation and a new one per set-up is as fast (the paper scene at 256^2:
+#: 5 % more Newton time kept); in 3D a set-up costs about an elastic solve, and keeping the
+#: prolongation took 35 and 39 % less Newton time on block3d at 22k and 52k unknowns
+#: (docs/scaling.md). A solve that does not converge gets a new prolongation at the next
+#: set-up (newton_base.NewtonSolver._fresh_prolongation).
+GAMG_REUSE_INTERPOLATION = {2: False, 3: True}
 
 #: linear_solver = "auto" takes the iterative solver from this many displacement unknowns on
 #: (by dimension), with BoomerAMG; where the measurements put the switch: docs/scaling.md
@@ -620,9 +629,12 @@ class CondensedSNES(NewtonSolver):
         return PETSc.SNES.ConvergedReason.CONVERGED_ITERATING
 
 
-def iterative_options() -> dict:
-    """GMRES with BoomerAMG where PETSc has hypre, else with GAMG."""
-    return ITERATIVE_OPTIONS if compat.has_hypre() else GAMG_OPTIONS
+def iterative_options(dimension: int = 2) -> dict:
+    """GMRES with BoomerAMG where PETSc has hypre, else with GAMG (its prolongation kept
+    across set-ups by GAMG_REUSE_INTERPOLATION of the mesh's `dimension`)."""
+    if compat.has_hypre():
+        return ITERATIVE_OPTIONS
+    return {**GAMG_OPTIONS, "pc_gamg_reuse_interpolation": GAMG_REUSE_INTERPOLATION[dimension]}
 
 
 def create(problem, comm, scene_options=None, later=False) -> NewtonSolver:
@@ -699,7 +711,8 @@ def solver_kinds(problem, system) -> tuple[str, str]:
 def _create(problem, comm, options, system, kind) -> NewtonSolver:
     """The solver of `system` ("condensed", "coupled" or "displacement") with the linear
     solver `kind` ("direct" or "iterative")."""
-    defaults = iterative_options() if kind == "iterative" else {}
+    defaults = (iterative_options(problem.V.mesh.geometry.dim) if kind == "iterative"
+                else {})
     obstacle = problem.contact and problem.contact.obstacle
     if obstacle is not None and obstacle.controlled and system != "condensed":
         raise SceneError("obstacle.force_components: force control is solved with the "

@@ -307,6 +307,7 @@ class NewtonSolver:
         self._nearby_extra = 0           # FGMRES iterations beyond the first since P's factors
         self.nearby_solves = 0           # solves with an earlier matrix's factors (a run's)
         self.kept = None                 # the iterative solver's kept preconditioner (linear)
+        self.fresh_prolongations = 0     # GAMG prolongations rebuilt after a failed solve
         self.later = False               # for the states after the first (newton.create)
         self.auto_direct = False         # auto's direct solver for them (AUTO_DIRECT_LATER)
         self._loose = None               # the front rule's choice for the next solve (linear)
@@ -365,6 +366,18 @@ class NewtonSolver:
             if obj is not None:
                 obj.destroy()
 
+    def _fresh_prolongation(self):
+        """Where GAMG keeps its prolongation across set-ups (pc_gamg_reuse_interpolation)
+        and the last solve did not converge, reset the preconditioner, so that the coming
+        set-up builds a new prolongation from the new matrix instead of recomputing the
+        coarse operators on the old one (newton.GAMG_REUSE_INTERPOLATION). The operators
+        are given to the KSP again by SNES before the set-up."""
+        ksp = self.snes.getKSP()
+        pc = ksp.getPC()
+        if pc.getType() == "gamg" and ksp.getConvergedReason() < 0:
+            pc.reset()
+            self.fresh_prolongations += 1
+
     def _to_operator(self, A):
         """Hand the freshly assembled Newton matrix A to the linear solver: copied into the
         SNES's operator (and the preconditioner rebuilt from it, counted in `setups`) unless
@@ -377,9 +390,11 @@ class NewtonSolver:
         if not self.reuse:
             if self.kept is None:
                 self.setups += 1
+                self._fresh_prolongation()
             elif self.kept.build_next(self.snes.getKSP(), A, self._loose, self._state):
                 A.copy(self.operator, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
                 self.setups += 1
+                self._fresh_prolongation()
             return
         if self.stale_rows > 0:
             self._to_operator_or_stale(A)
