@@ -146,7 +146,13 @@ class NodeRows:
     node's d global row indices, owned): read as one submatrix with all columns (its CSR
     arrays at once), and each node's d rows laid out on the union of their column patterns.
     The index sets, the submatrix and the layout are made at the first read and reused while
-    the pattern stays (a matrix assembled again into its own pattern keeps it)."""
+    the pattern stays (a matrix assembled again into its own pattern keeps it).
+
+    Parameters
+    ----------
+    rows : numpy.ndarray
+        (n, d) global row indices of the n nodes' rows, owned by this rank.
+    """
 
     def __init__(self, rows):
         self.rows = np.asarray(rows)
@@ -255,7 +261,17 @@ class NodeBlocks:
     """node_blocks for the matrices of one sparsity pattern: the node rows are taken out as
     one submatrix with all columns (NodeRows), whose local CSR arrays are read at once, and
     which entry of them is which node's (row, column), or outside the node's columns, is
-    found at the first read and reused while the pattern stays."""
+    found at the first read and reused while the pattern stays.
+
+    Parameters
+    ----------
+    rows : numpy.ndarray
+        (n, r) global indices of each node's rows, owned by this rank.
+    columns : numpy.ndarray
+        (n, c) global indices of each node's columns.
+    name : str, optional
+        The block's name in the error for a row outside the vertex rule.
+    """
 
     def __init__(self, rows, columns, name="a contact block"):
         self.rows, self.columns, self.name = np.asarray(rows), np.asarray(columns), name
