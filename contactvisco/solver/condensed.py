@@ -193,9 +193,9 @@ class NodeRows:
         n, d = self.rows.shape
         changed = np.flatnonzero(np.any(np.abs(P - np.eye(d)) > 0, axis=(1, 2))
                                  | np.any(L != 0, axis=(1, 2)))
-        part = current if current is not None else self.read(A)
-        indptr, indices, values = part.getValuesCSR()
+        part = current if current is not None else self.read(A)    # collective: every rank
         if changed.size:
+            indptr, indices, values = part.getValuesCSR()
             node, columns, position, component = self._tables(indptr, indices)
             table = np.zeros((node.size, d))
             table[position, component] = values
