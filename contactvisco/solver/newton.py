@@ -94,8 +94,10 @@ GAMG_REUSE_INTERPOLATION = {2: False, 3: True}
 #: kept factors at 18818 unknowns and ahead from 33282 on).
 AUTO_ITERATIVE = {2: 20_000, 3: 5_000}
 
-#: The same where PETSc has no hypre (GAMG): docs/scaling.md.
-AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 22_000}
+#: The same where PETSc has no hypre (GAMG): docs/scaling.md (in 3D 6000: with the kept
+#: prolongation, GAMG_REUSE_INTERPOLATION, GAMG is even with MUMPS at 4014 unknowns on block3d
+#: and ahead from 7998 on).
+AUTO_ITERATIVE_GAMG = {2: 530_000, 3: 6_000}
 
 #: linear_solver = "auto" where it chose the iterative solver: the states after the first take
 #: the direct solver below this many displacement unknowns (by dimension; 0: never), where the
