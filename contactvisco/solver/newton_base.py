@@ -368,14 +368,27 @@ class NewtonSolver:
 
     def _fresh_prolongation(self):
         """Where GAMG keeps its prolongation across set-ups (pc_gamg_reuse_interpolation)
-        and the last solve did not converge, reset the preconditioner, so that the coming
-        set-up builds a new prolongation from the new matrix instead of recomputing the
-        coarse operators on the old one (newton.GAMG_REUSE_INTERPOLATION). The operators
-        are given to the KSP again by SNES before the set-up."""
+        and the last solve did not converge, build a new prolongation at every set-up from
+        now on (newton.GAMG_REUSE_INTERPOLATION): a kept prolongation that let a solve fail
+        is not trusted for the rest of the run.
+
+        Called before each set-up. The option is turned off under the solver's prefix and
+        the preconditioner made anew (its type set away and back, its options read again),
+        rather than reset by PCReset: after PCReset, PETSc 3.18's GAMG kept its level
+        solvers at the old sizes, and a set-up whose aggregation gave coarse levels of other
+        sizes failed ("Cannot change local size of Amat after use"). The operator keeps the
+        rigid motions as its near-nullspace, from which the new GAMG takes them."""
         ksp = self.snes.getKSP()
         pc = ksp.getPC()
-        if pc.getType() == "gamg" and ksp.getConvergedReason() < 0:
-            pc.reset()
+        if pc.getType() != "gamg" or ksp.getConvergedReason() >= 0:
+            return
+        key = (pc.getOptionsPrefix() or "") + "pc_gamg_reuse_interpolation"
+        options = PETSc.Options()
+        if options.getBool(key, False):
+            options[key] = False
+            pc.setType(PETSc.PC.Type.NONE)
+            pc.setType(PETSc.PC.Type.GAMG)
+            pc.setFromOptions()
             self.fresh_prolongations += 1
 
     def _to_operator(self, A):

@@ -62,29 +62,47 @@ def test_a_kept_prolongation_reaches_the_direct_answer(monkeypatch):
             assert np.max(np.abs(np.asarray(ta[key]) - tb[key])) <= 1e-7 * scale, key
 
 
-def _laplacian(n):
-    A = PETSc.Mat().createAIJ((n, n), nnz=3, comm=MPI.COMM_SELF)
-    for i in range(n):
-        A.setValues([i], [j for j in (i - 1, i, i + 1) if 0 <= j < n],
-                    [-1.0, 2.0, -1.0][(i == 0):3 - (i == n - 1)])
-    A.assemble()
+def _grid(m):
+    """The 5-point Laplacian's pattern on an m x m grid (values by _fill_grid)."""
+    A = PETSc.Mat().createAIJ((m * m, m * m), nnz=5, comm=MPI.COMM_SELF)
+    _fill_grid(A, m, 1.0)
     return A
+
+
+def _fill_grid(A, m, weak, shift=1e-3):
+    """The Laplacian with the couplings along y scaled by `weak` (the same pattern for every
+    `weak`, as the Newton matrix keeps its pattern): below GAMG's threshold they are
+    dropped and the aggregates become lines along x."""
+    for i in range(m):
+        for j in range(m):
+            row, columns, values = i * m + j, [], []
+            for di, dj, c in ((-1, 0, weak), (1, 0, weak), (0, -1, 1.0), (0, 1, 1.0)):
+                if 0 <= i + di < m and 0 <= j + dj < m:
+                    columns.append((i + di) * m + j + dj)
+                    values.append(-c)
+            A.setValues([row], columns + [row], values + [shift - sum(values)])
+    A.assemble()
 
 
 def test_a_failed_solve_gets_a_new_prolongation():
     """With pc_gamg_reuse_interpolation, a set-up after a converged solve keeps the
     prolongation; after a solve that stopped at its iteration limit (DIVERGED_MAX_IT),
-    _fresh_prolongation resets the preconditioner and the next set-up builds a new one."""
-    n = 400
-    A = _laplacian(n)
+    _fresh_prolongation makes the next set-up build a new one, here from a matrix whose
+    weak couplings give other aggregates and a coarse level of another size (the case after
+    which PETSc 3.18's PCReset left GAMG failing), and every set-up after it builds its own."""
+    m = 20
+    A = _grid(m)
     snes = PETSc.SNES().create(MPI.COMM_SELF)
     ksp = snes.getKSP()
     ksp.setType("gmres")
     pc = ksp.getPC()
     pc.setType("gamg")
     opts = PETSc.Options()
-    opts["reuse_test_pc_gamg_reuse_interpolation"] = True
-    opts["reuse_test_pc_gamg_coarse_eq_limit"] = 10
+    keys = {"reuse_test_pc_gamg_reuse_interpolation": True,
+            "reuse_test_pc_gamg_coarse_eq_limit": 10,
+            "reuse_test_pc_gamg_threshold": 0.01}
+    for key, value in keys.items():
+        opts[key] = value
     ksp.setOptionsPrefix("reuse_test_")
     ksp.setFromOptions()
     ksp.setOperators(A)
@@ -92,25 +110,32 @@ def test_a_failed_solve_gets_a_new_prolongation():
     b, x = A.createVecs()
     b.set(1.0)
 
-    def solve(max_it):
+    def solve(max_it, weak=1.0):
+        """A new matrix (the same pattern, new values, as the Newton matrix): a set-up."""
+        NewtonSolver._fresh_prolongation(owner)
         ksp.setTolerances(rtol=1e-10, max_it=max_it)
-        A.shift(1e-3)                                 # a new matrix: a new set-up
+        solve.count += 1
+        _fill_grid(A, m, weak, shift=1e-3 * solve.count)
         ksp.setOperators(A)
         ksp.solve(b, x)
         return ksp.getConvergedReason()
+    solve.count = 0
 
     assert solve(200) > 0
     first = pc.getMGInterpolation(1)
-    NewtonSolver._fresh_prolongation(owner)
+    coarse = first.getSize()[1]
     assert solve(1) == PETSc.KSP.ConvergedReason.DIVERGED_MAX_IT
     assert owner.fresh_prolongations == 0
     assert pc.getMGInterpolation(1).handle == first.handle      # kept after a converged solve
-    NewtonSolver._fresh_prolongation(owner)
+    assert solve(200, weak=1e-4) > 0
     assert owner.fresh_prolongations == 1
-    ksp.setOperators(A)
-    assert solve(200) > 0
-    assert pc.getMGInterpolation(1).handle != first.handle      # built again
-    for key in ("reuse_test_pc_gamg_reuse_interpolation", "reuse_test_pc_gamg_coarse_eq_limit"):
+    second = pc.getMGInterpolation(1)
+    assert second.handle != first.handle                        # built again
+    assert second.getSize()[1] != coarse                        # other aggregates
+    assert solve(200, weak=1e-4) > 0
+    assert pc.getMGInterpolation(1).handle != second.handle     # no longer kept
+    assert owner.fresh_prolongations == 1
+    for key in keys:
         opts.delValue(key)
     for obj in (snes, A, b, x):
         obj.destroy()
