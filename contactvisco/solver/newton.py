@@ -84,8 +84,8 @@ GAMG_OPTIONS = {
 #: with a kept prolongation and a new one per set-up is as fast (the paper scene at 256^2:
 #: 5 % more Newton time kept); in 3D a set-up costs about an elastic solve, and keeping the
 #: prolongation took 35 and 39 % less Newton time on block3d at 22k and 52k unknowns
-#: (docs/scaling.md). A solve that does not converge gets a new prolongation at the next
-#: set-up (newton_base.NewtonSolver._fresh_prolongation).
+#: (docs/scaling.md). After a solve that does not converge, every set-up of the run builds a
+#: new prolongation (newton_base.NewtonSolver._fresh_prolongation).
 GAMG_REUSE_INTERPOLATION = {2: False, 3: True}
 
 #: linear_solver = "auto" takes the iterative solver from this many displacement unknowns on

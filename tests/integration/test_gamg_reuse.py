@@ -1,7 +1,7 @@
 """GAMG keeps its prolongation across set-ups in 3D (newton.GAMG_REUSE_INTERPOLATION): a
 set-up for a new Newton matrix recomputes only the Galerkin coarse operators. The run reaches
-the direct solver's contact values; a solve that did not converge gets a new prolongation at
-the next set-up (NewtonSolver._fresh_prolongation). GAMG is taken on both routes here (the
+the direct solver's contact values; after a solve that did not converge, every set-up builds
+a new prolongation (NewtonSolver._fresh_prolongation). GAMG is taken on both routes here (the
 Debian route would take BoomerAMG), so the tests run on both."""
 import types
 
