@@ -74,8 +74,12 @@ def one(scene_name, size, solver, steps, label, switches=(), settings=()):
         module, _, name = name.rpartition(".")
         module = importlib.import_module(f"contactvisco.solver.{module or 'linear'}")
         current = getattr(module, name)        # a dict by literal: AUTO_DIRECT_LATER={2:0}
-        setattr(module, name, {**current, **ast.literal_eval(value)}
-                if isinstance(current, dict) else type(current)(float(value)))
+        if isinstance(current, dict):
+            setattr(module, name, {**current, **ast.literal_eval(value)})
+        elif isinstance(current, tuple):       # a tuple by literal: AFTER_LOOSE_PCS=('hypre',)
+            setattr(module, name, tuple(ast.literal_eval(value)))
+        else:
+            setattr(module, name, type(current)(float(value)))
     from contactvisco.solver import newton
     newton_cpu = []                            # CPU seconds of every Newton solve
     solve = newton.NewtonSolver.solve
@@ -188,7 +192,7 @@ def main():
     parser.add_argument("--switch", nargs="*", default=[],
                         help="NAME=VALUE of contactvisco.solver.linear (KEEP=0, INEXACT=0), "
                         "or MODULE.NAME=VALUE of another contactvisco.solver module "
-                        "(a dict's entries as a literal: newton.AUTO_DIRECT_LATER={2:0}); "
+                        "(a dict's entries or a tuple as a literal: newton.AUTO_DIRECT_LATER={2:0}); "
                         "recorded with each row")
     parser.add_argument("--set", nargs="*", default=[], dest="settings",
                         help="scene overrides (solver.first_iterate='coarse')")
