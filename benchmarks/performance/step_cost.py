@@ -192,7 +192,8 @@ def main():
     parser.add_argument("--switch", nargs="*", default=[],
                         help="NAME=VALUE of contactvisco.solver.linear (KEEP=0, INEXACT=0), "
                         "or MODULE.NAME=VALUE of another contactvisco.solver module "
-                        "(a dict's entries or a tuple as a literal: newton.AUTO_DIRECT_LATER={2:0}); "
+                        "(a dict's entries or a tuple as a literal: "
+                        "newton.AUTO_DIRECT_LATER={2:0}); "
                         "recorded with each row")
     parser.add_argument("--set", nargs="*", default=[], dest="settings",
                         help="scene overrides (solver.first_iterate='coarse')")
