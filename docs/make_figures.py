@@ -6,8 +6,10 @@ tests/integration/test_figures.py compares with what the program draws now.
 
 Runs: the paper scene as shipped (paper_*), the Hertz scene (hertz_*), the 3D block
 (block3d_*); the trade-off figure is redrawn from benchmarks/results/tradeoff_paper.json
-(measured by benchmarks/accuracy/tradeoff.py; wall times are not repeatable, so it is not rerun here);
-the Cattaneo-Mindlin comparison (coulomb_*) is run as demos/coulomb.py runs it.
+(measured by benchmarks/accuracy/tradeoff.py; wall times are not repeatable, so it is not
+rerun here), the step-cost figure likewise from benchmarks/results/step_cost_five_sizes*.json
+(measured by benchmarks/performance/step_cost.py); the Cattaneo-Mindlin comparison
+(coulomb_*) is run as demos/coulomb.py runs it.
 """
 import json
 import pathlib
@@ -29,6 +31,8 @@ DPI = 200
 CATTANEO_H = 0.0025     # the mesh size at the contact of demos/coulomb.py (a / 22)
 CATTANEO_KEYS = ("a", "c", "p0", "a_over_h", "load_ratio", "x", "q", "p", "stick")
 RUNS = FIGURES / "coulomb_cattaneo_mindlin_runs.json"
+#: the runs the step-cost figure draws (benchmarks/results/)
+STEP_COST_RESULTS = ("step_cost_five_sizes.json", "step_cost_five_sizes_np2.json")
 
 
 def run_figures(name: str) -> list[tuple[str, object]]:
@@ -56,6 +60,20 @@ def tradeoff_figure():
     fig = Figure()
     tradeoff.draw(result, fig)
     return [("tradeoff", fig)]
+
+
+def step_cost_figure():
+    """A step's cost in elastic solves at the five sizes of step_cost.py's default run, on 1
+    and 2 ranks, drawn by that benchmark's draw() from its results."""
+    import importlib.util
+    from matplotlib.figure import Figure
+    path = HERE.parent / "benchmarks" / "performance" / "step_cost.py"
+    spec = importlib.util.spec_from_file_location("step_cost", path)
+    step_cost = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(step_cost)
+    rows = [row for name in STEP_COST_RESULTS
+            for row in json.loads((HERE.parent / "benchmarks" / "results" / name).read_text())]
+    return [("step_cost", step_cost.draw(rows, Figure()))]
 
 
 def cattaneo_figure():
@@ -104,6 +122,8 @@ def main():
                 save(items)
     if MPI.COMM_WORLD.rank == 0 and (only is None or "tradeoff" in only):
         save(tradeoff_figure())
+    if MPI.COMM_WORLD.rank == 0 and (only is None or "step_cost" in only):
+        save(step_cost_figure())
     if only is None or "coulomb" in only:
         items = cattaneo_figure()
         if MPI.COMM_WORLD.rank == 0:

@@ -142,6 +142,67 @@ def ratios(row):
             sum(later) / len(later) / row["unit_s"] if later else float("nan"))
 
 
+def draw(rows, fig):
+    """Draw a step's cost in elastic solves (left: the first loaded step open, the mean of the
+    later ones filled; the dashed lines at 4 and 2) and the mean Newton iterations of the later
+    steps on the fewest ranks (right), against the displacement unknowns: circles 2D, squares
+    3D, colour by ranks.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Rows of step_cost_<label>.json (failed ones are left out).
+    fig : matplotlib.figure.Figure
+        An empty figure to draw on (sized and laid out here).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        `fig`.
+    """
+    import matplotlib
+    from contactvisco.post.figures import PAGE, STYLE
+    rows = [r for r in rows if "failed" not in r]
+    ranks = sorted({r["ranks"] for r in rows})
+    with matplotlib.rc_context(STYLE):
+        fig.set_size_inches(PAGE, 2.6)
+        if hasattr(fig, "set_layout_engine"):          # matplotlib >= 3.6
+            fig.set_layout_engine("constrained")
+        else:
+            fig.set_constrained_layout(True)
+        cost, newton = fig.subplots(1, 2)
+        for r in rows:
+            first, later = ratios(r)
+            k = first_loaded(r)
+            colour = f"C{ranks.index(r['ranks'])}"
+            marker = "o" if r["scene"] == "paper" else "s"
+            cost.semilogx(r["unknowns_u"], first, marker, color=colour, mfc="none", ms=5)
+            cost.semilogx(r["unknowns_u"], later, marker, color=colour, ms=5)
+            if r["ranks"] == ranks[0]:      # the Newton counts do not depend on the ranks
+                later_newton = r["newton"][k + 1:]
+                newton.semilogx(r["unknowns_u"], sum(later_newton) / len(later_newton), marker,
+                                color=colour, ms=5)
+        for goal, text in ((4, "first loaded step: 4"), (2, "later steps: 2")):
+            cost.axhline(goal, color="0.5", ls="--", lw=0.7)
+            cost.annotate(text, (0.02, goal), xycoords=("axes fraction", "data"), fontsize=7,
+                          xytext=(0, 2), textcoords="offset points", color="0.3")
+        for i, n in enumerate(ranks):
+            cost.plot([], [], "o", color=f"C{i}", label=f"{n} rank{'s' if n > 1 else ''}")
+        cost.legend(loc="lower right")
+        newton.plot([], [], "o", color="0.3", mfc="none", label="2D paper scene")
+        newton.plot([], [], "s", color="0.3", mfc="none", label="3D block3d")
+        newton.legend(loc="center right")
+        cost.set_ylim(0, None)
+        newton.set_ylim(0, None)
+        cost.set_xlabel("displacement unknowns")
+        cost.set_ylabel("step time / elastic solve time")
+        cost.set_title("open: first loaded step; filled: mean of the later steps")
+        newton.set_xlabel("displacement unknowns")
+        newton.set_ylabel("Newton iterations per later step (mean)")
+        newton.set_title(f"on {ranks[0]} rank{'s' if ranks[0] > 1 else ''}")
+    return fig
+
+
 def write_table(rows, name):
     lines = ["| scene | size | unknowns (u) | solver | ranks | Newton per step | set-ups per "
              "step | Krylov per step | s per step | elastic solve s (fastest) | first loaded "

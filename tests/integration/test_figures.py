@@ -93,6 +93,37 @@ def test_cattaneo_mindlin_figure_matches_the_program():
     assert titles[0].startswith("$\\nu$ = 0.49") and titles[1].startswith("$\\nu$ = 0.3")
 
 
+def test_step_cost_figure_matches_the_program():
+    """docs/figures/step_cost.png is drawn by benchmarks/performance/step_cost.py's draw from
+    the committed results: redrawn now, its signature is the committed one, and its open and
+    filled points are the first loaded and the later steps' ratios of those results."""
+    if COMM.rank != 0:
+        return
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("make_figures",
+                                                  DOCS.parent / "make_figures.py")
+    make_figures = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_figures)
+    (stem, fig), = make_figures.step_cost_figure()
+    problems = figures.compare_signatures(figures.signature(fig), committed(stem))
+    assert not problems, f"docs/figures/{stem}.png is stale (make figures): {problems[:3]}"
+    spec = importlib.util.spec_from_file_location(
+        "step_cost", ROOT / "benchmarks" / "performance" / "step_cost.py")
+    step_cost = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(step_cost)
+    expected = set()
+    for name in make_figures.STEP_COST_RESULTS:
+        for row in json.loads((ROOT / "benchmarks" / "results" / name).read_text()):
+            first, later = step_cost.ratios(row)
+            expected |= {(row["unknowns_u"], round(first, 9), "open"),
+                         (row["unknowns_u"], round(later, 9), "filled")}
+    drawn = {(line.get_xdata()[0], round(line.get_ydata()[0], 9),
+              "open" if line.get_markerfacecolor() == "none" else "filled")
+             for line in fig.axes[0].get_lines()
+             if len(line.get_xdata()) == 1 and line.get_linestyle() == "None"}
+    assert drawn == expected
+
+
 def test_signature_sees_a_changed_label(paper_folder):
     if COMM.rank != 0:
         return
