@@ -161,15 +161,11 @@ def draw(rows, fig):
         `fig`.
     """
     import matplotlib
-    from contactvisco.post.figures import PAGE, STYLE
+    from contactvisco.post.figures import PAGE, STYLE, size_constrained
     rows = [r for r in rows if "failed" not in r]
     ranks = sorted({r["ranks"] for r in rows})
     with matplotlib.rc_context(STYLE):
-        fig.set_size_inches(PAGE, 2.6)
-        if hasattr(fig, "set_layout_engine"):          # matplotlib >= 3.6
-            fig.set_layout_engine("constrained")
-        else:
-            fig.set_constrained_layout(True)
+        size_constrained(fig, PAGE, 2.6)
         cost, newton = fig.subplots(1, 2)
         for r in rows:
             first, later = ratios(r)

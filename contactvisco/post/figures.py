@@ -270,6 +270,16 @@ def build_all(folder, times=None, edges: bool = False,
     return out
 
 
+def size_constrained(fig: Figure, width: float, height: float) -> None:
+    """Size `fig` to width x height inches and lay it out with matplotlib's constrained
+    layout (set_layout_engine from matplotlib 3.6 on, set_constrained_layout before it)."""
+    fig.set_size_inches(width, height)
+    if hasattr(fig, "set_layout_engine"):
+        fig.set_layout_engine("constrained")
+    else:
+        fig.set_constrained_layout(True)
+
+
 def fit_labels(fig: Figure, passes: int = 3) -> None:
     """Break every axis label (colour bars' included) longer than its axes onto one more
     line, at the space nearest the middle of its longest line (never inside $...$), until it

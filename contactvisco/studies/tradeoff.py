@@ -723,13 +723,9 @@ def draw(result: dict, fig):
         `fig`.
     """
     import matplotlib
-    from contactvisco.post.figures import COLUMN, STYLE
+    from contactvisco.post.figures import COLUMN, STYLE, size_constrained
     with matplotlib.rc_context(STYLE):
-        fig.set_size_inches(COLUMN, 2.9)
-        if hasattr(fig, "set_layout_engine"):          # matplotlib >= 3.6
-            fig.set_layout_engine("constrained")
-        else:
-            fig.set_constrained_layout(True)
+        size_constrained(fig, COLUMN, 2.9)
         ax = fig.subplots()
         rows = [r for r in result["ladder"] if "failed" not in r]
         step_counts = sorted({r["steps"] for r in rows})

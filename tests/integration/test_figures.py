@@ -52,6 +52,15 @@ def _shipped_run(tmp_path_factory, name, overrides=()):
     return folder
 
 
+def _module(path):
+    """The Python file at `path` imported as a module of its stem's name."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(pathlib.Path(path).stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def committed(stem):
     path = DOCS / f"{stem}.json"
     assert path.exists(), f"{path} missing: run make figures"
@@ -80,11 +89,7 @@ def test_cattaneo_mindlin_figure_matches_the_program():
     from them now, its signature is the committed one."""
     if COMM.rank != 0:
         return
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("make_figures",
-                                                  DOCS.parent / "make_figures.py")
-    make_figures = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(make_figures)
+    make_figures = _module(DOCS.parent / "make_figures.py")
     fig = make_figures.cattaneo_from_runs(make_figures.RUNS)
     problems = figures.compare_signatures(figures.signature(fig),
                                           committed("coulomb_cattaneo_mindlin"))
@@ -99,18 +104,11 @@ def test_step_cost_figure_matches_the_program():
     filled points are the first loaded and the later steps' ratios of those results."""
     if COMM.rank != 0:
         return
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("make_figures",
-                                                  DOCS.parent / "make_figures.py")
-    make_figures = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(make_figures)
+    make_figures = _module(DOCS.parent / "make_figures.py")
     (stem, fig), = make_figures.step_cost_figure()
     problems = figures.compare_signatures(figures.signature(fig), committed(stem))
     assert not problems, f"docs/figures/{stem}.png is stale (make figures): {problems[:3]}"
-    spec = importlib.util.spec_from_file_location(
-        "step_cost", ROOT / "benchmarks" / "performance" / "step_cost.py")
-    step_cost = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(step_cost)
+    step_cost = _module(ROOT / "benchmarks" / "performance" / "step_cost.py")
     expected = set()
     for name in make_figures.STEP_COST_RESULTS:
         for row in json.loads((ROOT / "benchmarks" / "results" / name).read_text()):
