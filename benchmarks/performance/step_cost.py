@@ -164,6 +164,9 @@ def draw(rows, fig):
     from contactvisco.post.figures import PAGE, STYLE, size_constrained
     rows = [r for r in rows if "failed" not in r]
     ranks = sorted({r["ranks"] for r in rows})
+
+    def ranks_text(n):
+        return f"{n} rank{'s' if n > 1 else ''}"
     with matplotlib.rc_context(STYLE):
         size_constrained(fig, PAGE, 2.6)
         cost, newton = fig.subplots(1, 2)
@@ -183,7 +186,7 @@ def draw(rows, fig):
             cost.annotate(text, (0.02, goal), xycoords=("axes fraction", "data"), fontsize=7,
                           xytext=(0, 2), textcoords="offset points", color="0.3")
         for i, n in enumerate(ranks):
-            cost.plot([], [], "o", color=f"C{i}", label=f"{n} rank{'s' if n > 1 else ''}")
+            cost.plot([], [], "o", color=f"C{i}", label=ranks_text(n))
         cost.legend(loc="lower right")
         newton.plot([], [], "o", color="0.3", mfc="none", label="2D paper scene")
         newton.plot([], [], "s", color="0.3", mfc="none", label="3D block3d")
@@ -195,7 +198,7 @@ def draw(rows, fig):
         cost.set_title("open: first loaded step; filled: mean of the later steps")
         newton.set_xlabel("displacement unknowns")
         newton.set_ylabel("Newton iterations per later step (mean)")
-        newton.set_title(f"on {ranks[0]} rank{'s' if ranks[0] > 1 else ''}")
+        newton.set_title(f"on {ranks_text(ranks[0])}")
     return fig
 
 
